@@ -20,7 +20,8 @@ APT_PACKAGES=(
   python3-actionlib python3-std-msgs python3-geometry-msgs python3-sensor-msgs
   python3-nav-msgs python3-move-base-msgs python3-actionlib-msgs
   python3-tf2-msgs python3-visualization-msgs python3-map-msgs
-  ros-robot-state-publisher python3-pyode python3-venv
+  ros-robot-state-publisher joint-state-publisher rviz python3-pyode python3-venv
+  python3-trajectory-msgs python3-rosgraph-msgs python3-matplotlib python3-rospkg
   xvfb
 )
 

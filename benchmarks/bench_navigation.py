@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""Speed of the navigation cores: navfn across the farm map, one DWA cycle, costmap updates.
+
+Run:  cd /work/main && source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_navigation.py
+Prints the median of several runs in ms (the first, JIT-compiling call is excluded).
+"""
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
+
+from cottonsim_navigation.core.geometry import Pose2D  # noqa: E402
+from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
+from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402
+from cottonsim_navigation.planning.global_planners.navfn import NavfnPlanner  # noqa: E402
+from cottonsim_navigation.planning.local_planners.dwa import DWAPlanner  # noqa: E402
+
+
+def timed(fn, repeats=7):
+    fn()                                   # warm-up (numba compile / caches)
+    out = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        out.append((time.perf_counter() - t) * 1000.0)
+    return statistics.median(out)
+
+
+def farm_map():
+    """40 x 40 m at 0.05 m: 9 rows x 20 plants (0.7 m wide discs) along +y, 1.8 m apart."""
+    spec = GridSpec(0.05, 800, 800, -30.0, -10.0)
+    occ = np.zeros(spec.shape, np.int8)
+    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(800), np.arange(800)))
+    for r in range(9):
+        for i in range(20):
+            x, y = -2.35 - 1.8 * r, 9.0 + 0.7 * i
+            occ[(gx - x) ** 2 + (gy - y) ** 2 <= 0.3 ** 2] = 100
+    return spec, occ
+
+
+def vlp16_cloud(n_rings=16, n_az=1800):
+    """A VLP-16-sized cloud (~29k points): rings hitting a ground plane / walls 2-8 m away."""
+    az = np.linspace(-math.pi, math.pi, n_az, endpoint=False)
+    el = np.radians(np.linspace(-15, 15, n_rings))
+    A, E = np.meshgrid(az, el)
+    r = 2.0 + 6.0 * (0.5 + 0.5 * np.sin(3 * A))
+    return np.column_stack([(r * np.cos(A)).ravel(), (r * np.sin(A)).ravel(), (0.7 + r * np.sin(E)).ravel()])
+
+
+def main():
+    spec, occ = farm_map()
+    print(f"machine: 2 shared CPU cores (loaded); OMP_NUM_THREADS=1")
+    t_global = timed(lambda: make_global_costmap(occ, spec), repeats=5)
+    gcm = make_global_costmap(occ, spec)
+    print(f"global costmap (800x800, static + inflation) build: {t_global:7.2f} ms")
+    planner = NavfnPlanner()
+    start, goal = Pose2D(-6.0, 1.0, math.pi / 2), Pose2D(-17.95, 27.0, 0.0)
+    plan = planner.make_plan(gcm, start, goal)
+    t_plan = timed(lambda: planner.make_plan(gcm, start, goal))
+    print(f"navfn Home -> far lane end ({plan.length_m():.1f} m, {len(plan)} poses): {t_plan:7.2f} ms")
+    corner = (Pose2D(-29.9, -9.9), Pose2D(9.9, 29.9))
+    t_corner = timed(lambda: planner.make_plan(gcm, *corner))
+    print(f"navfn corner -> corner across the rows:            {t_corner:7.2f} ms")
+
+    cloud = vlp16_cloud()
+    lcm = make_local_costmap()
+    pose = Pose2D(0.0, 0.0, 0.0)
+
+    def local_update():
+        lcm.obstacle_layer.add_observation(cloud, (0.0, 0.0, 0.7))
+        lcm.update_map(pose)
+    t_local = timed(local_update)
+    print(f"local costmap update (5x5 m, {len(cloud)} points mark+clear + inflation): {t_local:7.2f} ms")
+
+    dwa = DWAPlanner()
+    path = np.column_stack([np.linspace(0, 4, 81), 0.3 * np.sin(np.linspace(0, 3, 81))])
+    lcm2 = make_local_costmap()
+    lcm2.obstacle_layer.add_observation(np.array([[1.5, 0.8, 0.3], [1.5, -0.8, 0.3]]), (0, 0, 0.5))
+    lcm2.update_map(pose)
+
+    def dwa_cycle():
+        dwa.set_plan(path)
+        dwa.compute_velocity(pose, (0.3, 0.0), lcm2)
+    t_dwa = timed(dwa_cycle, repeats=21)
+    print(f"DWA cycle ({dwa.config.vx_samples}x{dwa.config.vth_samples} samples, sim_time "
+          f"{dwa.config.sim_time} s):         {t_dwa:7.2f} ms")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,301 @@
+"""A navfn-equivalent global planner (navfn/NavfnROS).
+
+What it does, step by step:
+
+1. Cell costs as navfn computes them from the costmap: a cell of costmap cost
+   c < 253 costs ``neutral_cost + cost_factor * c`` (navfn: 50 + 0.8 c) to
+   enter; INSCRIBED (253) and LETHAL (254) cells are impassable; unknown
+   (255) cells cost 253 when ``allow_unknown`` and are impassable otherwise.
+   The robot's own cell is always passable (navfn clears it).
+2. A potential field by Dijkstra on the 8-connected grid: entering a
+   neighbour costs its cell cost times the step length (1 or sqrt 2 cells).
+   A diagonal step is only allowed when both cells it squeezes between are
+   passable (no corner cutting). Like NavfnROS, which swaps start and goal,
+   the field is propagated from the robot's cell; it stops as soon as the goal
+   (or every candidate cell of the tolerance search) has its final value.
+   Dijkstra runs in compiled code (numba, indexed binary heap); by default
+   the queue is ordered A*-style with a consistent heuristic (neutral cost x
+   octile distance to the goal), which finds the same optimal potential along
+   the path and lets a 40 x 40 m map plan in tens of milliseconds (the cells
+   far from the path keep an infinite potential; ``use_astar=False`` gives
+   the full field).
+3. Goal tolerance: if the goal cell cannot be reached (lethal, or walled in),
+   the reachable cell nearest the goal within ``tolerance_m`` (a square
+   window, as NavfnROS searches) becomes the end of the path.
+4. Path extraction: from the end cell, follow each cell's Dijkstra parent
+   back to the start. This is the steepest descent of the exact 8-connected
+   potential (navfn instead interpolates the gradient of its 4-connected,
+   quadratically-updated field, which gives slightly smoother lines); the
+   path is cost-optimal on the 8-connected graph.
+5. Orientation filter: each pose looks along the path (direction from the
+   pose ``orientation_window_m`` behind to the one that far ahead); the last
+   pose takes the goal's yaw.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+try:
+    from numba import njit
+except ImportError as exc:  # pragma: no cover
+    raise ImportError("the navfn planner needs numba (pip install numba)") from exc
+
+from cottonsim_navigation.core.geometry import Pose2D, as_pose, normalize_angle
+from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, NO_INFORMATION
+from cottonsim_navigation.planning.base import GlobalPlanner, Plan, register_global_planner
+
+SQRT2 = math.sqrt(2.0)
+
+
+@dataclass(frozen=True)
+class NavfnConfig:
+    """navfn parameters (names as NavfnROS; navfn defaults unless noted).
+
+    allow_unknown: plan through NO_INFORMATION cells (the original: true);
+    default_tolerance [m]: goal tolerance used when make_plan gets None
+    (the original: 0.1); neutral_cost / cost_factor: navfn's COST_NEUTRAL 50
+    and COST_FACTOR 0.8; orientation_window_m [m]: half-window of the
+    orientation filter; use_astar: order the search by potential + a
+    consistent distance heuristic (same optimal path, far fewer cells
+    expanded; False gives navfn's full Dijkstra wave).
+    """
+
+    allow_unknown: bool = True
+    default_tolerance: float = 0.1
+    neutral_cost: float = 50.0
+    cost_factor: float = 0.8
+    orientation_window_m: float = 0.25
+    use_astar: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("default_tolerance", "cost_factor", "orientation_window_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if not (math.isfinite(self.neutral_cost) and self.neutral_cost > 0):
+            raise ValueError(f"neutral_cost must be > 0, got {self.neutral_cost!r}")
+
+
+def navfn_cell_costs(costs: np.ndarray, config: NavfnConfig = NavfnConfig()) -> np.ndarray:
+    """Traversal cost of every cell (float64); +inf where impassable."""
+    c = np.asarray(costs)
+    out = config.neutral_cost + config.cost_factor * c.astype(np.float64)
+    out[c >= INSCRIBED_INFLATED_OBSTACLE] = np.inf
+    if config.allow_unknown:
+        out[c == NO_INFORMATION] = float(INSCRIBED_INFLATED_OBSTACLE)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _search(cell_cost, start, is_target, n_targets, bx0, bx1, by0, by1, h_scale):
+    """8-connected Dijkstra / A* over a (h, w) cost grid from flat index ``start``.
+
+    The queue is ordered by g + h with h = h_scale * (octile distance in cells
+    from the cell to the target box [bx0..bx1] x [by0..by1]). With h_scale = 0
+    this is plain Dijkstra; with h_scale <= the smallest cell cost the
+    heuristic is consistent, so every popped cell has its exact potential and
+    the result is the same optimal path, found after far fewer expansions.
+
+    Returns (potential, parent): potential +inf where not finalised before the
+    stop; parent = flat index of the previous cell (-1 at the start /
+    unreached). Stops once ``n_targets`` cells with is_target set are final.
+    """
+    h, w = cell_cost.shape
+    n = h * w
+    flat_cost = cell_cost.ravel()
+    pot = np.full(n, np.inf)
+    parent = np.full(n, -1, dtype=np.int64)
+    done = np.zeros(n, dtype=np.bool_)
+    # indexed binary min-heap on key = g + h, with decrease-key
+    heap = np.empty(n, dtype=np.int64)
+    hkey = np.empty(n)
+    where = np.full(n, -1, dtype=np.int64)
+    pot[start] = 0.0
+    heap[0] = start
+    hkey[0] = 0.0
+    where[start] = 0
+    size = 1
+    dxs = np.array([1, -1, 0, 0, 1, 1, -1, -1])
+    dys = np.array([0, 0, 1, -1, 1, -1, 1, -1])
+    found = 0
+    while size > 0:
+        u = heap[0]
+        size -= 1
+        where[u] = -1
+        if size > 0:
+            last = heap[size]
+            lkey = hkey[size]
+            i = 0
+            while True:
+                l = 2 * i + 1
+                if l >= size:
+                    break
+                c = l
+                if l + 1 < size and hkey[l + 1] < hkey[l]:
+                    c = l + 1
+                if hkey[c] < lkey:
+                    heap[i] = heap[c]
+                    hkey[i] = hkey[c]
+                    where[heap[i]] = i
+                    i = c
+                else:
+                    break
+            heap[i] = last
+            hkey[i] = lkey
+            where[last] = i
+        done[u] = True
+        if is_target[u]:
+            found += 1
+            if found >= n_targets:
+                break
+        uy = u // w
+        ux = u - uy * w
+        pu = pot[u]
+        for k in range(8):
+            vx = ux + dxs[k]
+            vy = uy + dys[k]
+            if vx < 0 or vx >= w or vy < 0 or vy >= h:
+                continue
+            v = vy * w + vx
+            if done[v]:
+                continue
+            cv = flat_cost[v]
+            if not np.isfinite(cv):
+                continue
+            if k >= 4:
+                # diagonal: both side cells must be passable (no corner cutting)
+                if not np.isfinite(flat_cost[uy * w + vx]) or not np.isfinite(flat_cost[vy * w + ux]):
+                    continue
+                nd = pu + cv * 1.4142135623730951
+            else:
+                nd = pu + cv
+            if nd < pot[v]:
+                pot[v] = nd
+                parent[v] = u
+                ddx = max(bx0 - vx, 0, vx - bx1)
+                ddy = max(by0 - vy, 0, vy - by1)
+                key = nd + h_scale * (max(ddx, ddy) + 0.41421356237309515 * min(ddx, ddy))
+                i = where[v]
+                if i < 0:
+                    i = size
+                    size += 1
+                while i > 0:
+                    p = (i - 1) // 2
+                    if hkey[p] > key:
+                        heap[i] = heap[p]
+                        hkey[i] = hkey[p]
+                        where[heap[i]] = i
+                        i = p
+                    else:
+                        break
+                heap[i] = v
+                hkey[i] = key
+                where[v] = i
+    for i in range(n):
+        if not done[i]:
+            pot[i] = np.inf
+    return pot.reshape(h, w), parent
+
+
+def _orientations(xy: np.ndarray, goal_yaw: float, window_m: float) -> np.ndarray:
+    n = len(xy)
+    yaw = np.empty(n)
+    if n == 1:
+        yaw[0] = goal_yaw
+        return yaw
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(xy[:, 0]), np.diff(xy[:, 1])))])
+    lo = np.searchsorted(s, s - window_m, side="left")
+    hi = np.searchsorted(s, s + window_m, side="right") - 1
+    lo = np.clip(lo, 0, n - 1)
+    hi = np.clip(hi, 0, n - 1)
+    same = hi == lo
+    hi = np.where(same, np.minimum(lo + 1, n - 1), hi)
+    lo = np.where(hi == lo, np.maximum(hi - 1, 0), lo)
+    d = xy[hi] - xy[lo]
+    yaw[:] = np.arctan2(d[:, 1], d[:, 0])
+    yaw[-1] = goal_yaw
+    return normalize_angle(yaw)
+
+
+class NavfnPlanner(GlobalPlanner):
+    """navfn/NavfnROS equivalent; see the module docstring for the algorithm."""
+
+    def __init__(self, config: NavfnConfig = NavfnConfig()):
+        self.config = config
+        self.last_potential: Optional[np.ndarray] = None   # for visualisation / debugging
+
+    def make_plan(self, costmap, start, goal, tolerance_m: Optional[float] = None) -> Plan:
+        """Plan on ``costmap`` (a Costmap2D, or anything with .spec and .costs).
+
+        Returns an empty Plan with a reason when start or goal is off the map
+        or no reachable cell lies within the tolerance of the goal.
+        """
+        start = as_pose(start)
+        goal = as_pose(goal)
+        tol = self.config.default_tolerance if tolerance_m is None else float(tolerance_m)
+        if not (math.isfinite(tol) and tol >= 0):
+            raise ValueError(f"tolerance_m must be a finite number >= 0, got {tolerance_m!r}")
+        spec = costmap.spec
+        sx, sy = (int(v) for v in spec.world_to_map(start.x_m, start.y_m))
+        gx, gy = (int(v) for v in spec.world_to_map(goal.x_m, goal.y_m))
+        if not spec.in_bounds(sx, sy):
+            return Plan.empty(f"start ({start.x_m:.2f}, {start.y_m:.2f}) is off the costmap")
+        tol_cells = int(math.floor(tol / spec.resolution_m + 1e-9))
+        x0, x1 = max(0, gx - tol_cells), min(spec.width - 1, gx + tol_cells)
+        y0, y1 = max(0, gy - tol_cells), min(spec.height - 1, gy + tol_cells)
+        if x0 > x1 or y0 > y1:
+            return Plan.empty(f"goal ({goal.x_m:.2f}, {goal.y_m:.2f}) is off the costmap")
+
+        cell_cost = navfn_cell_costs(costmap.costs, self.config)
+        if not np.isfinite(cell_cost[sy, sx]):
+            cell_cost[sy, sx] = self.config.neutral_cost      # navfn clears the robot's cell
+        is_target = np.zeros(spec.shape, dtype=np.bool_)
+        if spec.in_bounds(gx, gy) and np.isfinite(cell_cost[gy, gx]):
+            is_target[gy, gx] = True
+        else:
+            is_target[y0:y1 + 1, x0:x1 + 1] = np.isfinite(cell_cost[y0:y1 + 1, x0:x1 + 1])
+        n_targets = int(is_target.sum())
+        if n_targets == 0:
+            return Plan.empty("the goal and every cell within the tolerance are obstacles")
+        h_scale = min(self.config.neutral_cost, float(INSCRIBED_INFLATED_OBSTACLE)) if self.config.use_astar else 0.0
+        pot, parent = _search(cell_cost, sy * spec.width + sx, is_target.ravel(), n_targets,
+                              x0, x1, y0, y1, h_scale)
+        self.last_potential = pot
+
+        # the end cell: the goal if reached, else the reachable cell nearest the goal in the window
+        if spec.in_bounds(gx, gy) and np.isfinite(pot[gy, gx]):
+            ex, ey = gx, gy
+        else:
+            wy, wx = np.mgrid[y0:y1 + 1, x0:x1 + 1]
+            wp = pot[y0:y1 + 1, x0:x1 + 1]
+            ok = np.isfinite(wp)
+            if not ok.any():
+                return Plan.empty(f"no reachable cell within {tol:.3f} m of the goal "
+                                  f"({goal.x_m:.2f}, {goal.y_m:.2f})")
+            cx, cy = spec.map_to_world(wx[ok], wy[ok])
+            d2 = (cx - goal.x_m) ** 2 + (cy - goal.y_m) ** 2
+            order = np.lexsort((wp[ok], d2))
+            ex, ey = int(wx[ok][order[0]]), int(wy[ok][order[0]])
+
+        cells = []
+        idx = ey * spec.width + ex
+        while idx >= 0:
+            cells.append(idx)
+            idx = parent[idx]
+        cells = np.array(cells[::-1], dtype=np.int64)
+        cx, cy = spec.map_to_world(cells % spec.width, cells // spec.width)
+        xy = np.column_stack([cx, cy])
+        xy[0] = (start.x_m, start.y_m)
+        if (ex, ey) == (gx, gy):
+            xy[-1] = (goal.x_m, goal.y_m)
+        if len(xy) == 1:
+            xy = np.vstack([xy, xy[-1:]])
+        yaw = _orientations(xy, goal.yaw_rad, self.config.orientation_window_m)
+        return Plan(np.column_stack([xy, yaw]), "", float(pot[ey, ex]))
+
+
+register_global_planner(["navfn/NavfnROS", "navfn", "NavfnROS"], lambda config=NavfnConfig(): NavfnPlanner(config))

@@ -1,0 +1,143 @@
+"""A waypoint-following state machine, free of ROS.
+
+The ROS navigator node owns the move_base action client; this class decides
+what to send next. Usage::
+
+    f = WaypointFollower(goals, FollowerConfig(on_failure="skip"), home=home_pose)
+    goal = f.next_goal(localisation_ready=True)   # a goal to send, or None (wait / finished)
+    ...                                           # when move_base ends:
+    f.report_result(GoalResult.SUCCEEDED)
+    f.battery_low()                               # paper: at 40 % go Home and stop
+
+States: WAITING (localisation not ready), READY (a goal may be sent),
+ACTIVE (a goal is out), FINISHED. Goals are any objects (map poses or GPS
+waypoints); Home must be of the same kind.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any, List, Optional, Sequence
+
+
+class GoalResult(enum.Enum):
+    SUCCEEDED = "succeeded"
+    ABORTED = "aborted"         # move_base gave up (or goal rejected / timed out)
+
+
+class FollowerState(enum.Enum):
+    WAITING = "waiting"
+    READY = "ready"
+    ACTIVE = "active"
+    FINISHED = "finished"
+
+
+@dataclass(frozen=True)
+class FollowerConfig:
+    """on_failure: 'skip' (go on with the next waypoint) or 'stop' (end the route)."""
+
+    on_failure: str = "skip"
+
+    def __post_init__(self) -> None:
+        if self.on_failure not in ("skip", "stop"):
+            raise ValueError(f"on_failure must be 'skip' or 'stop', got {self.on_failure!r}")
+
+
+@dataclass
+class FollowerSummary:
+    total: int = 0                 # route waypoints (Home excluded)
+    succeeded: int = 0
+    aborted: int = 0
+    skipped: int = 0               # never attempted (stop on failure / battery)
+    returned_home: bool = False
+    home_reached: Optional[bool] = None
+    stopped_reason: str = ""
+    results: List[str] = field(default_factory=list)    # per attempted goal, in order
+
+
+class WaypointFollower:
+    """Holds the route and the current index; see the module docstring."""
+
+    def __init__(self, goals: Sequence[Any], config: FollowerConfig = FollowerConfig(), home: Any = None):
+        if len(goals) == 0:
+            raise ValueError("goals must contain at least one waypoint")
+        self.config = config
+        self.goals: List[Any] = list(goals)
+        self.home = home
+        self.index = 0
+        self.state = FollowerState.WAITING
+        self._going_home = False
+        self.summary = FollowerSummary(total=len(self.goals))
+
+    @property
+    def finished(self) -> bool:
+        return self.state is FollowerState.FINISHED
+
+    @property
+    def current_goal(self) -> Optional[Any]:
+        if self.finished or self.index >= len(self.goals):
+            return None
+        return self.goals[self.index]
+
+    @property
+    def going_home(self) -> bool:
+        return self._going_home
+
+    def next_goal(self, localisation_ready: bool = True) -> Optional[Any]:
+        """The goal to send now, or None (still waiting for localisation, a goal is active, or done)."""
+        if self.finished or self.state is FollowerState.ACTIVE:
+            return None
+        if not localisation_ready:
+            self.state = FollowerState.WAITING
+            return None
+        if self.index >= len(self.goals):
+            self._finish("route complete")
+            return None
+        self.state = FollowerState.ACTIVE
+        return self.goals[self.index]
+
+    def report_result(self, result: GoalResult) -> None:
+        """move_base finished the active goal."""
+        if self.state is not FollowerState.ACTIVE:
+            raise ValueError(f"report_result called with no active goal (state {self.state.value})")
+        result = GoalResult(result)
+        self.summary.results.append(result.value)
+        if self._going_home:
+            self.summary.home_reached = result is GoalResult.SUCCEEDED
+            self._finish("returned home on low battery")
+            return
+        if result is GoalResult.SUCCEEDED:
+            self.summary.succeeded += 1
+        else:
+            self.summary.aborted += 1
+            if self.config.on_failure == "stop":
+                self.summary.skipped = len(self.goals) - self.index - 1
+                self.index = len(self.goals)
+                self._finish(f"waypoint {self.index} aborted (on_failure=stop)")
+                return
+        self.index += 1
+        self.state = FollowerState.READY
+        if self.index >= len(self.goals):
+            self._finish("route complete")
+
+    def battery_low(self) -> None:
+        """Replace the remaining goals by Home; the follower stops once Home is reached.
+
+        The active goal (if any) is abandoned: the ROS layer should cancel it
+        and then call ``next_goal`` to get Home.
+        """
+        if self.finished or self._going_home:
+            return
+        if self.home is None:
+            raise ValueError("battery_low needs a home goal (pass home= to the follower)")
+        remaining = len(self.goals) - self.index
+        self.summary.skipped += remaining
+        self.summary.returned_home = True
+        self.goals = self.goals[:self.index] + [self.home]
+        self._going_home = True
+        self.state = FollowerState.READY
+
+    def _finish(self, reason: str) -> None:
+        self.state = FollowerState.FINISHED
+        if not self.summary.stopped_reason:
+            self.summary.stopped_reason = reason

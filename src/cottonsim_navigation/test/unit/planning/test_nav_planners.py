@@ -1,0 +1,207 @@
+"""navfn and DWA against independent expectations."""
+import heapq
+import math
+
+import numpy as np
+import pytest
+
+from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_navigation.core.grid import GridSpec, LETHAL_OBSTACLE, INSCRIBED_INFLATED_OBSTACLE
+from cottonsim_navigation.planning.base import (LocalPlannerStatus, make_global_planner, make_local_planner)
+from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, make_local_costmap)
+from cottonsim_navigation.planning.global_planners.navfn import NavfnConfig, NavfnPlanner
+from cottonsim_navigation.planning.local_planners.dwa import DWAConfig, DWAPlanner
+
+
+class Grid:
+    def __init__(self, costs, res=0.1):
+        self.costs = np.asarray(costs, dtype=np.uint8)
+        self.spec = GridSpec(res, self.costs.shape[1], self.costs.shape[0], 0.0, 0.0)
+
+
+def brute_dijkstra(costs, start, goal):
+    """Plain heapq Dijkstra with navfn's cell costs, same 8-connectivity rules."""
+    h, w = costs.shape
+    cc = 50.0 + 0.8 * costs.astype(float)
+    cc[costs >= 253] = np.inf
+    cc[costs == 255] = 253.0
+    dist = {start: 0.0}
+    pq = [(0.0, start)]
+    while pq:
+        d, (x, y) = heapq.heappop(pq)
+        if (x, y) == goal:
+            return d
+        if d > dist[(x, y)]:
+            continue
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                if dx == dy == 0:
+                    continue
+                nx, ny = x + dx, y + dy
+                if not (0 <= nx < w and 0 <= ny < h) or not np.isfinite(cc[ny, nx]):
+                    continue
+                if dx and dy and (not np.isfinite(cc[y, nx]) or not np.isfinite(cc[ny, x])):
+                    continue
+                nd = d + cc[ny, nx] * (math.sqrt(2) if dx and dy else 1.0)
+                if nd < dist.get((nx, ny), np.inf):
+                    dist[(nx, ny)] = nd
+                    heapq.heappush(pq, (nd, (nx, ny)))
+    return np.inf
+
+
+def centre(i):
+    return 0.1 * i + 0.05
+
+
+def test_straight_line_plan():
+    g = Grid(np.zeros((10, 30)))
+    plan = NavfnPlanner().make_plan(g, Pose2D(centre(2), centre(5), 0), Pose2D(centre(25), centre(5), 1.0))
+    assert plan.ok
+    assert np.allclose(plan.poses[:, 1], centre(5))
+    assert plan.cost == pytest.approx(23 * 50.0)
+    assert plan.length_m() == pytest.approx(2.3)
+    assert plan.poses[-1, 2] == pytest.approx(1.0)          # goal yaw at the end
+    assert np.allclose(plan.poses[1:-1, 2], 0.0)            # direction of travel
+
+
+@pytest.mark.parametrize("use_astar", [True, False])
+def test_detour_and_optimal_cost_vs_bruteforce(use_astar):
+    rng = np.random.default_rng(3)
+    costs = rng.integers(0, 200, size=(25, 30)).astype(np.uint8)
+    costs[3:22, 15] = LETHAL_OBSTACLE            # wall with gaps at both ends
+    costs[rng.random(costs.shape) < 0.1] = LETHAL_OBSTACLE
+    costs[12, 2] = 0
+    costs[12, 27] = 0
+    g = Grid(costs)
+    planner = NavfnPlanner(NavfnConfig(use_astar=use_astar))
+    plan = planner.make_plan(g, Pose2D(centre(2), centre(12)), Pose2D(centre(27), centre(12)))
+    expected = brute_dijkstra(costs, (2, 12), (27, 12))
+    assert plan.ok and np.isfinite(expected)
+    assert plan.cost == pytest.approx(expected, rel=1e-9)
+    mx, my = g.spec.world_to_map(plan.poses[:, 0], plan.poses[:, 1])
+    assert np.all(costs[my, mx] < INSCRIBED_INFLATED_OBSTACLE)      # never through lethal cells
+    steps = np.abs(np.diff(np.column_stack([mx, my]), axis=0))
+    assert steps.max() <= 1                                         # 8-connected chain
+    # sum of the entered cells' costs along the path equals the planner's cost
+    cc = 50.0 + 0.8 * costs[my, mx].astype(float)
+    lens = np.where(steps.sum(axis=1) == 2, math.sqrt(2), 1.0)
+    assert np.sum(cc[1:] * lens) == pytest.approx(expected)
+
+
+def test_no_path_when_walled_in_and_tolerance_search():
+    costs = np.zeros((20, 20), np.uint8)
+    costs[:, 10] = LETHAL_OBSTACLE
+    g = Grid(costs)
+    p = NavfnPlanner()
+    plan = p.make_plan(g, Pose2D(centre(2), centre(5)), Pose2D(centre(15), centre(5)), tolerance_m=0.3)
+    assert not plan.ok and "no reachable cell" in plan.reason
+    # goal on a lethal cell: the nearest free cell within the tolerance is used
+    costs2 = np.zeros((20, 20), np.uint8)
+    costs2[8:13, 8:13] = LETHAL_OBSTACLE
+    g2 = Grid(costs2)
+    plan = p.make_plan(g2, Pose2D(centre(2), centre(10)), Pose2D(centre(10), centre(10)), tolerance_m=0.35)
+    assert plan.ok
+    end = plan.poses[-1]
+    assert math.hypot(end[0] - centre(10), end[1] - centre(10)) == pytest.approx(0.3)
+    assert not p.make_plan(g2, Pose2D(centre(2), centre(10)), Pose2D(centre(10), centre(10)), 0.1).ok
+    assert not p.make_plan(g2, Pose2D(-5, 0), Pose2D(centre(10), centre(10))).ok   # start off map
+
+
+def test_unknown_space_respects_allow_unknown():
+    costs = np.zeros((10, 20), np.uint8)
+    costs[:, 10] = 255
+    g = Grid(costs)
+    s, t = Pose2D(centre(2), centre(5)), Pose2D(centre(17), centre(5))
+    assert NavfnPlanner(NavfnConfig(allow_unknown=True)).make_plan(g, s, t).ok
+    assert not NavfnPlanner(NavfnConfig(allow_unknown=False)).make_plan(g, s, t).ok
+
+
+def test_registry():
+    assert isinstance(make_global_planner("navfn/NavfnROS"), NavfnPlanner)
+    assert isinstance(make_local_planner("dwa_local_planner/DWAPlannerROS"), DWAPlanner)
+    assert isinstance(make_local_planner("dwa", DWAConfig(max_vel_x=0.3)), DWAPlanner)
+    with pytest.raises(ValueError, match="navfn"):
+        make_global_planner("carrot_planner/CarrotPlanner")
+    with pytest.raises(ValueError, match="max_vel_x"):
+        DWAConfig(max_vel_x=-1.0)
+    with pytest.raises(ValueError, match="vth_samples"):
+        DWAConfig(vth_samples=0)
+
+
+def _run(planner, costmap_factory, pose, plan, steps=200, dt=0.2):
+    planner.set_plan(plan)
+    v = w = 0.0
+    poses = [pose]
+    statuses = []
+    for _ in range(steps):
+        cm = costmap_factory(pose)
+        v, w, st = planner.compute_velocity(pose, (v, w), cm)
+        statuses.append(st)
+        if st is LocalPlannerStatus.GOAL_REACHED:
+            break
+        # exact unicycle integration
+        if abs(w) < 1e-9:
+            pose = Pose2D(pose.x_m + v * dt * math.cos(pose.yaw_rad), pose.y_m + v * dt * math.sin(pose.yaw_rad),
+                          pose.yaw_rad)
+        else:
+            th = pose.yaw_rad + w * dt
+            pose = Pose2D(pose.x_m + v / w * (math.sin(th) - math.sin(pose.yaw_rad)),
+                          pose.y_m - v / w * (math.cos(th) - math.cos(pose.yaw_rad)), th)
+        poses.append(pose)
+    return poses, statuses, v, w
+
+
+def test_dwa_reaches_goal_in_free_space():
+    cfg = CostmapConfig(global_frame="odom", rolling_window=True, width=5.0, height=5.0)
+    cm = Costmap2D(cfg, [])
+
+    def factory(pose):
+        cm.update_map(pose)
+        return cm
+    plan = np.column_stack([np.linspace(0, 3, 61), np.linspace(0, 1, 61), np.full(61, math.pi / 2)])
+    planner = DWAPlanner()
+    poses, statuses, v, w = _run(planner, factory, Pose2D(0, 0, 0), plan)
+    assert statuses[-1] is LocalPlannerStatus.GOAL_REACHED
+    end = poses[-1]
+    assert math.hypot(end.x_m - 3, end.y_m - 1) <= planner.config.xy_goal_tolerance
+    assert abs(math.remainder(end.yaw_rad - math.pi / 2, 2 * math.pi)) <= planner.config.yaw_goal_tolerance
+    assert planner.is_goal_reached(end, (0.0, 0.0))
+    assert not planner.is_goal_reached(Pose2D(3, 1, 0.0), (0.0, 0.0))           # yaw off
+    assert not planner.is_goal_reached(Pose2D(3, 1, math.pi / 2), (0.4, 0.0))   # still moving
+
+
+def test_dwa_never_enters_lethal_cells():
+    # a block of obstacle in front of the robot; the plan detours around it
+    wall = np.array([[1.2, y, 0.3] for y in np.linspace(-0.6, 0.4, 40)])
+
+    def factory(pose):
+        cm = make_local_costmap()
+        cm.obstacle_layer.add_observation(wall, (pose.x_m, pose.y_m, 0.5))
+        cm.update_map(pose)
+        return cm
+    xs = np.concatenate([np.linspace(0, 0.6, 13), np.full(15, 0.6), np.linspace(0.6, 2.0, 29)])
+    ys = np.concatenate([np.zeros(13), np.linspace(0, 1.1, 15), np.full(29, 1.1)])
+    plan = np.column_stack([xs, ys])
+    planner = DWAPlanner()
+    poses, statuses, _, _ = _run(planner, factory, Pose2D(0, 0, 0), plan, steps=150)
+    for p in poses:
+        cm = factory(p)
+        assert cm.footprint_cost(p) < LETHAL_OBSTACLE
+    # and every sample it scored as finite in the last cycle is collision-free
+    assert statuses.count(LocalPlannerStatus.NO_VALID_TRAJECTORY) == 0
+
+
+def test_dwa_reports_no_valid_trajectory_when_boxed_in():
+    # lethal everywhere except a box just larger than the footprint: no motion fits
+    cm = Costmap2D(CostmapConfig(rolling_window=True, width=5.0, height=5.0), [])
+    cm.update_map(Pose2D(0, 0, 0))
+    cx, cy = cm.spec.map_to_world(*np.meshgrid(np.arange(100), np.arange(100)))
+    free = (np.abs(cx) < 0.43) & (np.abs(cy) < 0.23)
+    cm.costs[...] = LETHAL_OBSTACLE
+    cm.costs[free] = 0
+    assert cm.footprint_cost(Pose2D(0, 0, 0)) == 0
+    planner = DWAPlanner()
+    planner.set_plan(np.column_stack([np.linspace(0, 2, 41), np.zeros(41)]))
+    v, w, st = planner.compute_velocity(Pose2D(0, 0, 0), (0.0, 0.0), cm)
+    assert st is LocalPlannerStatus.NO_VALID_TRAJECTORY and v == 0.0 and w == 0.0
+    assert np.all(~np.isfinite(planner.last_scores))

@@ -1,0 +1,96 @@
+"""Waypoint files and the follower state machine."""
+import math
+
+import pytest
+
+from cottonsim_navigation.waypoints.files import (WaypointFileError, load_gps_waypoints, load_map_waypoints)
+from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
+                                                     WaypointFollower)
+
+
+def write(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_gps_text_and_yaml(tmp_path):
+    p = write(tmp_path, "w.txt", "# route\n49.9 8.9\n\n49.91, 8.91  # second\n")
+    w = load_gps_waypoints(p)
+    assert [(x.lat, x.lon) for x in w] == [(49.9, 8.9), (49.91, 8.91)]
+    y = write(tmp_path, "w.yaml", "- {lat: 1.5, lon: 2.5}\n- {latitude: -3, longitude: 4}\n")
+    assert [(x.lat, x.lon) for x in load_gps_waypoints(y)] == [(1.5, 2.5), (-3.0, 4.0)]
+
+
+@pytest.mark.parametrize("text,line,what", [
+    ("49.9 8.9\n49.9 abc\n", 2, "not a number"),
+    ("49.9 8.9 1\n", 1, "2 columns"),
+    ("\n\n91 8.9\n", 3, "latitude"),
+    ("1 2\n1 -181\n", 2, "longitude"),
+    ("nan 8.9\n", 1, "not finite"),
+    ("1 inf\n", 1, "not finite"),
+])
+def test_gps_errors_name_line(tmp_path, text, line, what):
+    p = write(tmp_path, "bad.txt", text)
+    with pytest.raises(WaypointFileError, match=what) as e:
+        load_gps_waypoints(p)
+    assert e.value.line == line and f"bad.txt:{line}" in str(e.value)
+
+
+def test_empty_and_missing(tmp_path):
+    with pytest.raises(WaypointFileError, match="no waypoints"):
+        load_gps_waypoints(write(tmp_path, "e.txt", "# nothing\n\n"))
+    with pytest.raises(WaypointFileError, match="not found"):
+        load_map_waypoints(tmp_path / "missing.csv")
+
+
+def test_map_csv_lines_yaml(tmp_path):
+    c = write(tmp_path, "m.csv", "label,x,y,yaw_rad\n1-1,3.9,-5.0,0\n1-2,14.5,-5.4,1.5\n")
+    w = load_map_waypoints(c)
+    assert [(x.label, x.x_m, x.y_m, x.yaw_rad) for x in w] == [("1-1", 3.9, -5.0, 0.0), ("1-2", 14.5, -5.4, 1.5)]
+    assert [(x.x_m, x.y_m, x.yaw_rad) for x in load_map_waypoints(write(tmp_path, "m.txt", "1 2 3\n4 5\n"))] == \
+        [(1, 2, 3), (4, 5, 0)]
+    assert load_map_waypoints(write(tmp_path, "m.yaml", "- {x: 1, y: 2, yaw: 0.5}\n"))[0].yaw_rad == 0.5
+    with pytest.raises(WaypointFileError, match="4 columns") as e:
+        load_map_waypoints(write(tmp_path, "b.csv", "label,x,y,yaw_rad\na,1,2,3\nb,1,2\n"))
+    assert e.value.line == 3
+
+
+def test_original_reference_files():
+    gps = load_gps_waypoints("/work/shared/reference/original_gps_waypoints.txt")
+    m = load_map_waypoints("/work/shared/reference/original_map_waypoints.csv")
+    assert len(gps) == 30 and len(m) == 30
+    assert all(49.8 < w.lat < 50.0 for w in gps)
+
+
+def test_follower_skip_and_stop():
+    f = WaypointFollower(["a", "b", "c"], FollowerConfig(on_failure="skip"))
+    assert f.next_goal(localisation_ready=False) is None and f.state is FollowerState.WAITING
+    assert f.next_goal() == "a"
+    assert f.next_goal() is None                    # one goal at a time
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.next_goal() == "b"
+    f.report_result(GoalResult.ABORTED)
+    assert f.next_goal() == "c"
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.finished and f.summary.succeeded == 2 and f.summary.aborted == 1
+    g = WaypointFollower(["a", "b", "c"], FollowerConfig(on_failure="stop"))
+    g.next_goal()
+    g.report_result(GoalResult.ABORTED)
+    assert g.finished and g.next_goal() is None and g.summary.skipped == 2
+    with pytest.raises(ValueError, match="on_failure"):
+        FollowerConfig(on_failure="retry")
+
+
+def test_follower_battery_low_goes_home_and_stops():
+    f = WaypointFollower(["a", "b", "c", "d"], home="H")
+    f.next_goal()
+    f.report_result(GoalResult.SUCCEEDED)
+    f.next_goal()                                   # 'b' active
+    f.battery_low()
+    assert f.going_home and f.next_goal() == "H"
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.finished and f.summary.returned_home and f.summary.home_reached
+    assert f.summary.skipped == 3 and f.summary.succeeded == 1
+    with pytest.raises(ValueError, match="home"):
+        WaypointFollower(["a"]).battery_low()

@@ -1,0 +1,7 @@
+"""Datasets of the Cotton-Eye perception system.
+
+yolo_format: reading / writing Ultralytics-YOLO label files, data.yaml and the
+two folder layouts (Roboflow export and Ultralytics' own), polygon <-> mask.
+yolo_dataset: a torch Dataset over such a folder with letterboxing and
+augmentations, plus its collate function.
+"""

@@ -1,0 +1,287 @@
+"""Evaluate a Cotton-Eye network on labelled splits: the paper's Table 3 numbers.
+
+Why: to compare our YOLO-style models with the paper (segmentation test
+P 93.0 / R 88.9 / mAP50 85.2; boll detection P 94.8 / R 87.2 / mAP50 92.7)
+on the same data (the original Segmentation valid + test and Detection valid +
+test splits) and with the same definitions (see ``evaluation.metrics``).
+
+Layers:
+
+* :func:`evaluate_predictions` is the pure core: Detections + GroundTruth of
+  every image -> a result dict (no files, no network), used by the tests.
+* :func:`load_ground_truth` reads one split of a YOLO-format folder.
+* :func:`evaluate_split` runs any object with ``predict(image_rgb) ->
+  Detections`` over a split.
+* :func:`main` is the ``rosrun cottonsim_perception evaluate`` CLI::
+
+    evaluate --task seg|det --data DIR --weights W --json OUT
+             [--split valid,test] [--conf 0.001] [--iou 0.7]
+
+  It prints one table per split (class, images, instances, P, R, mAP50,
+  mAP50-95; for 'seg' both mask and box metrics) and writes the same to JSON.
+  With several splits it also evaluates their union ('+'-joined name).
+  Exit code 0 on success, 2 with a one-line message for a missing folder, a
+  split without images, malformed labels, missing / unloadable weights or a
+  task mismatch.
+
+Result dict layout (also the JSON)::
+
+    {"task": "seg", "class_names": [...], "num_images": 20,
+     "mask": {"conf_threshold": 0.41, "rows": [row_all, row_class0, ...]},
+     "box":  {...same...}}            # "mask" only for task 'seg'
+
+    row = {"class": "all" | name, "images": int, "instances": int,
+           "p": float, "r": float, "map50": float, "map50_95": float,
+           "ap50_eq3": float, "tp": int, "fp": int, "fn": int}
+
+P / R / mAP are fractions (0..1); classes without ground truth have null
+metrics and are left out of the 'all' row.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from cottonsim_perception.data import yolo_format as yf
+from cottonsim_perception.evaluation import metrics as M
+from cottonsim_perception.types import Detections, GroundTruth
+
+EXIT_USAGE = 2
+
+
+def _metric_rows(per: M.PerClassMetrics, class_names: Sequence[str],
+                 images_per_class: np.ndarray, num_images: int) -> Dict[str, object]:
+    def f(x) -> Optional[float]:
+        x = float(x)
+        return None if math.isnan(x) else x
+
+    summ = per.summary()
+    rows = [{"class": "all", "images": int(num_images), "instances": int(per.n_gt.sum()),
+             "p": f(summ["p"]), "r": f(summ["r"]), "map50": f(summ["map50"]),
+             "map50_95": f(summ["map50_95"]), "ap50_eq3": f(summ["ap50_eq3"]),
+             "tp": int(per.tp[per.valid].sum()), "fp": int(per.fp[per.valid].sum()),
+             "fn": int(per.fn[per.valid].sum())}]
+    for c, name in enumerate(class_names):
+        rows.append({"class": str(name), "images": int(images_per_class[c]),
+                     "instances": int(per.n_gt[c]), "p": f(per.p[c]), "r": f(per.r[c]),
+                     "map50": f(per.ap[c, 0]), "map50_95": f(np.mean(per.ap[c])),
+                     "ap50_eq3": f(per.ap50_eq3[c]), "tp": int(per.tp[c]), "fp": int(per.fp[c]),
+                     "fn": int(per.fn[c])})
+    return {"conf_threshold": per.conf_threshold, "rows": rows}
+
+
+def evaluate_predictions(detections: Sequence[Detections], ground_truths: Sequence[GroundTruth],
+                         class_names: Sequence[str], task: str,
+                         iou_thresholds=M.IOU_THRESHOLDS, matching: str = "score",
+                         ap_method: str = "ultralytics") -> Dict[str, object]:
+    """Metrics of a whole split from per-image predictions and labels (see module docstring).
+
+    detections[i] and ground_truths[i] belong to the same image. For task
+    'seg' both must carry masks of the same size; 'mask' metrics use
+    :func:`metrics.mask_iou`, 'box' metrics :func:`metrics.box_iou`.
+    Raises ValueError for mismatched lengths, class ids outside class_names,
+    or missing / mis-sized masks (naming the image index).
+    """
+    if task not in yf.TASKS:
+        raise ValueError(f"task must be one of {yf.TASKS}, got {task!r}")
+    if len(detections) != len(ground_truths):
+        raise ValueError(f"{len(detections)} predictions for {len(ground_truths)} images")
+    nc = len(class_names)
+    if nc == 0:
+        raise ValueError("class_names is empty")
+    thr = np.asarray(iou_thresholds, dtype=np.float64).reshape(-1)
+    kinds = ["mask", "box"] if task == "seg" else ["box"]
+    tps = {k: [] for k in kinds}
+    confs, pcls, gcls = [], [], []
+    images_per_class = np.zeros(nc, dtype=np.int64)
+    for i, (det, gt) in enumerate(zip(detections, ground_truths)):
+        for what, cls in (("prediction", det.classes), ("ground truth", gt.classes)):
+            if len(cls) and (cls.min() < 0 or cls.max() >= nc):
+                raise ValueError(f"image {i}: {what} class id {int(cls.max())} outside 0..{nc - 1}")
+        for c in np.unique(gt.classes):
+            images_per_class[int(c)] += 1
+        for kind in kinds:
+            if kind == "mask":
+                if det.masks is None or gt.masks is None:
+                    raise ValueError(f"image {i}: task 'seg' needs masks in both the "
+                                     f"predictions and the ground truth")
+                if len(det) and len(gt) and det.masks.shape[1:] != gt.masks.shape[1:]:
+                    raise ValueError(f"image {i}: predicted masks {det.masks.shape[1:]} and "
+                                     f"ground-truth masks {gt.masks.shape[1:]} differ in size")
+                iou = M.mask_iou(det.masks, gt.masks) if len(det) and len(gt) else \
+                    np.zeros((len(det), len(gt)))
+            else:
+                iou = M.box_iou(det.boxes_xyxy, gt.boxes_xyxy)
+            tps[kind].append(M.match_predictions(det.classes, gt.classes, iou, thr,
+                                                 scores=det.scores, method=matching))
+        confs.append(np.asarray(det.scores, dtype=np.float64))
+        pcls.append(np.asarray(det.classes, dtype=np.int64))
+        gcls.append(np.asarray(gt.classes, dtype=np.int64))
+    conf = np.concatenate(confs) if confs else np.zeros(0)
+    pc = np.concatenate(pcls) if pcls else np.zeros(0, np.int64)
+    gc = np.concatenate(gcls) if gcls else np.zeros(0, np.int64)
+    result: Dict[str, object] = {"task": task, "class_names": [str(n) for n in class_names],
+                                 "num_images": len(detections),
+                                 "iou_thresholds": [float(t) for t in thr],
+                                 "matching": matching, "ap_method": ap_method}
+    for kind in kinds:
+        tp = np.concatenate(tps[kind]) if tps[kind] else np.zeros((0, thr.size), bool)
+        per = M.ap_per_class(tp, conf, pc, gc, nc, thr, ap_method)
+        result[kind] = _metric_rows(per, class_names, images_per_class, len(detections))
+    return result
+
+
+def format_table(result: Dict[str, object], title: str = "") -> str:
+    """The result as a fixed-width text table (percentages), like Ultralytics' val."""
+    kinds = [k for k in ("mask", "box") if k in result]
+    head = f"{'class':>16} {'images':>7} {'instances':>9}"
+    for k in kinds:
+        tag = "M" if k == "mask" else "B"
+        head += f" {'P(' + tag + ')':>7} {'R(' + tag + ')':>7} {'mAP50':>7} {'mAP50-95':>8}"
+    lines = [title] if title else []
+    lines.append(head)
+    rows0 = result[kinds[0]]["rows"]
+    for idx, row in enumerate(rows0):
+        line = f"{row['class']:>16} {row['images']:>7d} {row['instances']:>9d}"
+        for k in kinds:
+            r = result[k]["rows"][idx]
+            for key, width in (("p", 7), ("r", 7), ("map50", 7), ("map50_95", 8)):
+                v = r[key]
+                line += " " + (f"{100 * v:>{width}.1f}" if v is not None else f"{'-':>{width}}")
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def load_ground_truth(root: str, split: str, task: str,
+                      class_names: Sequence[str]) -> List[Tuple[str, np.ndarray, GroundTruth]]:
+    """(image_path, image_rgb, GroundTruth) of every image of a split, in original pixels.
+
+    Raises yolo_format.LabelFormatError for a missing split, no images, an
+    unreadable image or a malformed label.
+    """
+    import cv2
+
+    out = []
+    for pair in yf.list_pairs(root, split):
+        bgr = cv2.imread(pair.image_path, cv2.IMREAD_COLOR)
+        if bgr is None:
+            raise yf.LabelFormatError(f"{pair.image_path}: cannot read image")
+        rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+        h, w = rgb.shape[:2]
+        insts = yf.read_label_file(pair.label_path, task, len(class_names))
+        boxes, classes, masks = yf.instances_to_pixels(insts, w, h, with_masks=(task == "seg"))
+        out.append((pair.image_path, rgb, GroundTruth(boxes, classes, masks)))
+    return out
+
+
+def evaluate_split(predictor, root: str, split: str, task: str, class_names: Sequence[str],
+                   conf_threshold: float = 0.0, **kwargs):
+    """Run ``predictor.predict`` over a split and evaluate (kwargs go to evaluate_predictions).
+
+    Returns (result dict, list of Detections, list of GroundTruth).
+
+    Predictions below ``conf_threshold`` are dropped (the predictor may
+    already do it).
+    """
+    items = load_ground_truth(root, split, task, class_names)
+    dets, gts = [], []
+    for _path, rgb, gt in items:
+        det = predictor.predict(rgb)
+        if conf_threshold > 0 and len(det):
+            keep = det.scores >= conf_threshold
+            det = Detections(det.boxes_xyxy[keep], det.scores[keep], det.classes[keep],
+                             None if det.masks is None else det.masks[keep])
+        dets.append(det)
+        gts.append(gt)
+    return evaluate_predictions(dets, gts, class_names, task, **kwargs), dets, gts
+
+
+def _default_predictor_factory(weights: str, conf: float, iou: float):
+    from cottonsim_perception.inference import Predictor
+
+    return Predictor(weights, conf_threshold=conf, iou_threshold=iou)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="evaluate", description="Evaluate a Cotton-Eye network "
+                                "on YOLO-format splits (P, R, mAP50, mAP50-95).")
+    p.add_argument("--task", required=True, choices=list(yf.TASKS), help="seg or det")
+    p.add_argument("--data", required=True, help="dataset folder (Roboflow or Ultralytics layout)")
+    p.add_argument("--weights", required=True, help="checkpoint of the network")
+    p.add_argument("--json", required=True, help="output JSON file")
+    p.add_argument("--split", default="valid,test", help="comma-separated splits (default valid,test)")
+    p.add_argument("--conf", type=float, default=0.001, help="confidence threshold (default 0.001)")
+    p.add_argument("--iou", type=float, default=0.7, help="NMS IoU threshold (default 0.7)")
+    return p
+
+
+def _fail(message: str) -> int:
+    print(f"evaluate: error: {message}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def main(argv: Optional[Sequence[str]] = None,
+         predictor_factory: Optional[Callable[[str, float, float], object]] = None) -> int:
+    """The CLI; returns the exit code. ``predictor_factory(weights, conf, iou)`` is
+    injectable for tests (default: :class:`cottonsim_perception.inference.Predictor`)."""
+    args = build_parser().parse_args(argv)
+    if not (0.0 <= args.conf <= 1.0):
+        return _fail(f"--conf must be in [0, 1], got {args.conf}")
+    if not (0.0 < args.iou <= 1.0):
+        return _fail(f"--iou must be in (0, 1], got {args.iou}")
+    splits = [s.strip() for s in args.split.split(",") if s.strip()]
+    if not splits:
+        return _fail("--split names no split")
+    if not os.path.isdir(args.data):
+        return _fail(f"dataset folder {args.data!r} does not exist")
+    if not os.path.isfile(args.weights):
+        return _fail(f"weights file {args.weights!r} does not exist")
+    factory = predictor_factory or _default_predictor_factory
+    try:
+        predictor = factory(args.weights, args.conf, args.iou)
+    except Exception as exc:  # any load failure becomes one clear line
+        return _fail(f"cannot load weights {args.weights!r}: {type(exc).__name__}: {exc}")
+    ptask = getattr(predictor, "task", args.task)
+    if ptask != args.task:
+        return _fail(f"weights are a {ptask!r} model but --task is {args.task!r}")
+    try:
+        names = tuple(getattr(predictor, "class_names", None) or yf.class_names_for(args.data, args.task))
+        # Check every split before the (slow) prediction runs.
+        for s in splits:
+            yf.list_pairs(args.data, s)
+        out: Dict[str, object] = {"weights": os.path.abspath(args.weights),
+                                  "data": os.path.abspath(args.data),
+                                  "conf": args.conf, "iou": args.iou, "splits": {}}
+        all_dets, all_gts = [], []
+        for s in splits:
+            res, dets, gts = evaluate_split(predictor, args.data, s, args.task, names,
+                                            conf_threshold=args.conf)
+            out["splits"][s] = res
+            all_dets += dets
+            all_gts += gts
+            print(format_table(res, title=f"== {s} ({res['num_images']} images)"))
+        if len(splits) > 1:
+            name = "+".join(splits)
+            res = evaluate_predictions(all_dets, all_gts, names, args.task)
+            out["splits"][name] = res
+            print(format_table(res, title=f"== {name} ({res['num_images']} images)"))
+    except (yf.LabelFormatError, ValueError) as exc:
+        return _fail(str(exc))
+    try:
+        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump(out, fh, indent=2)
+    except OSError as exc:
+        return _fail(f"cannot write {args.json!r}: {exc}")
+    print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

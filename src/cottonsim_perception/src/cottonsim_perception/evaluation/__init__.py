@@ -1,0 +1,1 @@
+"""Evaluation of the Cotton-Eye networks: IoU, matching, precision / recall / AP."""

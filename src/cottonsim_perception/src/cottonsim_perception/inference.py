@@ -1,0 +1,100 @@
+"""Run a trained Cotton-Eye network on camera frames.
+
+:class:`Predictor` loads a checkpoint (see ``nn.models``), letterboxes an RGB
+frame to the network input, runs the network on the CPU (or a given device)
+and returns :class:`~cottonsim_perception.types.Detections` in the frame's own
+pixels. For inference the BatchNorms are folded into the convolutions.
+
+:func:`class_masks` merges the instance masks of a scene segmentation into one
+mask per class (what row centring needs: the ground and sky regions).
+"""
+from __future__ import annotations
+
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+import torch
+
+from .nn.blocks import fuse_model
+from .nn.letterbox import letterbox
+from .nn.models import load_model
+from .nn.postprocess import PostprocessConfig, postprocess
+from .types import Detections
+
+
+def check_image(image_rgb: np.ndarray) -> None:
+    """Raise ValueError unless the image is a non-empty (H, W, 3) uint8 array."""
+    if not isinstance(image_rgb, np.ndarray):
+        raise ValueError(f"image must be a numpy array, got {type(image_rgb).__name__}")
+    if image_rgb.dtype != np.uint8:
+        raise ValueError(f"image must be uint8, got {image_rgb.dtype}")
+    if image_rgb.ndim != 3 or image_rgb.shape[2] != 3:
+        raise ValueError(f"image must be (H, W, 3) RGB, got shape {image_rgb.shape}")
+    if image_rgb.shape[0] < 2 or image_rgb.shape[1] < 2:
+        raise ValueError(f"image is empty or too small: shape {image_rgb.shape}")
+
+
+class Predictor:
+    """A loaded network plus its pre- and post-processing.
+
+    weights_path: checkpoint written by ``train`` / ``save_checkpoint``;
+    device: torch device string; conf_threshold: minimum class probability
+    (0..1); iou_threshold: NMS IoU (0..1); threads: torch CPU threads (None
+    leaves torch's setting; note it is process-wide).
+    Raises FileNotFoundError / ValueError for missing or invalid weights.
+    """
+
+    def __init__(self, weights_path: str, device: str = "cpu", conf_threshold: float = 0.25,
+                 iou_threshold: float = 0.7, threads: Optional[int] = None):
+        if threads is not None:
+            if not isinstance(threads, int) or threads < 1:
+                raise ValueError(f"threads must be a positive int or None, got {threads!r}")
+            torch.set_num_threads(threads)
+        self.post_config = PostprocessConfig(conf_threshold=float(conf_threshold),
+                                             iou_threshold=float(iou_threshold))
+        self.device = torch.device(device)
+        self.model = fuse_model(load_model(weights_path, self.device))
+        self.config = self.model.config
+        self.class_names = self.config.class_names
+
+    @property
+    def task(self) -> str:
+        return self.config.task
+
+    def predict(self, image_rgb: np.ndarray) -> Detections:
+        """Detections of one (H, W, 3) uint8 RGB frame, in its own pixels."""
+        check_image(image_rgb)
+        img, tf = letterbox(image_rgb, self.config.input_width, self.config.input_height)
+        x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).to(self.device)
+        x = x[None].float().div_(255.0)
+        with torch.inference_mode():
+            out = self.model(x)
+            if self.config.task == "seg":
+                pred, protos = out
+                return postprocess(pred.float().cpu(), self.config.num_classes, [tf], protos.float().cpu(),
+                                   self.post_config)[0]
+            return postprocess(out.float().cpu(), self.config.num_classes, [tf], None, self.post_config)[0]
+
+
+def class_masks(detections: Detections, shape: Tuple[int, int],
+                num_classes: Optional[int] = None) -> Dict[int, np.ndarray]:
+    """Union of the instance masks of each class: class id -> (H, W) bool.
+
+    shape: (H, W) of the frame. Classes without instances map to an all-False
+    mask when ``num_classes`` is given (ids 0..num_classes-1), otherwise only
+    the classes present appear. Raises ValueError for box-only detections or
+    masks of another size.
+    """
+    h, w = int(shape[0]), int(shape[1])
+    if detections.masks is None:
+        raise ValueError("class_masks needs segmentation detections (masks is None)")
+    if len(detections) and detections.masks.shape[1:] != (h, w):
+        raise ValueError(f"masks are {detections.masks.shape[1:]}, expected {(h, w)}")
+    ids = range(num_classes) if num_classes is not None else sorted(set(detections.classes.tolist()))
+    out = {int(c): np.zeros((h, w), dtype=bool) for c in ids}
+    for c, m in zip(detections.classes.tolist(), detections.masks):
+        if c in out:
+            out[c] |= m
+        else:
+            out[c] = m.copy()
+    return out

@@ -1,0 +1,143 @@
+"""Letterbox resize (keep aspect ratio, pad) and the inverse mapping.
+
+The networks take a fixed input size (e.g. 320 x 256 px) while the cameras give
+640 x 480 or 720 x 540 px. A letterbox scales the image uniformly so that it
+fits, centres it and fills the rest with grey (114), so objects keep their
+shape. :class:`LetterboxTransform` remembers the scale and padding so boxes and
+masks predicted on the network input can be mapped back to the original image.
+
+Convention: pixel-edge coordinates, x right, y down; a point x in the original
+image lands at ``x * scale_x + pad_left`` in the network input.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Tuple
+
+import cv2
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+PAD_VALUE = 114
+
+
+@dataclass(frozen=True)
+class LetterboxTransform:
+    """Geometry of one letterbox: original (src) -> network input (dst) pixels.
+
+    src_width/src_height: original image size [px]; dst_width/dst_height:
+    network input size [px]; scale_x/scale_y: resize factors (equal up to
+    rounding of the resized size); pad_left/pad_top: offset of the resized
+    image inside the input [px]; content_width/content_height: resized size [px].
+    """
+
+    src_width: int
+    src_height: int
+    dst_width: int
+    dst_height: int
+    content_width: int
+    content_height: int
+    pad_left: int
+    pad_top: int
+
+    def __post_init__(self) -> None:
+        for name in ("src_width", "src_height", "dst_width", "dst_height",
+                     "content_width", "content_height"):
+            if int(getattr(self, name)) <= 0:
+                raise ValueError(f"LetterboxTransform.{name} must be > 0")
+        if self.content_width + self.pad_left > self.dst_width or \
+                self.content_height + self.pad_top > self.dst_height:
+            raise ValueError("LetterboxTransform: content plus padding exceeds the destination size")
+
+    @property
+    def scale_x(self) -> float:
+        return self.content_width / self.src_width
+
+    @property
+    def scale_y(self) -> float:
+        return self.content_height / self.src_height
+
+    @staticmethod
+    def fit(src_width: int, src_height: int, dst_width: int, dst_height: int) -> "LetterboxTransform":
+        """The centred, aspect-keeping fit of a src image into dst."""
+        if src_width <= 0 or src_height <= 0:
+            raise ValueError(f"letterbox: source size must be positive, got {src_width}x{src_height}")
+        if dst_width <= 0 or dst_height <= 0:
+            raise ValueError(f"letterbox: destination size must be positive, got {dst_width}x{dst_height}")
+        scale = min(dst_width / src_width, dst_height / src_height)
+        cw = min(dst_width, max(1, int(round(src_width * scale))))
+        ch = min(dst_height, max(1, int(round(src_height * scale))))
+        return LetterboxTransform(int(src_width), int(src_height), int(dst_width), int(dst_height),
+                                  cw, ch, (dst_width - cw) // 2, (dst_height - ch) // 2)
+
+    def affine(self) -> np.ndarray:
+        """The 2x3 float64 matrix mapping src pixels to dst pixels."""
+        return np.array([[self.scale_x, 0.0, self.pad_left],
+                         [0.0, self.scale_y, self.pad_top]], dtype=np.float64)
+
+    def boxes_to_input(self, boxes_xyxy: np.ndarray) -> np.ndarray:
+        """Map (N, 4) boxes from original to network-input pixels."""
+        b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4).copy()
+        b[:, [0, 2]] = b[:, [0, 2]] * self.scale_x + self.pad_left
+        b[:, [1, 3]] = b[:, [1, 3]] * self.scale_y + self.pad_top
+        return b
+
+    def boxes_to_original(self, boxes_xyxy: np.ndarray) -> np.ndarray:
+        """Map (N, 4) boxes from network-input to original pixels, clipped to the image."""
+        b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4).copy()
+        b[:, [0, 2]] = (b[:, [0, 2]] - self.pad_left) / self.scale_x
+        b[:, [1, 3]] = (b[:, [1, 3]] - self.pad_top) / self.scale_y
+        b[:, [0, 2]] = b[:, [0, 2]].clip(0, self.src_width)
+        b[:, [1, 3]] = b[:, [1, 3]].clip(0, self.src_height)
+        return b
+
+    def masks_to_original(self, masks: torch.Tensor, threshold: float = 0.5) -> np.ndarray:
+        """Map (N, h, w) soft masks (values 0..1) on the network input grid back.
+
+        The masks may be at any resolution proportional to the input (e.g. the
+        prototype grid, a quarter of the input): the content region is cut out,
+        resized bilinearly to the original size, then thresholded.
+        Returns (N, src_height, src_width) bool.
+        """
+        if masks.ndim != 3:
+            raise ValueError(f"masks must be (N, h, w), got shape {tuple(masks.shape)}")
+        n, h, w = masks.shape
+        if n == 0:
+            return np.zeros((0, self.src_height, self.src_width), dtype=bool)
+        fx, fy = w / self.dst_width, h / self.dst_height
+        x0, y0 = self.pad_left * fx, self.pad_top * fy
+        x1, y1 = (self.pad_left + self.content_width) * fx, (self.pad_top + self.content_height) * fy
+        ix0, iy0 = int(np.floor(x0)), int(np.floor(y0))
+        ix1, iy1 = int(np.ceil(x1)), int(np.ceil(y1))
+        crop = masks[:, iy0:iy1, ix0:ix1].float()
+        # Resize the integer-pixel crop, then cut the exact (fractional) content window.
+        ox = int(round((x0 - ix0) / (x1 - x0) * self.src_width))
+        oy = int(round((y0 - iy0) / (y1 - y0) * self.src_height))
+        big_w = max(int(round((ix1 - ix0) / (x1 - x0) * self.src_width)), ox + self.src_width)
+        big_h = max(int(round((iy1 - iy0) / (y1 - y0) * self.src_height)), oy + self.src_height)
+        up = F.interpolate(crop[None], size=(big_h, big_w), mode="bilinear", align_corners=False)[0]
+        up = up[:, oy:oy + self.src_height, ox:ox + self.src_width]
+        return (up > threshold).cpu().numpy()
+
+
+def letterbox(image: np.ndarray, dst_width: int, dst_height: int,
+              pad_value: int = PAD_VALUE) -> Tuple[np.ndarray, LetterboxTransform]:
+    """Resize an (H, W, C) uint8 image into dst size keeping aspect; pad with grey.
+
+    Returns the (dst_height, dst_width, C) image and its transform.
+    """
+    if not isinstance(image, np.ndarray) or image.ndim != 3 or image.shape[0] == 0 or image.shape[1] == 0:
+        raise ValueError(f"letterbox: expected an (H, W, C) image, got "
+                         f"{getattr(image, 'shape', type(image))}")
+    t = LetterboxTransform.fit(image.shape[1], image.shape[0], dst_width, dst_height)
+    if (t.content_width, t.content_height) != (image.shape[1], image.shape[0]):
+        interp = cv2.INTER_AREA if t.scale_x < 1.0 else cv2.INTER_LINEAR
+        resized = cv2.resize(image, (t.content_width, t.content_height), interpolation=interp)
+    else:
+        resized = image
+    if resized.ndim == 2:
+        resized = resized[:, :, None]
+    out = np.full((dst_height, dst_width, image.shape[2]), pad_value, dtype=image.dtype)
+    out[t.pad_top:t.pad_top + t.content_height, t.pad_left:t.pad_left + t.content_width] = resized
+    return out, t

@@ -1,0 +1,132 @@
+"""Decoded network output -> per-image :class:`~cottonsim_perception.types.Detections`.
+
+Steps per image: keep anchors whose best class probability reaches the
+confidence threshold (one label per anchor: its best class); keep at most
+``max_candidates`` of them by score; per-class non-maximum suppression (boxes of
+different classes never suppress each other); at most ``max_detections``;
+for segmentation, masks = sigmoid(coefficients . prototypes) zeroed outside
+the box, then boxes and masks are mapped back through the letterbox to the
+original image.
+
+torchvision is not available, so NMS is written here: greedy, on a
+precomputed IoU matrix.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import List, Optional, Sequence
+
+import numpy as np
+import torch
+
+from ..types import Detections
+from .assigner import bbox_iou
+from .letterbox import LetterboxTransform
+
+
+@dataclass(frozen=True)
+class PostprocessConfig:
+    """conf_threshold: min class probability kept; iou_threshold: NMS overlap
+    above which the lower-scored box is dropped; max_candidates: boxes entering
+    NMS; max_detections: boxes kept per image; mask_threshold: probability of a
+    mask pixel being inside."""
+
+    conf_threshold: float = 0.25
+    iou_threshold: float = 0.7
+    max_candidates: int = 3000
+    max_detections: int = 300
+    mask_threshold: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("conf_threshold", "iou_threshold", "mask_threshold"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise ValueError(f"PostprocessConfig.{name} must be in [0, 1], got {v}")
+        for name in ("max_candidates", "max_detections"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise ValueError(f"PostprocessConfig.{name} must be a positive int, got {v!r}")
+
+
+def pairwise_iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """IoU matrix (N, M) of xyxy boxes a (N, 4) and b (M, 4)."""
+    return bbox_iou(a[:, None, :], b[None, :, :])
+
+
+def nms(boxes: torch.Tensor, scores: torch.Tensor, iou_threshold: float) -> torch.Tensor:
+    """Greedy NMS: indices of kept boxes, by descending score.
+
+    A box is dropped when its IoU with an already kept, higher-scored box
+    exceeds ``iou_threshold``.
+    """
+    if boxes.shape[0] == 0:
+        return torch.zeros(0, dtype=torch.long)
+    order = torch.argsort(scores, descending=True, stable=True)
+    over = (pairwise_iou(boxes[order], boxes[order]) > iou_threshold).cpu().numpy()
+    n = over.shape[0]
+    suppressed = np.zeros(n, dtype=bool)
+    keep = []
+    for i in range(n):
+        if suppressed[i]:
+            continue
+        keep.append(i)
+        suppressed |= over[i]
+    return order[torch.as_tensor(keep, dtype=torch.long, device=order.device)]
+
+
+def batched_nms(boxes: torch.Tensor, scores: torch.Tensor, classes: torch.Tensor,
+                iou_threshold: float) -> torch.Tensor:
+    """Per-class NMS by shifting each class's boxes to a disjoint region."""
+    if boxes.shape[0] == 0:
+        return torch.zeros(0, dtype=torch.long)
+    offset = classes.to(boxes.dtype)[:, None] * (boxes.max() + 1.0)
+    return nms(boxes + offset, scores, iou_threshold)
+
+
+def crop_masks(masks: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
+    """Zero (n, h, w) masks outside their boxes (xyxy in mask pixels)."""
+    _, h, w = masks.shape
+    xs = torch.arange(w, dtype=masks.dtype, device=masks.device)[None, None, :] + 0.5
+    ys = torch.arange(h, dtype=masks.dtype, device=masks.device)[None, :, None] + 0.5
+    x1, y1, x2, y2 = (boxes[:, i, None, None] for i in range(4))
+    return masks * ((xs >= x1) & (xs < x2) & (ys >= y1) & (ys < y2))
+
+
+def postprocess(predictions: torch.Tensor, num_classes: int, transforms: Sequence[LetterboxTransform],
+                protos: Optional[torch.Tensor] = None,
+                config: PostprocessConfig = PostprocessConfig()) -> List[Detections]:
+    """Turn eval-mode network output into one Detections per image.
+
+    predictions: (B, A, 4 + nc [+ k]) from the model (boxes xyxy in input px);
+    protos: (B, k, h, w) for segmentation, else None; transforms: the
+    letterbox of each image.
+    """
+    if predictions.ndim != 3 or predictions.shape[-1] < 4 + num_classes:
+        raise ValueError(f"predictions must be (B, A, 4 + {num_classes} [+ k]), got {tuple(predictions.shape)}")
+    if len(transforms) != predictions.shape[0]:
+        raise ValueError(f"need one letterbox transform per image: {len(transforms)} for {predictions.shape[0]}")
+    results = []
+    for b, tf in enumerate(transforms):
+        p = predictions[b]
+        cls_prob = p[:, 4:4 + num_classes]
+        score, label = cls_prob.max(dim=1)
+        sel = score >= config.conf_threshold
+        p, score, label = p[sel], score[sel], label[sel]
+        if score.shape[0] > config.max_candidates:
+            top = score.topk(config.max_candidates).indices
+            p, score, label = p[top], score[top], label[top]
+        keep = batched_nms(p[:, :4], score, label, config.iou_threshold)[:config.max_detections]
+        p, score, label = p[keep], score[keep], label[keep]
+        boxes_in = p[:, :4]
+        masks = None
+        if protos is not None:
+            k, hp, wp = protos.shape[1:]
+            coeffs = p[:, 4 + num_classes:4 + num_classes + k]
+            soft = (coeffs @ protos[b].reshape(k, -1)).sigmoid().reshape(-1, hp, wp)
+            scale = torch.tensor([wp / tf.dst_width, hp / tf.dst_height] * 2, dtype=soft.dtype)
+            soft = crop_masks(soft, boxes_in * scale)
+            masks = tf.masks_to_original(soft, config.mask_threshold)
+        boxes = tf.boxes_to_original(boxes_in.cpu().numpy()).astype(np.float32)
+        results.append(Detections(boxes, score.cpu().numpy().astype(np.float32),
+                                  label.cpu().numpy().astype(np.int64), masks))
+    return results

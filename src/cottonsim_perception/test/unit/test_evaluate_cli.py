@@ -1,0 +1,145 @@
+"""The evaluate CLI on a tiny fake dataset with a stub predictor (no network, no weights)."""
+import json
+import os
+
+import cv2
+import numpy as np
+import pytest
+
+from cottonsim_perception import evaluate as ev
+from cottonsim_perception.data import yolo_format as yf
+from cottonsim_perception.types import Detections
+
+W, H = 64, 48
+# Each image is filled with a distinct grey level so the stub can recognise it.
+# level -> list of (class, polygon in px)
+SCENES = {
+    "valid": {40: [(0, [[4, 4], [30, 4], [30, 20], [4, 20]]), (1, [[0, 30], [64, 30], [64, 48], [0, 48]])],
+              80: [(0, [[10, 10], [20, 10], [20, 30], [10, 30]])]},
+    "test": {120: [(1, [[0, 24], [64, 24], [64, 48], [0, 48]])]},
+}
+
+
+def _write_dataset(root, task):
+    for split, scenes in SCENES.items():
+        for level, objects in scenes.items():
+            name = f"img{level}"
+            os.makedirs(os.path.join(root, split, "images"), exist_ok=True)
+            cv2.imwrite(os.path.join(root, split, "images", name + ".png"),
+                        np.full((H, W, 3), level, np.uint8))
+            insts = []
+            for cls, poly in objects:
+                p = np.array(poly, float) / [W, H]
+                insts.append(yf.LabelInstance(cls, yf.polygon_bbox_cxcywh(p), p))
+            yf.write_label_file(os.path.join(root, split, "labels", name + ".txt"), insts, task)
+
+
+class StubPredictor:
+    """Returns the labelled objects of the recognised image; optionally drops one."""
+
+    def __init__(self, task, drop_level=None):
+        self.task = task
+        self.class_names = ("plant", "ground")
+        self.drop_level = drop_level
+        self.scenes = {lvl: objs for s in SCENES.values() for lvl, objs in s.items()}
+
+    def predict(self, image_rgb):
+        level = int(image_rgb[0, 0, 0])
+        objs = [] if level == self.drop_level else self.scenes[level]
+        boxes = np.array([yf.polygon_bbox_xyxy(np.array(p, float)) for _, p in objs],
+                         np.float32).reshape(-1, 4)
+        masks = None
+        if self.task == "seg":
+            masks = np.stack([yf.polygon_to_mask(np.array(p, float), H, W) for _, p in objs]) \
+                if objs else np.zeros((0, H, W), bool)
+        return Detections(boxes, np.linspace(0.9, 0.6, len(objs)).astype(np.float32),
+                          np.array([c for c, _ in objs], np.int64), masks)
+
+
+def _run(tmp_path, task, predictor, extra=()):
+    data = str(tmp_path / "data")
+    _write_dataset(data, task)
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"stub")
+    out = str(tmp_path / "out" / "r.json")
+    argv = ["--task", task, "--data", data, "--weights", str(weights), "--json", out, *extra]
+    code = ev.main(argv, predictor_factory=lambda w, c, i: predictor)
+    return code, out
+
+
+@pytest.mark.parametrize("task", ["seg", "det"])
+def test_perfect_stub_gives_ultralytics_perfect_scores(tmp_path, capsys, task):
+    code, out = _run(tmp_path, task, StubPredictor(task))
+    assert code == 0
+    res = json.load(open(out))
+    assert set(res["splits"]) == {"valid", "test", "valid+test"}
+    both = res["splits"]["valid+test"]
+    assert both["num_images"] == 3
+    kinds = ["mask", "box"] if task == "seg" else ["box"]
+    for kind in kinds:
+        all_row = both[kind]["rows"][0]
+        assert all_row["class"] == "all" and all_row["instances"] == 4
+        assert all_row["p"] == pytest.approx(1.0) and all_row["r"] == pytest.approx(1.0)
+        assert all_row["map50"] == pytest.approx(0.995)
+    text = capsys.readouterr().out
+    assert "mAP50-95" in text and "plant" in text and "ground" in text
+
+
+def test_missing_predictions_lower_recall(tmp_path):
+    # The stub misses the 'plant' of image 80: in 'valid' one of two plants found
+    code, out = _run(tmp_path, "det", StubPredictor("det", drop_level=80), ["--split", "valid"])
+    assert code == 0
+    rows = {r["class"]: r for r in json.load(open(out))["splits"]["valid"]["box"]["rows"]}
+    assert rows["plant"]["instances"] == 2 and rows["plant"]["fn"] == 1
+    assert rows["plant"]["r"] == pytest.approx(0.5)
+    assert rows["ground"]["r"] == pytest.approx(1.0)
+    assert rows["all"]["r"] == pytest.approx(0.75)
+
+
+def _expect_exit2(capsys, argv, factory=None, fragment=""):
+    code = ev.main(argv, predictor_factory=factory or (lambda w, c, i: StubPredictor("det")))
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "Traceback" not in err and fragment in err
+
+
+def test_error_exits(tmp_path, capsys):
+    data = str(tmp_path / "data")
+    _write_dataset(data, "det")
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"x")
+    out = str(tmp_path / "r.json")
+    base = ["--task", "det", "--json", out]
+    _expect_exit2(capsys, base + ["--data", str(tmp_path / "nope"), "--weights", str(weights)],
+                  fragment="does not exist")
+    _expect_exit2(capsys, base + ["--data", data, "--weights", str(tmp_path / "none.pt")],
+                  fragment="weights file")
+    os.makedirs(os.path.join(data, "train", "images"))
+    _expect_exit2(capsys, base + ["--data", data, "--weights", str(weights), "--split", "train"],
+                  fragment="no images")
+    _expect_exit2(capsys, base + ["--data", data, "--weights", str(weights), "--split", "extra"],
+                  fragment="not found")
+
+    def broken(w, c, i):
+        raise RuntimeError("bad magic number")
+    _expect_exit2(capsys, base + ["--data", data, "--weights", str(weights)], broken,
+                  fragment="cannot load weights")
+    _expect_exit2(capsys, ["--task", "seg", "--json", out, "--data", data, "--weights", str(weights)],
+                  fragment="'det' model")
+    # a malformed label is reported with file and line, no traceback
+    with open(os.path.join(data, "test", "labels", "img120.txt"), "w") as fh:
+        fh.write("0 0.5 0.5 0.2\n")
+    _expect_exit2(capsys, base + ["--data", data, "--weights", str(weights)], fragment="img120.txt:1")
+    assert not os.path.exists(out)
+
+
+def test_real_predictor_on_garbage_weights_exits_2(tmp_path, capsys):
+    """The default factory (the real Predictor) must turn a bad file into exit 2."""
+    data = str(tmp_path / "data")
+    _write_dataset(data, "det")
+    weights = tmp_path / "garbage.pt"
+    weights.write_bytes(b"this is not a checkpoint")
+    code = ev.main(["--task", "det", "--data", data, "--weights", str(weights),
+                    "--json", str(tmp_path / "r.json")])
+    assert code == 2
+    assert "cannot load weights" in capsys.readouterr().err

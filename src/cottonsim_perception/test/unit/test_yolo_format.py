@@ -1,0 +1,181 @@
+"""Tests of the YOLO label / layout reader and the polygon <-> mask conversions."""
+import os
+
+import cv2
+import numpy as np
+import pytest
+
+from cottonsim_perception.data import yolo_format as yf
+
+
+def test_parse_detection_line_gives_box_in_pixels():
+    inst = yf.parse_label_line("0 0.5 0.25 0.2 0.1", "det", num_classes=1)
+    assert inst.class_id == 0 and inst.polygon is None
+    # 200 x 100 image: centre (100, 25), size 40 x 10 -> (80, 20, 120, 30)
+    np.testing.assert_allclose(inst.box_xyxy_px(200, 100), [80, 20, 120, 30])
+
+
+def test_parse_polygon_line_and_bbox():
+    inst = yf.parse_label_line("2 0.1 0.2 0.5 0.2 0.3 0.6", "seg", num_classes=3)
+    assert inst.class_id == 2
+    np.testing.assert_allclose(inst.polygon, [[0.1, 0.2], [0.5, 0.2], [0.3, 0.6]])
+    np.testing.assert_allclose(inst.box_cxcywh, [0.3, 0.4, 0.4, 0.4])
+
+
+def test_polygon_in_detection_dataset_is_read_as_its_box():
+    inst = yf.parse_label_line("0 0.1 0.1 0.3 0.1 0.3 0.5", "det")
+    np.testing.assert_allclose(inst.box_xyxy_px(10, 10), [1, 1, 3, 5])
+
+
+def test_blank_line_is_none_and_small_overshoot_clipped():
+    assert yf.parse_label_line("   ", "seg") is None
+    inst = yf.parse_label_line("0 -0.005 0.0 1.004 0.0 0.5 1.0", "seg")
+    assert inst.polygon.min() == 0.0 and inst.polygon.max() == 1.0
+
+
+@pytest.mark.parametrize("line,task,fragment", [
+    ("3 0.1 0.1 0.2 0.2 0.3 0.3", "seg", "class id 3 out of range"),
+    ("-1 0.1 0.1 0.2 0.2", "det", "non-negative integer"),
+    ("1.5 0.1 0.1 0.2 0.2", "det", "non-negative integer"),
+    ("cat 0.1 0.1 0.2 0.2", "det", "not a number"),
+    ("0 0.1 0.1 0.2 0.2 0.3", "seg", "odd number"),
+    ("0 0.1 0.1 0.2 0.2 0.3 0.3 0.4", "seg", "odd number"),
+    ("0 0.1 0.1", "det", "expected 4 box values"),
+    ("0 0.5 0.5 0.2 0.2", "seg", "needs a polygon"),
+    ("0 0.1 0.1 1.2 0.2 0.3 0.3", "seg", "outside [0, 1]"),
+    ("0 0.1 -0.05 0.2 0.2 0.3 0.3", "seg", "outside [0, 1]"),
+    ("0 nan 0.1 0.2 0.2 0.3 0.3", "seg", "NaN"),
+    ("0 0.5 0.5 0.0 0.2", "det", "width and height"),
+    ("0 0.5 0.5 abc 0.2", "det", "non-numeric"),
+])
+def test_malformed_lines_name_file_and_line(line, task, fragment):
+    with pytest.raises(yf.LabelFormatError) as err:
+        yf.parse_label_line(line, task, num_classes=3, source="lbl.txt", line_number=7)
+    msg = str(err.value)
+    assert "lbl.txt:7" in msg and fragment in msg
+
+
+def test_read_label_file_reports_the_bad_line(tmp_path):
+    p = tmp_path / "a.txt"
+    p.write_text("0 0.5 0.5 0.1 0.1\n\n0 0.5 0.5 0.1\n")
+    with pytest.raises(yf.LabelFormatError, match=r"a\.txt:3"):
+        yf.read_label_file(str(p), "det", 1)
+    assert yf.read_label_file(str(tmp_path / "missing.txt"), "det") == []
+
+
+def test_write_then_read_round_trip(tmp_path):
+    poly = np.array([[0.1, 0.2], [0.9, 0.25], [0.5, 0.8]])
+    insts = [yf.LabelInstance(1, yf.polygon_bbox_cxcywh(poly), poly)]
+    path = str(tmp_path / "sub" / "x.txt")
+    yf.write_label_file(path, insts, "seg")
+    back = yf.read_label_file(path, "seg", 3)
+    assert len(back) == 1 and back[0].class_id == 1
+    np.testing.assert_allclose(back[0].polygon, poly, atol=1e-6)
+    yf.write_label_file(path, insts, "det")
+    back = yf.read_label_file(path, "det", 3)
+    np.testing.assert_allclose(back[0].box_cxcywh, [0.5, 0.5, 0.8, 0.6], atol=1e-6)
+
+
+def test_polygon_to_mask_full_image_and_rectangle():
+    assert yf.polygon_to_mask(np.array([[0, 0], [30, 0], [30, 20], [0, 20]]), 20, 30).all()
+    # pixel-edge rectangle [5, 17] x [3, 9] covers columns 5..16, rows 3..8
+    m = yf.polygon_to_mask(np.array([[5, 3], [17, 3], [17, 9], [5, 9]]), 20, 30)
+    expected = np.zeros((20, 30), bool)
+    expected[3:9, 5:17] = True
+    assert (m == expected).all()
+    # a right triangle with legs of 10 px: centres (c + .5, r + .5) with c + r + 1 <= 10
+    # strictly inside the hypotenuse x + y < 10 (on it: excluded as a right edge)
+    tri = yf.polygon_to_mask(np.array([[0, 0], [10, 0], [0, 10]]), 12, 12)
+    rr, cc = np.mgrid[0:12, 0:12]
+    assert (tri == (rr + cc + 1 < 10)).all()
+    # polygons partly outside the image are clipped, not wrapped
+    out = yf.polygon_to_mask(np.array([[-5, -5], [3, -5], [3, 2], [-5, 2]]), 6, 6)
+    assert out.sum() == 6 and out[:2, :3].all()
+    assert not yf.polygon_to_mask(np.array([[0, 0], [1, 1]]), 5, 5).any()  # < 3 points
+
+
+def test_mask_polygon_round_trip_exact_on_random_blobs():
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        m = np.zeros((40, 50), np.uint8)
+        for _k in range(3):
+            cv2.ellipse(m, (int(rng.integers(5, 45)), int(rng.integers(5, 35))),
+                        (int(rng.integers(2, 12)), int(rng.integers(2, 12))),
+                        float(rng.uniform(0, 180)), 0, 360, 1, -1)
+        m = m.astype(bool) & (rng.random(m.shape) > 0.05)   # ragged edges, diagonal links
+        back = np.zeros_like(m)
+        for poly in yf.mask_to_polygons(m, epsilon_px=0, min_area_px=0):
+            back |= yf.polygon_to_mask(poly, 40, 50)
+        # holes are not represented: compare with the hole-filled mask
+        cs, _ = cv2.findContours(m.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        filled = np.zeros(m.shape, np.uint8)
+        cv2.drawContours(filled, cs, -1, 1, -1)
+        assert (back == filled.astype(bool)).all()
+
+
+def test_mask_polygon_round_trip_exact_without_simplification():
+    disk = np.zeros((60, 70), np.uint8)
+    cv2.circle(disk, (30, 28), 19, 1, -1)
+    disk = disk.astype(bool)
+    polys = yf.mask_to_polygons(disk, epsilon_px=0)
+    assert len(polys) == 1
+    assert (yf.polygon_to_mask(polys[0], 60, 70) == disk).all()
+    # Simplified polygons stay close: few vertices, error only along the rim.
+    simple = yf.mask_to_polygons(disk, epsilon_px=1.0)[0]
+    back = yf.polygon_to_mask(simple, 60, 70)
+    assert len(simple) < len(polys[0])
+    assert (back != disk).sum() < 0.05 * disk.sum()
+
+
+def test_mask_to_polygons_splits_regions_and_drops_specks():
+    m = np.zeros((20, 40), bool)
+    m[2:8, 2:10] = True
+    m[10:18, 20:35] = True
+    m[0, 39] = True  # a one-pixel speck
+    polys = yf.mask_to_polygons(m)
+    assert len(polys) == 2
+    boxes = sorted(tuple(yf.polygon_bbox_xyxy(p)) for p in polys)
+    # region cols 2..9, rows 2..7: contour a quarter pixel inside its edges
+    np.testing.assert_allclose(boxes[0], (2.25, 2.25, 9.75, 7.75))
+    assert yf.mask_to_polygons(np.zeros((5, 5), bool)) == []
+
+
+def _touch(path):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    cv2.imwrite(path, np.zeros((8, 8, 3), np.uint8))
+
+
+def test_find_pairs_in_roboflow_layout(tmp_path):
+    root = str(tmp_path)
+    _touch(os.path.join(root, "valid", "images", "b.jpg"))
+    _touch(os.path.join(root, "valid", "images", "a.png"))
+    pairs = yf.list_pairs(root, "val")  # 'val' finds 'valid'
+    assert [os.path.basename(p.image_path) for p in pairs] == ["a.png", "b.jpg"]
+    assert pairs[0].label_path == os.path.join(root, "valid", "labels", "a.txt")
+
+
+def test_find_pairs_in_ultralytics_layout_and_data_yaml(tmp_path):
+    root = str(tmp_path)
+    _touch(os.path.join(root, "images", "val", "c.jpg"))
+    pairs = yf.list_pairs(root, "valid")
+    assert pairs[0].label_path == os.path.join(root, "labels", "val", "c.txt")
+    _touch(os.path.join(root, "other", "images", "d.jpg"))
+    yf.write_data_yaml(os.path.join(root, "data.yaml"),
+                       yf.DataYaml(path=".", train="other/images", val="images/val", names=("x", "y")))
+    assert [os.path.basename(p.image_path) for p in yf.list_pairs(root, "train")] == ["d.jpg"]
+    assert yf.class_names_for(root, "det") == ("x", "y")
+    assert yf.read_data_yaml(os.path.join(root, "data.yaml")).names == ("x", "y")
+
+
+def test_layout_errors_are_clear(tmp_path):
+    with pytest.raises(yf.LabelFormatError, match="does not exist"):
+        yf.list_pairs(str(tmp_path / "nope"), "test")
+    with pytest.raises(yf.LabelFormatError, match="split 'test' not found"):
+        yf.list_pairs(str(tmp_path), "test")
+    os.makedirs(tmp_path / "test" / "images")
+    with pytest.raises(yf.LabelFormatError, match="no images"):
+        yf.list_pairs(str(tmp_path), "test")
+    bad = tmp_path / "data.yaml"
+    bad.write_text("names: {0: a, 2: b}\n")
+    with pytest.raises(yf.LabelFormatError, match="names"):
+        yf.read_data_yaml(str(bad))

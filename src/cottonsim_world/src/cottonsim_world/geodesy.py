@@ -1,0 +1,204 @@
+"""GPS geodesy of the hector_gazebo GPS plugin, and its drift/noise model.
+
+Why: the original CottonSim simulated GPS with hector_gazebo_plugins'
+``GazeboRosGps``. That plugin does not project on an ellipsoid; it uses a
+local flat-earth approximation around a reference point, with the WGS84
+radii of curvature at the reference latitude:
+
+    e2  = f (2 - f)                              (WGS84 a = 6378137 m, f = 1/298.257223563)
+    N   = a / sqrt(1 - e2 sin^2(lat0))           (prime vertical radius)
+    R_N = N (1 - e2) / (1 - e2 sin^2(lat0))      (meridian radius; 6,372,845 m at 49.9 deg)
+    R_E = N cos(lat0)                            (radius of the parallel; 4,116,378 m at 49.9 deg)
+
+    lat = lat0 + deg( ( cos(h) x + sin(h) y) / R_N )
+    lon = lon0 - deg( (-sin(h) x + cos(h) y) / R_E )
+    alt = alt0 + z
+
+with h the reference heading. With h = 0 world x points north and world y
+west (the original's setting); with h = 90 deg x points east and y north
+(ENU). ``HectorGeodesy`` implements this mapping and its exact inverse,
+vectorised over numpy arrays.
+
+``GpsNoiseModel`` reproduces the plugin's error model (a per-axis offset, a
+slowly wandering drift and white Gaussian noise, in metres in the world
+frame) deterministically from a seed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Tuple, Union
+
+import numpy as np
+
+WGS84_A_M = 6378137.0
+WGS84_F = 1.0 / 298.257223563
+
+ArrayLike = Union[float, np.ndarray]
+
+
+def _finite_array(name: str, value) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numeric, got {value!r}") from None
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return arr
+
+
+def _out(*arrays: np.ndarray, scalar: bool):
+    if scalar:
+        return tuple(float(a) for a in arrays)
+    return arrays
+
+
+class HectorGeodesy:
+    """World <-> geodetic mapping of hector_gazebo's GPS plugin.
+
+    Args (degrees / metres): reference_latitude_deg, reference_longitude_deg,
+    reference_altitude_m, reference_heading_deg (see the module docstring).
+    Defaults are the original CottonSim's reference (49.9, 8.9, 0, 0).
+    """
+
+    def __init__(self, reference_latitude_deg: float = 49.9, reference_longitude_deg: float = 8.9,
+                 reference_altitude_m: float = 0.0, reference_heading_deg: float = 0.0) -> None:
+        for name, v in (("reference_latitude_deg", reference_latitude_deg),
+                        ("reference_longitude_deg", reference_longitude_deg),
+                        ("reference_altitude_m", reference_altitude_m),
+                        ("reference_heading_deg", reference_heading_deg)):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v):
+                raise ValueError(f"{name} must be a finite number, got {v!r}")
+        if abs(reference_latitude_deg) >= 89.9:
+            raise ValueError(f"reference_latitude_deg must be within +/-89.9 deg (the east radius vanishes at the poles), got {reference_latitude_deg}")
+        if not -180.0 <= reference_longitude_deg <= 180.0:
+            raise ValueError(f"reference_longitude_deg must be in [-180, 180], got {reference_longitude_deg}")
+        self.reference_latitude_deg = float(reference_latitude_deg)
+        self.reference_longitude_deg = float(reference_longitude_deg)
+        self.reference_altitude_m = float(reference_altitude_m)
+        self.reference_heading_deg = float(reference_heading_deg)
+        lat0 = math.radians(self.reference_latitude_deg)
+        e2 = WGS84_F * (2.0 - WGS84_F)
+        w = 1.0 - e2 * math.sin(lat0) ** 2
+        prime_vertical = WGS84_A_M / math.sqrt(w)
+        self.radius_north_m = prime_vertical * (1.0 - e2) / w
+        self.radius_east_m = prime_vertical * math.cos(lat0)
+        h = math.radians(self.reference_heading_deg)
+        self._cos_h, self._sin_h = math.cos(h), math.sin(h)
+
+    def world_to_geodetic(self, x_m: ArrayLike, y_m: ArrayLike, z_m: ArrayLike = 0.0):
+        """World position [m] -> (latitude [deg], longitude [deg], altitude [m]).
+
+        Scalars in -> floats out; arrays broadcast and give arrays.
+        """
+        scalar = all(np.ndim(v) == 0 for v in (x_m, y_m, z_m))
+        x = _finite_array("x_m", x_m)
+        y = _finite_array("y_m", y_m)
+        z = _finite_array("z_m", z_m)
+        north = self._cos_h * x + self._sin_h * y
+        west = -self._sin_h * x + self._cos_h * y
+        lat = self.reference_latitude_deg + np.degrees(north / self.radius_north_m)
+        lon = self.reference_longitude_deg - np.degrees(west / self.radius_east_m)
+        alt = self.reference_altitude_m + z
+        lat, lon, alt = np.broadcast_arrays(lat, lon, alt)
+        return _out(lat, lon, alt, scalar=scalar)
+
+    def geodetic_to_world(self, latitude_deg: ArrayLike, longitude_deg: ArrayLike, altitude_m: ArrayLike = 0.0):
+        """(latitude [deg], longitude [deg], altitude [m]) -> world (x, y, z) [m]."""
+        scalar = all(np.ndim(v) == 0 for v in (latitude_deg, longitude_deg, altitude_m))
+        lat = _finite_array("latitude_deg", latitude_deg)
+        lon = _finite_array("longitude_deg", longitude_deg)
+        alt = _finite_array("altitude_m", altitude_m)
+        if np.any(np.abs(lat) > 90.0):
+            raise ValueError("latitude_deg must be within [-90, 90]")
+        north = np.radians(lat - self.reference_latitude_deg) * self.radius_north_m
+        west = -np.radians(lon - self.reference_longitude_deg) * self.radius_east_m
+        # invert the rotation [north; west] = [[c, s], [-s, c]] [x; y]
+        x = self._cos_h * north - self._sin_h * west
+        y = self._sin_h * north + self._cos_h * west
+        z = alt - self.reference_altitude_m
+        x, y, z = np.broadcast_arrays(x, y, z)
+        return _out(x, y, z, scalar=scalar)
+
+
+@dataclass(frozen=True)
+class GpsNoiseConfig:
+    """Error model of the simulated GPS (hector_gazebo's SensorModel), per axis x, y, z.
+
+    offset_m: constant bias [m].
+    drift_m: standard deviation of the slowly wandering drift [m]
+        (the original: 0.0001 m on every axis).
+    drift_frequency_hz: inverse correlation time of the drift [1/s]
+        (hector's default 1/3600 s^-1).
+    gaussian_noise_m: standard deviation of white noise per fix [m] (original: 0).
+    seed: random seed; same seed and same sequence of calls -> same errors.
+
+    The drift is a first-order Gauss-Markov (Ornstein-Uhlenbeck) process,
+    sampled exactly for any time step: d <- d exp(-f dt) +
+    drift_m sqrt(1 - exp(-2 f dt)) N(0, 1), so its standard deviation stays
+    ``drift_m`` (hector integrates the same process with an Euler step).
+    """
+
+    offset_m: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    drift_m: Tuple[float, float, float] = (0.0001, 0.0001, 0.0001)
+    drift_frequency_hz: Tuple[float, float, float] = (1.0 / 3600.0,) * 3
+    gaussian_noise_m: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("offset_m", "drift_m", "drift_frequency_hz", "gaussian_noise_m"):
+            value = getattr(self, name)
+            if np.ndim(value) == 0:
+                value = (value,) * 3
+            try:
+                arr = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name} must be a number or 3 numbers, got {value!r}") from None
+            if len(arr) != 3 or not all(math.isfinite(v) for v in arr):
+                raise ValueError(f"{name} must be 3 finite numbers (x, y, z), got {value!r}")
+            if name != "offset_m" and any(v < 0 for v in arr):
+                raise ValueError(f"{name} must be >= 0, got {value!r}")
+            object.__setattr__(self, name, arr)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+
+
+class GpsNoiseModel:
+    """Turns true world positions into noisy GPS positions over time.
+
+    Usage: ``noisy_xyz = model.apply(true_xyz, dt_s)`` once per fix, with
+    ``dt_s`` the time since the previous fix [s]; convert the result with
+    ``HectorGeodesy.world_to_geodetic``. ``reset()`` restarts the sequence.
+    """
+
+    def __init__(self, config: GpsNoiseConfig = GpsNoiseConfig()) -> None:
+        if not isinstance(config, GpsNoiseConfig):
+            raise ValueError(f"config must be a GpsNoiseConfig, got {type(config).__name__}")
+        self.config = config
+        self._offset = np.array(config.offset_m)
+        self._drift_std = np.array(config.drift_m)
+        self._freq = np.array(config.drift_frequency_hz)
+        self._noise = np.array(config.gaussian_noise_m)
+        self.reset()
+
+    def reset(self) -> None:
+        """Restart the random sequence; the drift starts at zero as in hector."""
+        self._rng = np.random.default_rng(self.config.seed)
+        self.current_drift_m = np.zeros(3)
+
+    def update(self, dt_s: float) -> np.ndarray:
+        """Advance the drift by ``dt_s`` seconds; returns the error (3,) [m]."""
+        if isinstance(dt_s, bool) or not isinstance(dt_s, (int, float, np.floating, np.integer)) \
+                or not math.isfinite(dt_s) or dt_s < 0:
+            raise ValueError(f"dt_s must be a finite number >= 0, got {dt_s!r}")
+        decay = np.exp(-self._freq * dt_s)
+        self.current_drift_m = (self.current_drift_m * decay
+                                + self._drift_std * np.sqrt(1.0 - decay ** 2) * self._rng.standard_normal(3))
+        return self._offset + self.current_drift_m + self._noise * self._rng.standard_normal(3)
+
+    def apply(self, position_m, dt_s: float) -> np.ndarray:
+        """True world position (3,) [m] -> noisy position (3,) [m]."""
+        p = _finite_array("position_m", position_m)
+        if p.shape != (3,):
+            raise ValueError(f"position_m must have shape (3,), got {p.shape}")
+        return p + self.update(dt_s)

@@ -1,0 +1,648 @@
+"""Rigid-body dynamics of the Husky in the cotton field, with ODE.
+
+The original CottonSim ran Gazebo 11 on the Open Dynamics Engine (ODE).
+This module drives the same engine (Debian's python3-pyode, ``import ode``)
+directly: a flat ground plane, the farm's plants as static collision
+geometry, and the Husky as five bodies (chassis + four wheels on hinge
+joints whose velocity motors follow ``DiffDriveController``).
+
+Contact model (wheel <-> soil)
+------------------------------
+A skid-steer robot turns by dragging its wheels sideways, so how the tyre
+forces saturate decides how fast it really turns. The wheel-soil friction
+here is isotropic Coulomb friction (``wheel_mu`` along and across the
+wheel) with a small force-dependent slip (ODE ``ContactSlip1/2``, the same
+both ways) below saturation. ODE bounds friction per direction (a
+pyramid), which would make a sliding wheel's friction depend on its
+heading; we therefore point each wheel contact's first friction direction
+(``ContactFDir1``) along the wheel's current sliding velocity, so the
+saturated force opposes the slip as a friction cone would. For a spin on
+the spot isotropic friction gives, in closed form, an effective yaw rate of
+b^2 / (a^2 + b^2) of the ideal two-wheel rate (a = half wheelbase, b = half
+track): 0.554 for the Husky, i.e. the kinematic track looks 1.80 times
+wider -- close to the 1.875 ``wheel_separation_multiplier`` Clearpath uses.
+Measured: commanding 1.0 rad/s (wheel speeds for 1.875 rad/s on the URDF
+track) turns the robot at 1.015 rad/s, ratio 0.541 of the ideal. Driving
+straight at constant speed needs almost no force, hence almost no slip
+(a 10 s, 0.5 m/s command with the controller's ramps and time-out should
+give 5.120 m; the robot drives 5.130 m and stays within 1 mm sideways).
+
+Note on pyode: its constants predate ODE 0.16 (Debian's libode8). The
+joint parameter indices and contact mode flags used here are the ones of
+the loaded library (see ``_motor_param_indices``); pyode's ``ode.ParamFMax``
+and ``ode.ContactSlip1`` silently set other parameters on libode 0.16.
+
+Normal contact is a spring-damper (``contact_stiffness_n_m``,
+``contact_damping_n_s_m``) turned into ODE's soft ERP / CFM for the step
+size, as Gazebo does with kp / kd.
+
+Collision filtering
+-------------------
+Robot geoms live in a SimpleSpace, the ground and the plants in a
+QuadTreeSpace (broad phase). Only robot-vs-static pairs are ever tested (``ode.collide2``
+between the two spaces), so plants never test against each other nor the
+robot against itself; category / collide bits say the same for anyone who
+collides the spaces differently.
+
+Plants are static geoms (no bodies): the robot pushing into a plant is
+stopped or deflected, and the touch is reported once per (plant, robot
+part) by ``contacts_since_last_call``.
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Deque, Dict, Iterable, List, Optional, Sequence, Set, Tuple
+
+import numpy as np
+
+try:
+    import ode  # Debian: python3-pyode
+except ImportError as exc:  # pragma: no cover - depends on the machine
+    raise ImportError("cottonsim_world.physics.ode_world needs python3-pyode (apt-get install python3-pyode)") from exc
+
+from ..farm.model import Plant, Pose2D, Primitive
+from .diff_drive import DiffDriveController
+from .husky_params import WHEEL_NAMES, DriveLimits, HuskyParams
+
+
+def _motor_param_indices() -> Tuple[int, int]:
+    """(ParamVel, ParamFMax) indices of the libode actually loaded.
+
+    pyode's constants predate ODE 0.16, which inserted dParamLoVel and
+    dParamHiVel before dParamFMax (so pyode's ``ode.ParamFMax`` == 3 sets
+    LoVel on Debian's libode 0.16 and the motor never gets a torque). A
+    fresh joint has FudgeFactor == 1 and every other parameter != 1; where
+    that 1 sits tells the layout.
+    """
+    probe = ode.HingeJoint(ode.World())
+    values = [probe.getParam(i) for i in range(8)]
+    if values[6] == 1.0:          # Lo, Hi, Vel, LoVel, HiVel, FMax, Fudge
+        return 2, 5
+    if values[4] == 1.0:          # Lo, Hi, Vel, FMax, Fudge (ODE < 0.16)
+        return 2, 3
+    raise RuntimeError(f"unknown ODE joint parameter layout {values}; cannot drive the wheel motors")
+
+
+PARAM_VEL, PARAM_FMAX = _motor_param_indices()
+
+# Contact mode flags. pyode's ode.ContactSlip1/2 and ode.ContactApprox1 are
+# the pre-0.12 values; ODE 0.12+ inserted dContactMotionN (0x80), moving
+# Slip1/Slip2 to 0x100/0x200 and adding Approx1_N (0x4000). With pyode's
+# constants on libode 0.16 "Slip1" sets MotionN and "Slip2" sets Slip1,
+# which makes friction anisotropic in world axes. The joint layout probe
+# above tells the two library generations apart (LoVel/HiVel came in 0.16).
+if PARAM_FMAX == 5:
+    MODE_MU2, MODE_SOFT_ERP, MODE_SOFT_CFM = 0x001, 0x008, 0x010
+    MODE_FDIR1, MODE_SLIP1, MODE_SLIP2, MODE_APPROX1 = 0x002, 0x100, 0x200, 0x7000
+else:  # pragma: no cover - old libode
+    MODE_MU2, MODE_SOFT_ERP, MODE_SOFT_CFM = ode.ContactMu2, ode.ContactSoftERP, ode.ContactSoftCFM
+    MODE_FDIR1, MODE_SLIP1, MODE_SLIP2, MODE_APPROX1 = (ode.ContactFDir1, ode.ContactSlip1,
+                                                        ode.ContactSlip2, ode.ContactApprox1)
+
+# Category bits of the three kinds of geoms.
+CAT_ROBOT = 0x1
+CAT_GROUND = 0x2
+CAT_PLANT = 0x4
+
+
+@dataclass(frozen=True)
+class PhysicsConfig:
+    """Parameters of the ODE world.
+
+    step_s: physics step [s]. Gazebo's world used 0.001 s. Measured with
+        quickStep, 50 iterations (5 m straight / 3 s spin at 1 rad/s / rest):
+        0.001 s: spin 1.0146 rad/s, 0.1 mm drift, rest z jitter 2e-12 m;
+        0.002 s: spin 1.0144 rad/s, 2.4 mm drift, jitter 7e-9 m;
+        0.005 s: spin 1.0132 rad/s, 13 mm drift, jitter 1e-6 m;
+        0.010 s: the robot wanders 3 cm while spinning, jitter 6e-6 m. 0.002 s is the
+        default: as good as 0.001 s for driving at ~60 % of the cost per
+        simulated second (benchmarks/bench_physics.py).
+    gravity_m_s2: z component of gravity [m/s^2].
+    solver_iterations: quickStep iterations per step.
+    wheel_mu: Coulomb friction of wheel on soil, along (mu1) and across
+        (mu2) the wheel; 1.0 as in husky_description's wheel.urdf.xacro.
+    wheel_slip: ODE force-dependent slip along and across the wheel
+        [(m/s)/N]: the wheel surface creeps at slip x force before it
+        slides; 0.001 gives ~0.04 m/s creep at full (3 m/s^2) acceleration
+        and a first-order lag of ~15 ms. The same both ways (isotropic).
+    chassis_mu: friction of the chassis on ground or plants.
+    plant_mu1 / plant_mu2: friction of a plant against the robot (the
+        original's plant collision parts: mu1 100, mu2 50).
+    contact_stiffness_n_m / contact_damping_n_s_m: normal spring-damper of
+        every contact, converted to soft ERP/CFM for step_s.
+    contact_surface_layer_m: ODE contact surface layer (allowed resting
+        penetration) [m]; contact_max_correcting_vel_m_s: cap on the speed at
+        which penetration is corrected [m/s].
+    max_contacts_per_pair: contact points per colliding geom pair.
+    wheel_max_torque_n_m: motor torque limit per wheel (ParamFMax) [N m].
+    accel_window_s: window of the finite difference that gives the body
+        acceleration for the IMU [s].
+    contact_rearm_s: a (plant, part) touch is reported again only after the
+        pair was apart for this long [s], so contact flicker is one event.
+    broadphase_centre_m / broadphase_extent_m / broadphase_depth: the
+        quadtree (ODE QuadTreeSpace) that holds ground and plants: centre
+        (x, y) [m], extent [m] and depth; geoms outside still collide, only
+        slower.
+    seed: seeds ODE's random generator (quickStep reorders constraints
+        randomly), so runs with the same inputs are bit-identical.
+    """
+
+    step_s: float = 0.002
+    gravity_m_s2: float = -9.8
+    solver_iterations: int = 50
+    wheel_mu: float = 1.0
+    wheel_slip: float = 0.001
+    chassis_mu: float = 0.5
+    plant_mu1: float = 100.0
+    plant_mu2: float = 50.0
+    contact_stiffness_n_m: float = 1.0e6
+    contact_damping_n_s_m: float = 5.0e3
+    contact_surface_layer_m: float = 0.0005
+    contact_max_correcting_vel_m_s: float = 1.0
+    max_contacts_per_pair: int = 4
+    wheel_max_torque_n_m: float = 40.0
+    accel_window_s: float = 0.02
+    contact_rearm_s: float = 0.1
+    broadphase_centre_m: Tuple[float, float] = (0.0, 0.0)
+    broadphase_extent_m: float = 256.0
+    broadphase_depth: int = 8
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        def positive(name: str) -> None:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"PhysicsConfig.{name} must be a finite number > 0, got {v!r}")
+
+        for name in ("step_s", "wheel_mu", "chassis_mu", "plant_mu1", "plant_mu2",
+                     "contact_stiffness_n_m", "contact_max_correcting_vel_m_s",
+                     "wheel_max_torque_n_m", "accel_window_s"):
+            positive(name)
+        for name in ("wheel_slip", "contact_damping_n_s_m", "contact_surface_layer_m", "contact_rearm_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"PhysicsConfig.{name} must be a finite number >= 0, got {v!r}")
+        if self.step_s > 0.02:
+            raise ValueError(f"PhysicsConfig.step_s must be <= 0.02 s for a stable wheel contact, got {self.step_s}")
+        if not math.isfinite(self.gravity_m_s2) or self.gravity_m_s2 >= 0:
+            raise ValueError(f"PhysicsConfig.gravity_m_s2 must be negative (z up), got {self.gravity_m_s2!r}")
+        if not isinstance(self.solver_iterations, int) or self.solver_iterations < 1:
+            raise ValueError(f"PhysicsConfig.solver_iterations must be an int >= 1, got {self.solver_iterations!r}")
+        if not isinstance(self.max_contacts_per_pair, int) or not 1 <= self.max_contacts_per_pair <= 64:
+            raise ValueError(f"PhysicsConfig.max_contacts_per_pair must be an int in 1..64, got {self.max_contacts_per_pair!r}")
+        if len(self.broadphase_centre_m) != 2 or not all(math.isfinite(v) for v in self.broadphase_centre_m):
+            raise ValueError(f"PhysicsConfig.broadphase_centre_m must be 2 finite numbers, got {self.broadphase_centre_m!r}")
+        positive("broadphase_extent_m")
+        if not isinstance(self.broadphase_depth, int) or not 1 <= self.broadphase_depth <= 12:
+            raise ValueError(f"PhysicsConfig.broadphase_depth must be an int in 1..12, got {self.broadphase_depth!r}")
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"PhysicsConfig.seed must be an int >= 0, got {self.seed!r}")
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """True state of the Husky at ``stamp_s`` (world frame = ground truth).
+
+    position_m: base_link origin (3,); orientation_xyzw: base_link attitude
+    quaternion (x, y, z, w); *_world / *_body: the same vector in world and
+    in base_link axes. linear_velocity_*: of the base_link origin [m/s];
+    angular_velocity_* [rad/s]; linear_acceleration_body_m_s2: specific
+    force at base_link as an accelerometer measures it (+9.8 on z at rest).
+    wheel_angles_rad / wheel_velocities_rad_s: order FL, FR, RL, RR;
+    angles are unwrapped (they keep counting).
+    """
+
+    stamp_s: float
+    position_m: np.ndarray
+    orientation_xyzw: np.ndarray
+    linear_velocity_world_m_s: np.ndarray
+    linear_velocity_body_m_s: np.ndarray
+    angular_velocity_world_rad_s: np.ndarray
+    angular_velocity_body_rad_s: np.ndarray
+    linear_acceleration_body_m_s2: np.ndarray
+    wheel_angles_rad: np.ndarray
+    wheel_velocities_rad_s: np.ndarray
+
+    @property
+    def yaw_rad(self) -> float:
+        x, y, z, w = self.orientation_xyzw
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+@dataclass(frozen=True)
+class ContactEvent:
+    """A robot part started touching a plant.
+
+    point_m: world contact point (3,); depth_m: penetration at the first
+    step of the touch [m].
+    """
+
+    stamp_s: float
+    plant_id: int
+    part: str
+    point_m: Tuple[float, float, float]
+    depth_m: float
+
+
+# -- small quaternion helpers; ODE uses (w, x, y, z), the project (x, y, z, w)
+
+def _quat_mul_wxyz(a: Sequence[float], b: Sequence[float]) -> Tuple[float, float, float, float]:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+def _yaw_wxyz(yaw: float) -> Tuple[float, float, float, float]:
+    return (math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0))
+
+
+def _rot3(ode_rotation: Sequence[float]) -> np.ndarray:
+    return np.asarray(ode_rotation, dtype=float).reshape(3, 3)
+
+
+def _finite_tuple(values: Iterable[float], n: int, what: str) -> Tuple[float, ...]:
+    out = tuple(float(v) for v in values)
+    if len(out) != n or not all(math.isfinite(v) for v in out):
+        raise ValueError(f"{what} must be {n} finite numbers, got {out!r}")
+    return out
+
+
+class OdeWorld:
+    """The ODE world: ground, static plants, one Husky.
+
+    Typical use::
+
+        world = OdeWorld(PhysicsConfig(), HuskyParams(), DriveLimits())
+        world.add_plants(farm.plants)
+        world.spawn_robot(farm.spawn)
+        world.set_command(0.5, 0.0, world.sim_time_s)   # from /cmd_vel
+        for _ in range(n): world.step()
+        state = world.robot_state()
+        events = world.contacts_since_last_call()
+    """
+
+    def __init__(self, config: PhysicsConfig = PhysicsConfig(), husky: HuskyParams = HuskyParams(),
+                 limits: DriveLimits = DriveLimits()):
+        self.config = config
+        self.husky = husky
+        self.limits = limits
+        ctypes.CDLL("libode.so.8").dRandSetSeed(ctypes.c_ulong(config.seed))
+        self._world = ode.World()
+        self._world.setGravity((0.0, 0.0, config.gravity_m_s2))
+        self._world.setQuickStepNumIterations(config.solver_iterations)
+        self._world.setContactSurfaceLayer(config.contact_surface_layer_m)
+        self._world.setContactMaxCorrectingVel(config.contact_max_correcting_vel_m_s)
+        self._world.setAutoDisableFlag(False)
+        h = config.step_s
+        kp, kd = config.contact_stiffness_n_m, config.contact_damping_n_s_m
+        self._soft_erp = h * kp / (h * kp + kd)
+        self._soft_cfm = 1.0 / (h * kp + kd)
+        # ODE's HashSpace tests a foreign geom against *every* geom it holds
+        # (dSpaceCollide2 is brute force there); a quadtree prunes by cell:
+        # 0.005 ms instead of 0.06 ms per step for the 720-geom default farm.
+        cx, cy = config.broadphase_centre_m
+        ext = config.broadphase_extent_m
+        self._static_space = ode.QuadTreeSpace((cx, cy, 0.0), (ext, ext, ext), config.broadphase_depth)
+        self._robot_space = ode.SimpleSpace()
+        self._contact_group = ode.JointGroup()
+        self._ground = ode.GeomPlane(None, (0.0, 0.0, 1.0), 0.0)
+        self._static_space.add(self._ground)
+        self._ground.setCategoryBits(CAT_GROUND)
+        self._ground.setCollideBits(CAT_ROBOT)
+        self._geom_info: Dict[int, Tuple[str, object]] = {id(self._ground): ("ground", None)}
+        self._static_geoms: List[object] = [self._ground]   # keep Python refs alive
+        self._plant_ids: Set[int] = set()
+
+        self._controller = DiffDriveController(husky, limits)
+        self._control_period_s = 1.0 / limits.control_rate_hz
+        self._next_control_s = 0.0
+        self._step_count = 0
+        self._chassis = None
+        self._wheels: List[object] = []
+        self._hinges: List[object] = []
+        self._robot_geoms: List[object] = []
+        self._wheel_angle = np.zeros(4)
+        self._wheel_raw_prev = np.zeros(4)
+        self._vel_history: Deque[Tuple[float, np.ndarray]] = deque()
+
+        self._last_touch_s: Dict[Tuple[int, str], float] = {}
+        self._pending_events: List[ContactEvent] = []
+        self.total_contact_events = 0
+        self.plants_touched: Set[int] = set()
+
+    # ------------------------------------------------------------------ time
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated time [s]; step count x step_s (no accumulated rounding)."""
+        return self._step_count * self.config.step_s
+
+    @property
+    def controller(self) -> DiffDriveController:
+        return self._controller
+
+    # --------------------------------------------------------------- plants
+    def add_plants(self, plants: Sequence[Plant]) -> int:
+        """Add each plant's model.collision primitives, placed at its pose.
+
+        Returns the number of geoms added. Plants are static (no body).
+        """
+        count = 0
+        for plant in plants:
+            for name in ("x_m", "y_m", "yaw_rad"):
+                if not math.isfinite(getattr(plant, name)):
+                    raise ValueError(f"plant {plant.plant_id}: {name} is not finite")
+            q_yaw = _yaw_wxyz(plant.yaw_rad)
+            c, s = math.cos(plant.yaw_rad), math.sin(plant.yaw_rad)
+            world_prims = []
+            for prim in plant.model.collision:
+                px, py, pz = _finite_tuple(prim.position, 3, f"plant {plant.plant_id} primitive {prim.name!r} position")
+                qx, qy, qz, qw = _finite_tuple(prim.orientation, 4,
+                                               f"plant {plant.plant_id} primitive {prim.name!r} orientation")
+                qw_, qx_, qy_, qz_ = _quat_mul_wxyz(q_yaw, (qw, qx, qy, qz))
+                world_prims.append(Primitive(
+                    shape=prim.shape,
+                    position=(plant.x_m + c * px - s * py, plant.y_m + s * px + c * py, pz),
+                    orientation=(qx_, qy_, qz_, qw_), size=prim.size, name=prim.name))
+            count += self.add_static_obstacles(plant.plant_id, world_prims)
+        return count
+
+    def add_static_obstacles(self, plant_id: int, primitives_in_world: Sequence[Primitive]) -> int:
+        """Add static collision primitives (world frame) that belong to plant_id."""
+        added = []
+        for prim in primitives_in_world:
+            pos = _finite_tuple(prim.position, 3, f"plant {plant_id} primitive {prim.name!r} position")
+            qx, qy, qz, qw = _finite_tuple(prim.orientation, 4, f"plant {plant_id} primitive {prim.name!r} orientation")
+            norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+            if norm < 1e-9:
+                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: zero quaternion")
+            size = tuple(float(v) for v in prim.size)
+            if not all(math.isfinite(v) and v > 0 for v in size):
+                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: sizes must be finite and > 0, got {size}")
+            want = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1}
+            if prim.shape not in want:
+                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: unknown shape {prim.shape!r} "
+                                 f"(expected one of {sorted(want)})")
+            if len(size) != want[prim.shape]:
+                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: a {prim.shape} needs "
+                                 f"{want[prim.shape]} size values, got {len(size)}")
+            if prim.shape == "box":
+                geom = ode.GeomBox(self._static_space, tuple(2.0 * v for v in size))
+            elif prim.shape == "cylinder":
+                geom = ode.GeomCylinder(self._static_space, size[0], size[1])
+            elif prim.shape == "capsule":
+                geom = ode.GeomCapsule(self._static_space, size[0], size[1])
+            else:
+                geom = ode.GeomSphere(self._static_space, size[0])
+            geom.setPosition(pos)
+            geom.setQuaternion((qw / norm, qx / norm, qy / norm, qz / norm))
+            geom.setCategoryBits(CAT_PLANT)
+            geom.setCollideBits(CAT_ROBOT)
+            self._geom_info[id(geom)] = ("plant", int(plant_id))
+            added.append(geom)
+        self._static_geoms.extend(added)
+        self._plant_ids.add(int(plant_id))
+        return len(added)
+
+    @property
+    def static_geom_count(self) -> int:
+        return len(self._static_geoms) - 1
+
+    # ---------------------------------------------------------------- robot
+    def spawn_robot(self, pose: Pose2D) -> None:
+        """Place the Husky at rest on the ground at pose (base_link x, y, yaw).
+
+        Spawning again removes the previous robot and resets the controller.
+        """
+        x, y, yaw = _finite_tuple((pose.x_m, pose.y_m, pose.yaw_rad), 3, "spawn pose (x_m, y_m, yaw_rad)")
+        if self._chassis is not None:
+            self._remove_robot()
+        hp = self.husky
+        q = _yaw_wxyz(yaw)
+        rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+        base = np.array([x, y, hp.base_link_height_m])
+
+        chassis = ode.Body(self._world)
+        mass = ode.Mass()
+        ixx, iyy, izz = hp.chassis_inertia_kg_m2
+        mass.setParameters(hp.chassis_mass_kg, 0.0, 0.0, 0.0, ixx, iyy, izz, 0.0, 0.0, 0.0)
+        chassis.setMass(mass)
+        com_offset = np.array([0.0, 0.0, hp.chassis_com_height_m])
+        chassis.setPosition(tuple(base + rot @ com_offset))
+        chassis.setQuaternion(q)
+        geoms = []
+        for part, centre, size in (("chassis", hp.lower_box_centre_m, hp.lower_box_size_m),
+                                   ("chassis", hp.upper_box_centre_m, hp.upper_box_size_m)):
+            g = ode.GeomBox(self._robot_space, size)
+            g.setBody(chassis)
+            g.setOffsetPosition(tuple(np.asarray(centre) - com_offset))
+            geoms.append((g, part))
+
+        wheels, hinges = [], []
+        # GeomCylinder's axis is its local z; turn it onto the wheel axle (y).
+        q_axle = (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0)
+        for name, wpos in zip(WHEEL_NAMES, hp.wheel_positions_base_link()):
+            body = ode.Body(self._world)
+            m = ode.Mass()
+            m.setCylinderTotal(hp.wheel_mass_kg, 2, hp.wheel_radius_m, hp.wheel_width_m)
+            body.setMass(m)
+            centre = base + rot @ np.asarray(wpos)
+            body.setPosition(tuple(centre))
+            body.setQuaternion(q)
+            g = ode.GeomCylinder(self._robot_space, hp.wheel_radius_m, hp.wheel_width_m)
+            g.setBody(body)
+            g.setOffsetQuaternion(q_axle)
+            geoms.append((g, name))
+            hinge = ode.HingeJoint(self._world)
+            hinge.attach(body, chassis)       # rate = wheel minus chassis: > 0 rolls forward
+            hinge.setAnchor(tuple(centre))
+            hinge.setAxis(tuple(rot @ np.array([0.0, 1.0, 0.0])))
+            hinge.setParam(PARAM_VEL, 0.0)
+            hinge.setParam(PARAM_FMAX, self.config.wheel_max_torque_n_m)
+            wheels.append(body)
+            hinges.append(hinge)
+        for g, part in geoms:
+            g.setCategoryBits(CAT_ROBOT)
+            g.setCollideBits(CAT_GROUND | CAT_PLANT)
+            self._geom_info[id(g)] = ("robot", part)
+        self._chassis = chassis
+        self._wheels = wheels
+        self._hinges = hinges
+        self._robot_geoms = [g for g, _ in geoms]
+        self._com_offset = com_offset
+        self._wheel_angle = np.zeros(4)
+        self._wheel_raw_prev = np.array([h.getAngle() for h in hinges])
+        self._vel_history.clear()
+        self._controller.reset()
+        self._next_control_s = self.sim_time_s
+
+    def _remove_robot(self) -> None:
+        for g in self._robot_geoms:
+            self._geom_info.pop(id(g), None)
+            self._robot_space.remove(g)
+        for h in self._hinges:
+            h.attach(None, None)
+        self._robot_geoms, self._hinges, self._wheels, self._chassis = [], [], [], None
+
+    def _require_robot(self) -> None:
+        if self._chassis is None:
+            raise RuntimeError("no robot in the world: call spawn_robot(pose) first")
+
+    # -------------------------------------------------------------- command
+    def set_command(self, linear_x: float, angular_z: float, stamp_s: Optional[float] = None) -> Optional[str]:
+        """Twist command [m/s, rad/s] stamped in sim time [s] (default: now).
+
+        Returns None if accepted, else the reason it was ignored (NaN/inf).
+        """
+        return self._controller.set_command(linear_x, angular_z, self.sim_time_s if stamp_s is None else stamp_s)
+
+    # ----------------------------------------------------------------- step
+    def step(self) -> None:
+        """Advance the world by config.step_s."""
+        self._require_robot()
+        now = self.sim_time_s
+        if now >= self._next_control_s - 1e-9:
+            targets = self._controller.update(now)
+            for i, hinge in enumerate(self._hinges):
+                hinge.setParam(PARAM_VEL, targets.left_rad_s if i % 2 == 0 else targets.right_rad_s)
+            self._next_control_s += self._control_period_s
+        self._touching_now: Set[Tuple[int, str]] = set()
+        ode.collide2(self._robot_space, self._static_space, None, self._near_callback)
+        self._world.quickStep(self.config.step_s)
+        self._contact_group.empty()
+        self._step_count += 1
+        t = self.sim_time_s
+        for key in self._touching_now:
+            self._last_touch_s[key] = t
+        raw = np.array([h.getAngle() for h in self._hinges])
+        self._wheel_angle += (raw - self._wheel_raw_prev + math.pi) % (2.0 * math.pi) - math.pi
+        self._wheel_raw_prev = raw
+        v = np.asarray(self._chassis.getRelPointVel(tuple(-self._com_offset)))
+        self._vel_history.append((t, v))
+        while len(self._vel_history) > 2 and t - self._vel_history[1][0] >= self.config.accel_window_s - 1e-12:
+            self._vel_history.popleft()
+
+    def step_for(self, duration_s: float) -> None:
+        """Step until duration_s [s] of sim time have passed."""
+        if not math.isfinite(duration_s) or duration_s < 0:
+            raise ValueError(f"duration_s must be finite and >= 0, got {duration_s!r}")
+        for _ in range(int(round(duration_s / self.config.step_s))):
+            self.step()
+
+    def _near_callback(self, _arg, g1, g2) -> None:
+        info1 = self._geom_info.get(id(g1))
+        info2 = self._geom_info.get(id(g2))
+        if info1 is None or info2 is None:
+            return
+        if info1[0] != "robot":
+            g1, g2, info1, info2 = g2, g1, info2, info1
+        if info1[0] != "robot" or info2[0] == "robot":
+            return
+        contacts = ode.collide(g1, g2)
+        if not contacts:
+            return
+        cfg = self.config
+        part = info1[1]
+        is_wheel = part != "chassis"
+        if info2[0] == "ground":
+            if is_wheel:
+                mode = MODE_APPROX1 | MODE_SLIP1 | MODE_SLIP2 | MODE_SOFT_ERP | MODE_SOFT_CFM
+                mu, mu2, slip = cfg.wheel_mu, cfg.wheel_mu, cfg.wheel_slip
+            else:
+                mode, mu, mu2, slip = MODE_APPROX1 | MODE_SOFT_ERP | MODE_SOFT_CFM, cfg.chassis_mu, cfg.chassis_mu, 0.0
+        else:
+            mode = MODE_APPROX1 | MODE_MU2 | MODE_SOFT_ERP | MODE_SOFT_CFM
+            mu, mu2, slip = cfg.plant_mu1, cfg.plant_mu2, 0.0
+            self._register_touch(int(info2[1]), part, contacts[0])
+        body1 = g1.getBody()
+        for c in contacts[:cfg.max_contacts_per_pair]:
+            if is_wheel and info2[0] == "ground":
+                c.setFDir1(self._sliding_direction(body1, c))
+                c.setMode(mode | MODE_FDIR1)
+            else:
+                c.setMode(mode)
+            c.setMu(mu)
+            c.setMu2(mu2)
+            if slip > 0.0:
+                c.setSlip1(slip)
+                c.setSlip2(slip)
+            c.setSoftERP(self._soft_erp)
+            c.setSoftCFM(self._soft_cfm)
+            joint = ode.ContactJoint(self._world, self._contact_group, c)
+            joint.attach(body1, None)
+
+    @staticmethod
+    def _sliding_direction(body, contact) -> Tuple[float, float, float]:
+        """Unit tangent along which the wheel surface slides over the ground.
+
+        ODE bounds friction per direction (a pyramid); aligning the first
+        direction with the sliding velocity makes the saturated friction
+        force oppose the slip as isotropic Coulomb friction would. Without
+        sliding, the wheel's rolling direction is used.
+        """
+        # plain floats: this runs for every wheel contact every step, where
+        # numpy's per-call overhead would cost more than the ODE step itself
+        pos, (nx, ny, nz), _depth, _g1, _g2 = contact.getContactGeomParams()
+        vx, vy, vz = body.getPointVel(pos)
+        vn = vx * nx + vy * ny + vz * nz
+        tx, ty, tz = vx - vn * nx, vy - vn * ny, vz - vn * nz
+        speed = math.sqrt(tx * tx + ty * ty + tz * tz)
+        if speed > 1e-4:
+            return (tx / speed, ty / speed, tz / speed)
+        ax, ay, az = body.vectorToWorld((0.0, 1.0, 0.0))
+        fx, fy, fz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx   # axle x normal
+        norm = math.sqrt(fx * fx + fy * fy + fz * fz)
+        return (fx / norm, fy / norm, fz / norm) if norm > 1e-9 else (1.0, 0.0, 0.0)
+
+    def _register_touch(self, plant_id: int, part: str, contact) -> None:
+        key = (plant_id, part)
+        if key in self._touching_now:          # already seen this step (another geom / point)
+            return
+        self._touching_now.add(key)
+        now = self.sim_time_s
+        last = self._last_touch_s.get(key)
+        if last is not None and now - last <= self.config.contact_rearm_s:
+            return                             # still the same touch
+        pos, _normal, depth, _g1, _g2 = contact.getContactGeomParams()
+        self._pending_events.append(ContactEvent(now, plant_id, part, tuple(float(v) for v in pos), float(depth)))
+        self.total_contact_events += 1
+        self.plants_touched.add(plant_id)
+
+    # ---------------------------------------------------------------- output
+    def contacts_since_last_call(self) -> List[ContactEvent]:
+        """Touch events (a robot part started touching a plant) since the last call."""
+        out, self._pending_events = self._pending_events, []
+        return out
+
+    def robot_state(self) -> RobotState:
+        """Ground-truth state of the Husky now."""
+        self._require_robot()
+        ch = self._chassis
+        rot = _rot3(ch.getRotation())
+        base_pos = np.asarray(ch.getPosition()) - rot @ self._com_offset
+        qw, qx, qy, qz = ch.getQuaternion()
+        v_world = np.asarray(ch.getRelPointVel(tuple(-self._com_offset)))
+        w_world = np.asarray(ch.getAngularVel())
+        if len(self._vel_history) >= 2:
+            (t0, v0), (t1, v1) = self._vel_history[0], self._vel_history[-1]
+            a_world = (v1 - v0) / (t1 - t0)
+        else:
+            a_world = np.zeros(3)
+        specific_force = a_world - np.array([0.0, 0.0, self.config.gravity_m_s2])
+        return RobotState(
+            stamp_s=self.sim_time_s,
+            position_m=base_pos,
+            orientation_xyzw=np.array([qx, qy, qz, qw]),
+            linear_velocity_world_m_s=v_world,
+            linear_velocity_body_m_s=rot.T @ v_world,
+            angular_velocity_world_rad_s=w_world,
+            angular_velocity_body_rad_s=rot.T @ w_world,
+            linear_acceleration_body_m_s2=rot.T @ specific_force,
+            wheel_angles_rad=self._wheel_angle.copy(),
+            wheel_velocities_rad_s=np.array([h.getAngleRate() for h in self._hinges]),
+        )

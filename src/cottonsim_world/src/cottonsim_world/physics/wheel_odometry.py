@@ -1,0 +1,135 @@
+"""Wheel odometry of the Husky, as husky_velocity_controller publishes it.
+
+``diff_drive_controller`` treats the four-wheeled Husky as a two-wheeled
+differential drive: each side's speed is the mean of its two wheels, the
+robot's forward speed is their mean and its yaw rate their difference over
+the *effective* track (URDF track x wheel_separation_multiplier 1.875).
+The pose is the integral of that twist (exact arc when turning, a
+second-order Runge-Kutta step when nearly straight, like the controller's
+Odometry class). Wheel slip from the ODE contacts shows up naturally as
+odometry drift, as on the real robot.
+
+Input: measured wheel angular velocities [rad/s] in the order FL, FR, RL,
+RR (``RobotState.wheel_velocities_rad_s``) and the time since the last
+update. Output: pose and twist with the covariance diagonals the Husky
+publishes on /husky_velocity_controller/odom.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import List, Optional, Tuple
+
+import numpy as np
+
+from .husky_params import DriveLimits, HuskyParams
+
+
+@dataclass(frozen=True)
+class WheelOdometryConfig:
+    """Kinematic parameters of the odometry.
+
+    wheel_radius_m, track_m: URDF values; wheel_separation_multiplier and
+    wheel_radius_multiplier: control.yaml's corrections. Covariance
+    diagonals are (x, y, z, roll, pitch, yaw) as in control.yaml.
+    """
+
+    wheel_radius_m: float = 0.1651
+    track_m: float = 0.5708
+    wheel_separation_multiplier: float = 1.875
+    wheel_radius_multiplier: float = 1.0
+    pose_covariance_diagonal: Tuple[float, ...] = (0.001, 0.001, 0.001, 0.001, 0.001, 0.03)
+    twist_covariance_diagonal: Tuple[float, ...] = (0.001, 0.001, 0.001, 0.001, 0.001, 0.03)
+
+    def __post_init__(self) -> None:
+        for name in ("wheel_radius_m", "track_m", "wheel_separation_multiplier", "wheel_radius_multiplier"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"WheelOdometryConfig.{name} must be a finite number > 0, got {v!r}")
+        for name in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
+            values = getattr(self, name)
+            if len(values) != 6 or not all(math.isfinite(v) and v >= 0 for v in values):
+                raise ValueError(f"WheelOdometryConfig.{name} must be 6 finite numbers >= 0, got {values!r}")
+
+    @classmethod
+    def from_husky(cls, husky: HuskyParams = HuskyParams(), limits: DriveLimits = DriveLimits()) -> "WheelOdometryConfig":
+        return cls(wheel_radius_m=husky.wheel_radius_m, track_m=husky.track_m,
+                   wheel_separation_multiplier=limits.wheel_separation_multiplier,
+                   wheel_radius_multiplier=limits.wheel_radius_multiplier,
+                   pose_covariance_diagonal=tuple(limits.pose_covariance_diagonal),
+                   twist_covariance_diagonal=tuple(limits.twist_covariance_diagonal))
+
+
+@dataclass(frozen=True)
+class OdometryEstimate:
+    """Odometry in the odom frame (starts at 0, 0, 0).
+
+    x_m, y_m, yaw_rad: pose; linear_x_m_s, angular_z_rad_s: body twist;
+    pose_covariance / twist_covariance: 6x6 (x, y, z, roll, pitch, yaw).
+    """
+
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    linear_x_m_s: float
+    angular_z_rad_s: float
+    pose_covariance: np.ndarray
+    twist_covariance: np.ndarray
+
+
+class WheelOdometry:
+    """Integrates wheel speeds into an odometry pose and twist."""
+
+    def __init__(self, config: WheelOdometryConfig = WheelOdometryConfig()):
+        self.config = config
+        self._pose_cov = np.diag(np.asarray(config.pose_covariance_diagonal, dtype=float))
+        self._twist_cov = np.diag(np.asarray(config.twist_covariance_diagonal, dtype=float))
+        self.rejections: List[str] = []
+        self.reset()
+
+    def reset(self, x_m: float = 0.0, y_m: float = 0.0, yaw_rad: float = 0.0) -> None:
+        self._x, self._y, self._yaw = float(x_m), float(y_m), float(yaw_rad)
+        self._v = self._w = 0.0
+
+    def twist_from_wheels(self, wheel_velocities_rad_s) -> Tuple[float, float]:
+        """(linear x [m/s], angular z [rad/s]) of FL, FR, RL, RR wheel speeds [rad/s]."""
+        wv = np.asarray(wheel_velocities_rad_s, dtype=float).reshape(-1)
+        r = self.config.wheel_radius_m * self.config.wheel_radius_multiplier
+        left = 0.5 * (wv[0] + wv[2]) * r
+        right = 0.5 * (wv[1] + wv[3]) * r
+        ws = self.config.track_m * self.config.wheel_separation_multiplier
+        return 0.5 * (left + right), (right - left) / ws
+
+    def update(self, wheel_velocities_rad_s, dt_s: float) -> Optional[str]:
+        """Integrate over dt_s [s]; returns None, or the reason the sample was ignored."""
+        wv = np.asarray(wheel_velocities_rad_s, dtype=float).reshape(-1)
+        if wv.shape != (4,):
+            reason = f"wheel odometry: need 4 wheel velocities (FL, FR, RL, RR), got shape {wv.shape}"
+        elif not np.all(np.isfinite(wv)):
+            reason = f"wheel odometry: wheel velocities contain NaN or inf: {wv.tolist()}"
+        elif not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s) and dt_s >= 0):
+            reason = f"wheel odometry: dt_s must be finite and >= 0, got {dt_s!r}"
+        else:
+            reason = None
+        if reason is not None:
+            self.rejections.append(reason)
+            return reason
+        v, w = self.twist_from_wheels(wv)
+        self._v, self._w = v, w
+        dyaw = w * dt_s
+        if abs(dyaw) < 1e-6:
+            # second-order Runge-Kutta (heading at mid-step)
+            mid = self._yaw + 0.5 * dyaw
+            self._x += v * dt_s * math.cos(mid)
+            self._y += v * dt_s * math.sin(mid)
+        else:
+            radius = v / w
+            new_yaw = self._yaw + dyaw
+            self._x += radius * (math.sin(new_yaw) - math.sin(self._yaw))
+            self._y -= radius * (math.cos(new_yaw) - math.cos(self._yaw))
+        self._yaw = (self._yaw + dyaw + math.pi) % (2.0 * math.pi) - math.pi
+        return None
+
+    def estimate(self) -> OdometryEstimate:
+        return OdometryEstimate(self._x, self._y, self._yaw, self._v, self._w,
+                                self._pose_cov.copy(), self._twist_cov.copy())

@@ -1,0 +1,236 @@
+"""RGB-D camera (Intel RealSense D435-like) rendered with pybullet.
+
+Why: the perception stack (segmentation, boll detection, row centring) and
+the depth point clouds need images of the farm from the robot's three
+RealSense cameras. ``CameraModel`` renders the plants with pybullet (in the
+camera's own culled render client, see ``scene.RenderClient``), paints the
+ground and sky analytically (``SensorScene.ground_and_sky``) and returns
+numpy data; the ROS bridge turns it into Image / CameraInfo / PointCloud2.
+
+Frames: the pose passed to ``render`` is ``world_T_optical``: the optical
+frame of REP-103 (z forward, x right, y down). Intrinsics: square pixels,
+fx = fy = (W / 2) / tan(h_fov / 2), principal point at the image centre
+cx = (W - 1) / 2, cy = (H - 1) / 2 in pixel-index coordinates (pixel (0, 0)
+is centred at (0, 0)), which is where pybullet's symmetric OpenGL frustum
+puts it. (Gazebo's plugin writes (W + 1) / 2, half a pixel to a pixel off.)
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+import pybullet as pb
+
+from cottonsim_world.farm.model import SemanticClass
+from cottonsim_world.sensors.scene import SensorScene, check_pose
+
+_RENDERERS = ("tiny", "egl")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """One RGB-D camera. Defaults: the original's RealSense Gazebo plugin.
+
+    width/height [px]; horizontal_fov_rad (the plugin's 1.5184 rad = 87 deg;
+    the paper's colour FOV is 69 deg = 1.2043 rad); near_m/far_m: clip
+    planes [m]; rate_hz: publishing rate (used by the bridge); cloud_min_m /
+    cloud_max_m: depth range kept in the point cloud [m]; cloud_stride: keep
+    every n-th pixel in u and v for the cloud (decimation); depth_noise_std_m
+    and rgb_noise_std (in 0-255 units): Gaussian noise (0 = none);
+    renderer: 'tiny' (pybullet TinyRenderer, CPU) or 'egl' (pybullet's EGL
+    plugin; falls back to 'tiny' with a warning if it cannot load);
+    cull_distance_m: plants whose bounding sphere is farther than this along
+    the optical axis are not rendered (inf = only frustum culling);
+    plant_id_image: also return a per-pixel plant id image; seed: noise.
+    """
+
+    width: int = 640
+    height: int = 480
+    horizontal_fov_rad: float = 1.5184
+    near_m: float = 0.01
+    far_m: float = 50.0
+    rate_hz: float = 30.0
+    cloud_min_m: float = 0.105
+    cloud_max_m: float = 8.0
+    cloud_stride: int = 1
+    depth_noise_std_m: float = 0.0
+    rgb_noise_std: float = 0.0
+    renderer: str = "tiny"
+    cull_distance_m: float = 25.0
+    plant_id_image: bool = False
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height", "cloud_stride"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        if self.width > 4096 or self.height > 4096:
+            raise ValueError(f"width/height must be <= 4096 px, got {self.width}x{self.height}")
+        if not (0.0 < self.horizontal_fov_rad < math.pi):
+            raise ValueError(f"horizontal_fov_rad must be in (0, pi), got {self.horizontal_fov_rad}")
+        if not (0.0 < self.near_m < self.far_m) or not math.isfinite(self.far_m):
+            raise ValueError(f"near_m/far_m must satisfy 0 < near_m < far_m < inf, got {self.near_m}, {self.far_m}")
+        if not (self.rate_hz > 0.0 and math.isfinite(self.rate_hz)):
+            raise ValueError(f"rate_hz must be > 0, got {self.rate_hz}")
+        if not (0.0 <= self.cloud_min_m < self.cloud_max_m):
+            raise ValueError(f"cloud_min_m/cloud_max_m must satisfy 0 <= min < max, got "
+                             f"{self.cloud_min_m}, {self.cloud_max_m}")
+        for name in ("depth_noise_std_m", "rgb_noise_std"):
+            v = getattr(self, name)
+            if not (v >= 0.0 and math.isfinite(v)):
+                raise ValueError(f"{name} must be >= 0, got {v}")
+        if self.renderer not in _RENDERERS:
+            raise ValueError(f"renderer must be one of {_RENDERERS}, got {self.renderer!r}")
+        if not (self.cull_distance_m > 0.0):
+            raise ValueError(f"cull_distance_m must be > 0 (inf allowed), got {self.cull_distance_m}")
+
+    @property
+    def vertical_fov_rad(self) -> float:
+        """Vertical field of view implied by the square pixels [rad]."""
+        return 2.0 * math.atan(math.tan(self.horizontal_fov_rad / 2.0) * self.height / self.width)
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics [px] in the form sensor_msgs/CameraInfo wants."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def K(self) -> np.ndarray:
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def P(self) -> np.ndarray:
+        """3x4 projection for a monocular camera (Tx = Ty = 0)."""
+        return np.hstack([self.K, np.zeros((3, 1))])
+
+
+@dataclass
+class CameraFrame:
+    """One rendered frame. Arrays are (H, W, ...)."""
+
+    rgb: np.ndarray                      # uint8 (H, W, 3)
+    depth_m: np.ndarray                  # float32 (H, W), NaN = no return / out of [near, far]
+    semantic: np.ndarray                 # uint8 (H, W), SemanticClass values
+    plant_id: Optional[np.ndarray]       # int32 (H, W), -1 = not a plant; None unless asked for
+    world_T_optical: np.ndarray          # the pose it was rendered from
+
+
+class CameraModel:
+    """Renders one camera of a ``SensorScene``.
+
+    ``render(world_T_optical)`` -> ``CameraFrame``; ``point_cloud(frame)`` ->
+    (xyz, rgb) in the optical frame; ``intrinsics()`` for CameraInfo.
+    Each camera owns a render client; ``last_render_stats`` tells how many
+    plants were drawn and how many bodies were added/removed.
+    """
+
+    def __init__(self, scene: SensorScene, config: CameraConfig = CameraConfig()) -> None:
+        if not isinstance(scene, SensorScene):
+            raise ValueError(f"scene must be a SensorScene, got {type(scene).__name__}")
+        if not isinstance(config, CameraConfig):
+            raise ValueError(f"config must be a CameraConfig, got {type(config).__name__}")
+        self.scene = scene
+        self.config = config
+        self._client = scene.new_render_client(config.renderer)
+        self.renderer = self._client.renderer
+        self._intr = self._make_intrinsics()
+        w, h = config.width, config.height
+        u = (np.arange(w, dtype=np.float32) - self._intr.cx) / self._intr.fx
+        v = (np.arange(h, dtype=np.float32) - self._intr.cy) / self._intr.fy
+        self._ray_x = u                               # (W,) x/z per column
+        self._ray_y = v                               # (H,) y/z per row
+        self._ray_norm = np.sqrt(u[None, :] ** 2 + v[:, None] ** 2 + 1.0).astype(np.float32)
+        self._projection = pb.computeProjectionMatrixFOV(
+            fov=math.degrees(config.vertical_fov_rad), aspect=w / h, nearVal=config.near_m, farVal=config.far_m)
+        self._rng = np.random.default_rng(config.seed)
+        self.last_render_stats = {"plants": 0, "added": 0, "removed": 0}
+
+    def _make_intrinsics(self) -> CameraIntrinsics:
+        c = self.config
+        f = (c.width / 2.0) / math.tan(c.horizontal_fov_rad / 2.0)
+        return CameraIntrinsics(c.width, c.height, f, f, (c.width - 1) / 2.0, (c.height - 1) / 2.0)
+
+    def intrinsics(self) -> CameraIntrinsics:
+        return self._intr
+
+    @staticmethod
+    def _view_matrix(world_T_optical: np.ndarray) -> list:
+        """pybullet (OpenGL, column-major) view matrix of an optical-frame pose."""
+        world_T_gl = world_T_optical @ np.diag([1.0, -1.0, -1.0, 1.0])   # GL: y up, looks along -z
+        view = np.linalg.inv(world_T_gl)
+        return view.T.ravel().tolist()
+
+    def render(self, world_T_optical: np.ndarray) -> CameraFrame:
+        """Render RGB, metric depth and semantics from a world_T_optical pose."""
+        pose = check_pose("world_T_optical", world_T_optical)
+        cfg, scene = self.config, self.scene
+        tan_h = math.tan(cfg.horizontal_fov_rad / 2.0)
+        tan_v = math.tan(cfg.vertical_fov_rad / 2.0)
+        wanted = scene.plants_in_view(pose, tan_h, tan_v, min(cfg.cull_distance_m, cfg.far_m))
+        added, removed = self._client.sync(wanted)
+        self.last_render_stats = {"plants": len(wanted), "added": added, "removed": removed}
+        sc = scene.config
+        light = scene.config.sun_direction * 100.0
+        _, _, rgba, depth_buf, seg = pb.getCameraImage(
+            cfg.width, cfg.height, viewMatrix=self._view_matrix(pose), projectionMatrix=self._projection,
+            lightDirection=light.tolist(), lightColor=list(sc.light_rgb), lightDistance=100.0,
+            shadow=int(sc.shadows), lightAmbientCoeff=sc.ambient_coeff, lightDiffuseCoeff=sc.diffuse_coeff,
+            lightSpecularCoeff=sc.specular_coeff, renderer=self._client.renderer_flag,
+            flags=pb.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX, physicsClientId=self._client.client)
+        rgba = np.asarray(rgba, dtype=np.uint8).reshape(cfg.height, cfg.width, 4)
+        depth_buf = np.asarray(depth_buf, dtype=np.float32).reshape(cfg.height, cfg.width)
+        seg = np.asarray(seg, dtype=np.int32).reshape(cfg.height, cfg.width)
+        drawn = seg >= 0
+        # OpenGL depth buffer d in [0, 1] -> eye-space distance along the optical axis
+        n, f = cfg.near_m, cfg.far_m
+        depth = (f * n / (f - (f - n) * depth_buf)).astype(np.float32)
+        bg_rgb, bg_depth, bg_sem = scene.ground_and_sky(pose, self._intr.K, cfg.width, cfg.height, self._ray_norm)
+        rgb = np.where(drawn[..., None], rgba[..., :3], bg_rgb)
+        depth = np.where(drawn, depth, bg_depth)
+        link_plus_one = np.clip(seg >> 24, 0, len(scene.link_semantic_lut) - 1)
+        semantic = np.where(drawn, scene.link_semantic_lut[link_plus_one], bg_sem).astype(np.uint8)
+        plant_id = None
+        if cfg.plant_id_image:
+            lut = self._client.plant_of_body
+            body = np.clip(seg & 0xFFFFFF, 0, len(lut) - 1)
+            plant_id = np.where(drawn, lut[body], -1).astype(np.int32)
+        if cfg.depth_noise_std_m > 0.0:
+            depth = depth + self._rng.normal(0.0, cfg.depth_noise_std_m, depth.shape).astype(np.float32)
+        if cfg.rgb_noise_std > 0.0:
+            noisy = rgb.astype(np.float32) + self._rng.normal(0.0, cfg.rgb_noise_std, rgb.shape)
+            rgb = np.clip(noisy, 0, 255).astype(np.uint8)
+        depth = np.where((depth >= n) & (depth <= f), depth, np.nan).astype(np.float32)
+        return CameraFrame(rgb=np.ascontiguousarray(rgb), depth_m=depth, semantic=semantic,
+                           plant_id=plant_id, world_T_optical=pose)
+
+    def point_cloud(self, frame: CameraFrame) -> Tuple[np.ndarray, np.ndarray]:
+        """Back-project a frame: xyz (N, 3) float32 in the optical frame [m], rgb (N, 3) uint8.
+
+        Keeps pixels with cloud_min_m <= depth <= cloud_max_m, every
+        ``cloud_stride``-th pixel in u and v, in row-major pixel order.
+        """
+        cfg = self.config
+        if frame.depth_m.shape != (cfg.height, cfg.width):
+            raise ValueError(f"frame depth has shape {frame.depth_m.shape}, camera is {cfg.height}x{cfg.width}")
+        s = cfg.cloud_stride
+        z = frame.depth_m[::s, ::s]
+        with np.errstate(invalid="ignore"):
+            keep = (z >= cfg.cloud_min_m) & (z <= cfg.cloud_max_m)
+        rows, cols = np.nonzero(keep)
+        zk = z[rows, cols]
+        xyz = np.empty((len(zk), 3), dtype=np.float32)
+        xyz[:, 0] = self._ray_x[::s][cols] * zk
+        xyz[:, 1] = self._ray_y[::s][rows] * zk
+        xyz[:, 2] = zk
+        rgb = frame.rgb[::s, ::s][rows, cols]
+        return xyz, np.ascontiguousarray(rgb, dtype=np.uint8)

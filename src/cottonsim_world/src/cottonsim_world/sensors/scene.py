@@ -1,0 +1,563 @@
+"""The static world as the exteroceptive sensors see it (pybullet, DIRECT mode).
+
+Why this module exists
+----------------------
+Cameras and the LiDAR need the farm in a form pybullet can render and ray
+cast, separate from the ODE dynamics. ``SensorScene`` builds that form once:
+
+* a **ray-cast client**: an infinite ground plane plus, per plant, one body
+  for the plant parts (stem, leaves, ...) and one for its bolls, made of
+  collision shapes (the models' triangle meshes, or their collision
+  primitives). ``body_info`` maps each body id to (SemanticClass, plant_id).
+* **render clients** (``RenderClient``), one per camera, that hold only the
+  plants a camera can currently see (frustum and distance culling). The
+  TinyRenderer's cost grows with every triangle it is given, whether on
+  screen or not, so each camera keeps its own small client and adds/removes
+  plant bodies as its view moves.
+* the **ground and sky**, which are *not* rendered by pybullet: the ground is
+  a plane, so its image is a homography of a procedural soil texture and its
+  inverse depth is affine in the pixel coordinates; the sky is a gradient
+  over the ray elevation. Computing both with numpy/OpenCV is several times
+  cheaper than letting the software rasteriser fill half the image with two
+  huge triangles (measured: a bare ground box costs ~65 ms of a 640x480
+  TinyRenderer frame). Plants always occlude the ground behind them (both
+  lie above z = 0 and the camera is above ground), so the ground/sky layer
+  is painted exactly where pybullet drew nothing.
+
+Frames: world z up, ground at z = 0 [m]; plant-local as in ``farm.model``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Dict, List, Mapping, Optional, Sequence, Set, Tuple
+
+import cv2
+import numpy as np
+import pybullet as pb
+
+from cottonsim_world.farm.model import (Farm, Lane, Plant, PlantModel, Pose2D,
+                                        Primitive, SemanticClass, TriangleMesh)
+
+_COLLISION_SOURCES = ("meshes", "primitives")
+
+
+def _check_rgb(name: str, value: Sequence[float]) -> None:
+    if len(value) != 3 or not all(math.isfinite(v) and 0.0 <= v <= 1.0 for v in value):
+        raise ValueError(f"{name} must be 3 values in [0, 1], got {value!r}")
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Appearance and ray-cast geometry of the sensor scene.
+
+    Colours are RGB in [0, 1]. The sun direction is given as azimuth
+    (counter-clockwise from world +x) and elevation above the horizon [rad];
+    it drives pybullet's light for the plants and the flat shading of the
+    ground, so datasets can vary the time of day.
+    """
+
+    ground_rgb: Tuple[float, float, float] = (0.47, 0.36, 0.25)   # dry soil brown
+    soil_texture: bool = True            # procedural soil noise on the ground
+    soil_texture_m_per_px: float = 0.02  # texture resolution on the ground [m/px]
+    soil_noise_amplitude: float = 0.22   # relative brightness variation of the soil
+    ground_margin_m: float = 15.0        # textured area around the farm's plants [m]
+    sky_zenith_rgb: Tuple[float, float, float] = (0.33, 0.52, 0.82)
+    sky_horizon_rgb: Tuple[float, float, float] = (0.78, 0.85, 0.93)
+    sun_azimuth_rad: float = 0.6
+    sun_elevation_rad: float = 0.9
+    light_rgb: Tuple[float, float, float] = (1.0, 1.0, 1.0)
+    ambient_coeff: float = 0.55          # pybullet lightAmbientCoeff
+    diffuse_coeff: float = 0.5           # pybullet lightDiffuseCoeff
+    specular_coeff: float = 0.05         # pybullet lightSpecularCoeff
+    shadows: bool = False                # TinyRenderer shadow map (costs time)
+    collision_source: str = "meshes"     # 'meshes' | 'primitives' for ray casting
+    seed: int = 0                        # soil texture noise
+
+    def __post_init__(self) -> None:
+        for name in ("ground_rgb", "sky_zenith_rgb", "sky_horizon_rgb", "light_rgb"):
+            _check_rgb(name, getattr(self, name))
+        if not (self.soil_texture_m_per_px > 0.0 and math.isfinite(self.soil_texture_m_per_px)):
+            raise ValueError(f"soil_texture_m_per_px must be > 0, got {self.soil_texture_m_per_px}")
+        if not (0.0 <= self.soil_noise_amplitude <= 1.0):
+            raise ValueError(f"soil_noise_amplitude must be in [0, 1], got {self.soil_noise_amplitude}")
+        if not (self.ground_margin_m >= 0.0 and math.isfinite(self.ground_margin_m)):
+            raise ValueError(f"ground_margin_m must be >= 0, got {self.ground_margin_m}")
+        if not math.isfinite(self.sun_azimuth_rad):
+            raise ValueError(f"sun_azimuth_rad must be finite, got {self.sun_azimuth_rad}")
+        if not (0.0 < self.sun_elevation_rad <= math.pi / 2):
+            raise ValueError(f"sun_elevation_rad must be in (0, pi/2], got {self.sun_elevation_rad}")
+        for name in ("ambient_coeff", "diffuse_coeff", "specular_coeff"):
+            v = getattr(self, name)
+            if not (0.0 <= v <= 2.0):
+                raise ValueError(f"{name} must be in [0, 2], got {v}")
+        if self.collision_source not in _COLLISION_SOURCES:
+            raise ValueError(f"collision_source must be one of {_COLLISION_SOURCES}, "
+                             f"got {self.collision_source!r}")
+
+    @property
+    def sun_direction(self) -> np.ndarray:
+        """Unit vector from the ground towards the sun, world frame."""
+        ce = math.cos(self.sun_elevation_rad)
+        return np.array([ce * math.cos(self.sun_azimuth_rad), ce * math.sin(self.sun_azimuth_rad),
+                         math.sin(self.sun_elevation_rad)])
+
+
+def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
+    """Validate a 4x4 rigid transform; return it as float64 (raises ValueError)."""
+    m = np.asarray(pose, dtype=float)
+    if m.shape != (4, 4):
+        raise ValueError(f"{name} must be a 4x4 matrix, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ValueError(f"{name} contains NaN or inf")
+    r = m[:3, :3]
+    if not np.allclose(r @ r.T, np.eye(3), atol=1e-4) or np.linalg.det(r) < 0.0:
+        raise ValueError(f"{name} rotation part is not a proper rotation matrix")
+    return m
+
+
+def _yaw_quat(yaw: float) -> Tuple[float, float, float, float]:
+    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+
+
+def _merge(meshes: Sequence[TriangleMesh]) -> Tuple[np.ndarray, np.ndarray]:
+    """Concatenate meshes into one (vertices, faces) pair."""
+    verts, faces, offset = [], [], 0
+    for m in meshes:
+        verts.append(np.asarray(m.vertices, dtype=float))
+        faces.append(np.asarray(m.faces, dtype=np.int64) + offset)
+        offset += len(m.vertices)
+    if not verts:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    return np.concatenate(verts), np.concatenate(faces)
+
+
+def _validate_model(plant: Plant) -> None:
+    for name, mesh in plant.model.meshes.items():
+        v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+        if v.ndim != 2 or v.shape[1] != 3 or not np.all(np.isfinite(v)):
+            raise ValueError(f"plant {plant.plant_id} mesh {name!r}: vertices must be finite (N, 3)")
+        if f.ndim != 2 or f.shape[1] != 3 or (f.size and (f.min() < 0 or f.max() >= len(v))):
+            raise ValueError(f"plant {plant.plant_id} mesh {name!r}: faces must be (M, 3) indices < {len(v)}")
+
+
+class RenderClient:
+    """A pybullet DIRECT client holding only the plants one camera needs.
+
+    Each plant becomes one multibody with no visual on its base and one link
+    per material name known to the scene (same order for every plant; an
+    empty visual where a plant lacks that material). With the segmentation
+    flag OBJECT_AND_LINKINDEX a pixel value is ``body + ((link + 1) << 24)``,
+    so ``link_semantic_lut[value >> 24]`` gives the SemanticClass and
+    ``plant_of_body[value & 0xFFFFFF]`` the plant id.
+    """
+
+    def __init__(self, scene: "SensorScene", renderer: str = "tiny") -> None:
+        self.scene = scene
+        self.client = pb.connect(pb.DIRECT)
+        self.renderer_flag = pb.ER_TINY_RENDERER
+        self.renderer = "tiny"
+        if renderer == "egl":
+            self._try_egl()
+        self._visuals: Dict[int, List[int]] = {}        # id(plant model) -> visual id per material
+        self._bodies: Dict[int, int] = {}               # plant index -> body id
+        self.plant_of_body = np.full(1, -1, dtype=np.int32)
+
+    def _try_egl(self) -> None:
+        import pkgutil
+        import warnings
+        try:
+            loader = pkgutil.get_loader("eglRenderer")
+            if loader is None:
+                raise RuntimeError("pybullet's eglRenderer module is not installed")
+            plugin = pb.loadPlugin(loader.get_filename(), "_eglRendererPlugin", physicsClientId=self.client)
+            if plugin < 0:
+                raise RuntimeError("loadPlugin returned -1")
+        except Exception as exc:  # any failure: keep TinyRenderer
+            warnings.warn(f"EGL renderer unavailable ({exc}); falling back to TinyRenderer")
+            return
+        self.renderer_flag = pb.ER_BULLET_HARDWARE_OPENGL
+        self.renderer = "egl"
+
+    @property
+    def loaded_plants(self) -> Set[int]:
+        """Indices (into farm.plants) of the plants currently in this client."""
+        return set(self._bodies)
+
+    def _visual_ids(self, idx: int) -> List[int]:
+        plant = self.scene.farm.plants[idx]
+        key = id(plant.model)            # plants sharing a model variant share its visual shapes
+        if key not in self._visuals:
+            ids = []
+            for name in self.scene.material_names:
+                mesh = plant.model.meshes.get(name)
+                if mesh is None or len(mesh.faces) == 0:
+                    ids.append(-1)
+                    continue
+                ids.append(pb.createVisualShape(
+                    pb.GEOM_MESH, vertices=np.asarray(mesh.vertices, float).tolist(),
+                    indices=np.asarray(mesh.faces, np.int64).ravel().tolist(),
+                    rgbaColor=list(mesh.rgba), specularColor=[0.05, 0.05, 0.05],
+                    physicsClientId=self.client))
+            self._visuals[key] = ids
+        return self._visuals[key]
+
+    def sync(self, wanted: Set[int]) -> Tuple[int, int]:
+        """Add the plants in ``wanted`` that are missing, remove the others.
+
+        Returns (added, removed) counts.
+        """
+        current = set(self._bodies)
+        remove, add = current - wanted, wanted - current
+        for idx in remove:
+            pb.removeBody(self._bodies.pop(idx), physicsClientId=self.client)
+        for idx in sorted(add):
+            plant = self.scene.farm.plants[idx]
+            vis = self._visual_ids(idx)
+            n = len(vis)
+            body = pb.createMultiBody(
+                baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                basePosition=[plant.x_m, plant.y_m, 0.0], baseOrientation=_yaw_quat(plant.yaw_rad),
+                linkMasses=[0.0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=vis,
+                linkPositions=[[0.0, 0.0, 0.0]] * n, linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+                linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n,
+                linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+                linkParentIndices=[0] * n, linkJointTypes=[pb.JOINT_FIXED] * n,
+                linkJointAxis=[[0.0, 0.0, 1.0]] * n, physicsClientId=self.client)
+            self._bodies[idx] = body
+            if body >= len(self.plant_of_body):
+                grown = np.full(max(2 * len(self.plant_of_body), body + 1), -1, dtype=np.int32)
+                grown[:len(self.plant_of_body)] = self.plant_of_body
+                self.plant_of_body = grown
+            self.plant_of_body[body] = plant.plant_id
+        return len(add), len(remove)
+
+    def close(self) -> None:
+        if self.client is not None and pb.isConnected(self.client):
+            pb.disconnect(self.client)
+        self.client = None
+
+
+class SensorScene:
+    """The farm's static geometry for rendering and ray casting.
+
+    Build once per farm: ``scene = SensorScene(farm, SceneConfig())``, then
+    hand it to ``CameraModel`` and ``Vlp16Model``. ``close()`` frees the
+    pybullet clients (also done by the context manager).
+    """
+
+    def __init__(self, farm: Farm, config: SceneConfig = SceneConfig()) -> None:
+        if not isinstance(config, SceneConfig):
+            raise ValueError(f"config must be a SceneConfig, got {type(config).__name__}")
+        if not hasattr(farm, "plants"):
+            raise ValueError("farm must be a farm.model.Farm (it has no 'plants')")
+        self.farm = farm
+        self.config = config
+        for plant in farm.plants:
+            _validate_model(plant)
+        names: List[str] = []
+        for plant in farm.plants:
+            for name in plant.model.meshes:
+                if name not in names:
+                    names.append(name)
+        self.material_names: Tuple[str, ...] = tuple(names)
+        # link index + 1 -> semantic class (0 = base, which has no visual)
+        lut = np.full(len(names) + 1, int(SemanticClass.PLANT), dtype=np.uint8)
+        for i, name in enumerate(names):
+            sem = next(int(p.model.meshes[name].semantic) for p in farm.plants if name in p.model.meshes)
+            lut[i + 1] = sem
+        self.link_semantic_lut = lut
+        self._bounding_spheres = self._plant_bounds()
+        self._render_clients: List[RenderClient] = []
+        self._build_soil_texture()
+        self.ray_client = pb.connect(pb.DIRECT)
+        self.body_info: Dict[int, Tuple[SemanticClass, int]] = {}
+        self._build_ray_world()
+
+    # ------------------------------------------------------------------ geometry
+    def _plant_bounds(self) -> np.ndarray:
+        """(P, 4): bounding sphere centre x, y, z and radius per plant [m]."""
+        out = np.zeros((len(self.farm.plants), 4))
+        for i, plant in enumerate(self.farm.plants):
+            v, _ = _merge(list(plant.model.meshes.values()))
+            if len(v) == 0:
+                out[i] = (plant.x_m, plant.y_m, 0.0, 0.0)
+                continue
+            lo, hi = v.min(axis=0), v.max(axis=0)
+            c_local = 0.5 * (lo + hi)
+            r = float(np.max(np.linalg.norm(v - c_local, axis=1)))
+            c, s = math.cos(plant.yaw_rad), math.sin(plant.yaw_rad)
+            out[i] = (plant.x_m + c * c_local[0] - s * c_local[1],
+                      plant.y_m + s * c_local[0] + c * c_local[1], c_local[2], r)
+        return out
+
+    def plants_in_view(self, world_T_optical: np.ndarray, tan_half_h: float, tan_half_v: float,
+                       max_distance_m: float) -> Set[int]:
+        """Indices of the plants whose bounding sphere touches a view frustum.
+
+        The frustum is that of a camera in the optical convention (z forward,
+        x right, y down) with the given half-angle tangents, cut at
+        ``max_distance_m`` along z. Conservative: a sphere is kept unless it
+        lies entirely outside one of the planes.
+        """
+        if len(self._bounding_spheres) == 0:
+            return set()
+        pose = check_pose("world_T_optical", world_T_optical)
+        r_wo, t_wo = pose[:3, :3], pose[:3, 3]
+        c = (self._bounding_spheres[:, :3] - t_wo) @ r_wo        # centres in the optical frame
+        rad = self._bounding_spheres[:, 3]
+        x, y, z = c[:, 0], c[:, 1], c[:, 2]
+        keep = (z > -rad) & (z < max_distance_m + rad)
+        # side planes through the origin: |x| <= z * tan  <=>  (x - z tan) / sqrt(1 + tan^2) <= r
+        nh, nv = math.sqrt(1 + tan_half_h ** 2), math.sqrt(1 + tan_half_v ** 2)
+        keep &= (x - z * tan_half_h) / nh <= rad
+        keep &= (-x - z * tan_half_h) / nh <= rad
+        keep &= (y - z * tan_half_v) / nv <= rad
+        keep &= (-y - z * tan_half_v) / nv <= rad
+        return set(np.nonzero(keep)[0].tolist())
+
+    def new_render_client(self, renderer: str = "tiny") -> RenderClient:
+        """A fresh, empty render client (one per camera)."""
+        rc = RenderClient(self, renderer)
+        self._render_clients.append(rc)
+        return rc
+
+    def _build_ray_world(self) -> None:
+        cid = self.ray_client
+        plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=cid)
+        ground = pb.createMultiBody(0.0, plane, -1, [0.0, 0.0, 0.0], physicsClientId=cid)
+        self.body_info[ground] = (SemanticClass.GROUND, -1)
+        for plant in self.farm.plants:
+            pos, orn = [plant.x_m, plant.y_m, 0.0], _yaw_quat(plant.yaw_rad)
+            for sem in (SemanticClass.PLANT, SemanticClass.BOLL):
+                shape = self._collision_shape(plant, sem)
+                if shape < 0:
+                    continue
+                body = pb.createMultiBody(0.0, shape, -1, pos, orn, physicsClientId=cid)
+                self.body_info[body] = (sem, plant.plant_id)
+        n = max(self.body_info) + 1
+        self.semantic_of_ray_body = np.full(n + 1, int(SemanticClass.SKY), dtype=np.uint8)
+        self.plant_of_ray_body = np.full(n + 1, -1, dtype=np.int32)
+        for body, (sem, pid) in self.body_info.items():
+            self.semantic_of_ray_body[body] = int(sem)
+            self.plant_of_ray_body[body] = pid
+
+    def _collision_shape(self, plant: Plant, sem: SemanticClass) -> int:
+        cid = self.ray_client
+        model = plant.model
+        use_meshes = self.config.collision_source == "meshes" or (
+            sem == SemanticClass.PLANT and not model.collision)
+        if sem == SemanticClass.BOLL and not use_meshes:
+            if len(model.boll_radii) == 0:
+                return -1
+            radii = np.asarray(model.boll_radii, float)
+            centres = np.asarray(model.boll_centres, float).reshape(-1, 3)
+            return pb.createCollisionShapeArray(
+                shapeTypes=[pb.GEOM_SPHERE] * len(radii), radii=radii.tolist(),
+                collisionFramePositions=centres.tolist(), physicsClientId=cid)
+        if use_meshes:
+            parts = [m for m in model.meshes.values() if (m.semantic == SemanticClass.BOLL) == (sem == SemanticClass.BOLL)]
+            v, f = _merge(parts)
+            if len(f) == 0:
+                return -1
+            return pb.createCollisionShape(pb.GEOM_MESH, vertices=v.tolist(), indices=f.ravel().tolist(),
+                                           flags=pb.GEOM_FORCE_CONCAVE_TRIMESH, physicsClientId=cid)
+        types, radii, half, lengths, pos, orn = [], [], [], [], [], []
+        for prim in model.collision:
+            s = prim.size
+            if prim.shape == "box":
+                types.append(pb.GEOM_BOX); half.append(list(s[:3])); radii.append(0.0); lengths.append(0.0)
+            elif prim.shape in ("cylinder", "capsule"):
+                types.append(pb.GEOM_CYLINDER if prim.shape == "cylinder" else pb.GEOM_CAPSULE)
+                radii.append(float(s[0])); lengths.append(float(s[1])); half.append([0.0, 0.0, 0.0])
+            elif prim.shape == "sphere":
+                types.append(pb.GEOM_SPHERE); radii.append(float(s[0])); lengths.append(0.0); half.append([0.0, 0.0, 0.0])
+            else:
+                raise ValueError(f"plant {plant.plant_id}: unknown collision primitive shape {prim.shape!r}")
+            pos.append(list(prim.position)); orn.append(list(prim.orientation))
+        return pb.createCollisionShapeArray(shapeTypes=types, radii=radii, halfExtents=half, lengths=lengths,
+                                            collisionFramePositions=pos, collisionFrameOrientations=orn,
+                                            physicsClientId=cid)
+
+    # ------------------------------------------------------------ ground & sky
+    def _build_soil_texture(self) -> None:
+        cfg = self.config
+        pts = self.farm.plant_positions()
+        if len(pts):
+            lo, hi = pts.min(axis=0) - cfg.ground_margin_m, pts.max(axis=0) + cfg.ground_margin_m
+        else:
+            lo, hi = np.array([-cfg.ground_margin_m] * 2), np.array([cfg.ground_margin_m] * 2)
+        res = cfg.soil_texture_m_per_px
+        w = int(min(4096, math.ceil((hi[0] - lo[0]) / res)))
+        h = int(min(4096, math.ceil((hi[1] - lo[1]) / res)))
+        self._tex_origin = lo
+        self._tex_res = ((hi[0] - lo[0]) / w, (hi[1] - lo[1]) / h)   # [m/px] along x, y
+        base = np.array(cfg.ground_rgb, dtype=np.float32)
+        if cfg.soil_texture and cfg.soil_noise_amplitude > 0.0:
+            rng = np.random.default_rng(cfg.seed)
+            shade = np.zeros((h, w), np.float32)
+            for cells, weight in ((8, 0.45), (64, 0.3), (512, 0.15)):   # clods .. grains
+                small = rng.standard_normal((max(2, h * cells // max(h, w)), cells)).astype(np.float32)
+                shade += weight * cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
+            shade += 0.1 * rng.standard_normal((h, w)).astype(np.float32)
+            shade *= cfg.soil_noise_amplitude / max(1e-6, float(shade.std()))
+            tex = base[None, None, :] * (1.0 + shade[..., None])
+        else:
+            tex = np.broadcast_to(base, (h, w, 3)).copy()
+        # flat shading of a z-up plane under the scene's light
+        light = cfg.ambient_coeff + cfg.diffuse_coeff * max(0.0, math.sin(cfg.sun_elevation_rad))
+        tex = tex * light * np.array(cfg.light_rgb, np.float32)
+        self.soil_texture = np.clip(tex * 255.0, 0, 255).astype(np.uint8)      # (h, w, 3) RGB
+        # texture pixel (col, row) -> world (x, y, 1)
+        self._world_from_tex = np.array([[self._tex_res[0], 0.0, lo[0] + 0.5 * self._tex_res[0]],
+                                         [0.0, self._tex_res[1], lo[1] + 0.5 * self._tex_res[1]],
+                                         [0.0, 0.0, 1.0]])
+        zen = np.array(cfg.sky_zenith_rgb, np.float32)
+        hor = np.array(cfg.sky_horizon_rgb, np.float32)
+        t = np.linspace(0.0, 1.0, 256, dtype=np.float32) ** 0.6
+        self._sky_lut = np.clip(255.0 * (hor[None] + (zen - hor)[None] * t[:, None]), 0, 255).astype(np.uint8)
+
+    def ground_and_sky(self, world_T_optical: np.ndarray, K: np.ndarray, width: int, height: int,
+                       ray_norm: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Background layer seen by a pinhole camera, for every pixel.
+
+        Returns rgb (H, W, 3) uint8, depth (H, W) float32 metric depth along
+        the optical z axis (inf where the ray does not hit the ground) and
+        semantic (H, W) uint8 (GROUND or SKY). ``ray_norm`` is the (H, W)
+        length of the optical ray (u - cx)/fx, (v - cy)/fy, 1.
+        """
+        pose = check_pose("world_T_optical", world_T_optical)
+        r, t = pose[:3, :3], pose[:3, 3]
+        k_inv = np.linalg.inv(K)
+        # world z-component of the ray K^-1 (u, v, 1) is affine in (u, v): a_u u + a_v v + a_0
+        a = r[2, :] @ k_inv
+        u = np.arange(width, dtype=np.float32)[None, :]
+        v = np.arange(height, dtype=np.float32)[:, None]
+        dz = (a[0] * u + a[1] * v + a[2]).astype(np.float32)
+        hits = dz < -1e-9
+        cam_h = float(t[2])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            depth = np.where(hits, -cam_h / dz, np.inf).astype(np.float32)
+        if cam_h <= 0.0:
+            depth[:] = np.inf
+            hits[:] = False
+        # ground colour: homography texture -> image for the plane z = 0
+        cam_T_world = np.linalg.inv(pose)
+        h_img_world = K @ cam_T_world[:3, [0, 1, 3]]
+        h_img_tex = h_img_world @ self._world_from_tex
+        ground = cv2.warpPerspective(self.soil_texture, h_img_tex, (width, height),
+                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        # sky: gradient on the sine of the ray elevation
+        sin_el = np.clip(dz / ray_norm, 0.0, 1.0)
+        sky = self._sky_lut[(sin_el * 255.0).astype(np.intp)]
+        rgb = np.where(hits[..., None], ground, sky)
+        semantic = np.where(hits, np.uint8(SemanticClass.GROUND), np.uint8(SemanticClass.SKY)).astype(np.uint8)
+        return rgb, depth, semantic
+
+    # ----------------------------------------------------------------- cleanup
+    def close(self) -> None:
+        for rc in self._render_clients:
+            rc.close()
+        self._render_clients = []
+        if self.ray_client is not None and pb.isConnected(self.ray_client):
+            pb.disconnect(self.ray_client)
+        self.ray_client = None
+
+    def __enter__(self) -> "SensorScene":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+# ---------------------------------------------------------------- stand-ins
+def _cylinder_mesh(radius: float, z0: float, z1: float, segments: int = 12) -> Tuple[np.ndarray, np.ndarray]:
+    ang = np.linspace(0.0, 2 * math.pi, segments, endpoint=False)
+    ring = np.stack([radius * np.cos(ang), radius * np.sin(ang)], axis=1)
+    verts = np.concatenate([np.c_[ring, np.full(segments, z0)], np.c_[ring, np.full(segments, z1)],
+                            [[0.0, 0.0, z0], [0.0, 0.0, z1]]])
+    faces = []
+    for i in range(segments):
+        j = (i + 1) % segments
+        faces += [[i, j, segments + j], [i, segments + j, segments + i],
+                  [2 * segments, j, i], [2 * segments + 1, segments + i, segments + j]]
+    return verts, np.array(faces)
+
+
+def _sphere_mesh(radius: float, centre: Sequence[float], rings: int = 5, segments: int = 8
+                 ) -> Tuple[np.ndarray, np.ndarray]:
+    verts = [[0.0, 0.0, radius]]
+    for i in range(1, rings):
+        th = math.pi * i / rings
+        for j in range(segments):
+            ph = 2 * math.pi * j / segments
+            verts.append([radius * math.sin(th) * math.cos(ph), radius * math.sin(th) * math.sin(ph),
+                          radius * math.cos(th)])
+    verts.append([0.0, 0.0, -radius])
+    faces = []
+    for j in range(segments):
+        faces.append([0, 1 + j, 1 + (j + 1) % segments])
+    for i in range(rings - 2):
+        a, b = 1 + i * segments, 1 + (i + 1) * segments
+        for j in range(segments):
+            k = (j + 1) % segments
+            faces += [[a + j, b + j, b + k], [a + j, b + k, a + k]]
+    last, a = len(verts) - 1, 1 + (rings - 2) * segments
+    for j in range(segments):
+        faces.append([a + j, last, a + (j + 1) % segments])
+    return np.asarray(verts) + np.asarray(centre, float), np.array(faces)
+
+
+def standin_plant_model(seed: int = 0, height_m: float = 1.0, width_m: float = 0.7,
+                        bolls: int = 8) -> PlantModel:
+    """A simple plant for tests and benchmarks when farm.plant_model is absent.
+
+    A thin brown stem, a green cylindrical canopy from 0.25 m to the top and
+    white spheres (bolls) on the canopy surface.
+    """
+    rng = np.random.default_rng(seed)
+    sv, sf = _cylinder_mesh(0.015, 0.0, height_m, 6)
+    cv_, cf = _cylinder_mesh(width_m / 2, 0.25 * height_m, height_m, 12)
+    radii = np.full(bolls, 0.035)
+    ang = rng.uniform(0, 2 * math.pi, bolls)
+    zs = rng.uniform(0.35 * height_m, 0.95 * height_m, bolls)
+    centres = np.stack([(width_m / 2 + 0.01) * np.cos(ang), (width_m / 2 + 0.01) * np.sin(ang), zs], axis=1)
+    bv, bf = [], []
+    for c in centres:
+        v, f = _sphere_mesh(0.035, c)
+        bf.append(f + sum(len(x) for x in bv))
+        bv.append(v)
+    meshes = {
+        "stem": TriangleMesh(sv.astype(np.float32), sf.astype(np.int32), (0.42, 0.30, 0.18, 1.0), SemanticClass.PLANT),
+        "leaf": TriangleMesh(cv_.astype(np.float32), cf.astype(np.int32), (0.20, 0.50, 0.16, 1.0), SemanticClass.PLANT),
+    }
+    if bolls:
+        meshes["boll"] = TriangleMesh(np.concatenate(bv).astype(np.float32), np.concatenate(bf).astype(np.int32),
+                                      (0.96, 0.96, 0.94, 1.0), SemanticClass.BOLL)
+    collision = [Primitive("cylinder", (0.0, 0.0, 0.5 * height_m), (0.0, 0.0, 0.0, 1.0), (0.015, height_m), "stem"),
+                 Primitive("cylinder", (0.0, 0.0, 0.625 * height_m), (0.0, 0.0, 0.0, 1.0),
+                           (width_m / 2, 0.75 * height_m), "canopy")]
+    return PlantModel(meshes=meshes, collision=collision, boll_centres=centres, boll_radii=radii,
+                      height_m=height_m, width_m=width_m)
+
+
+def standin_farm(rows: int = 9, plants_per_row: int = 20, row_spacing_m: float = 1.8,
+                 plant_spacing_m: float = 0.7, first_row_x_m: float = -2.35, first_plant_y_m: float = 9.0,
+                 models: Optional[Mapping[int, PlantModel]] = None) -> Farm:
+    """A farm laid out like the default one (rows along +y, first row east-most).
+
+    Uses ``standin_plant_model`` (4 variants) unless ``models`` maps plant
+    ids to models. Lanes lie midway between rows and outside the outer rows.
+    """
+    variants = [standin_plant_model(seed=s) for s in range(4)]
+    plants = []
+    for r in range(rows):
+        for i in range(plants_per_row):
+            pid = r * plants_per_row + i
+            model = models[pid] if models is not None and pid in models else variants[pid % 4]
+            plants.append(Plant(pid, r, i, first_row_x_m - r * row_spacing_m, first_plant_y_m + i * plant_spacing_m,
+                                (pid * 1.3) % (2 * math.pi), model))
+    y_end = first_plant_y_m + (plants_per_row - 1) * plant_spacing_m
+    lanes = [Lane(k, first_row_x_m + row_spacing_m / 2 - k * row_spacing_m, first_plant_y_m, y_end)
+             for k in range(rows + 1)]
+    return Farm(config=None, plants=plants, lanes=lanes, spawn=Pose2D(-6.0, 1.0, math.pi / 2))

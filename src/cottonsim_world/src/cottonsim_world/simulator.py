@@ -1,0 +1,408 @@
+"""The whole simulated world, stepped in-process without ROS.
+
+``Simulator`` owns the farm, the ODE dynamics of the Husky, the pybullet
+sensor scene, the sensor and noise models, the wheel odometry with the
+Husky's EKF and the UR5e arm. Each ``step()`` advances the physics by one
+step and returns the sensor readings that fell due, as plain dataclasses;
+the ROS bridge (``ros/bridge_node.py``) only converts and publishes them, and
+scripts, benchmarks and tests can drive the same object directly::
+
+    sim = Simulator(SimulatorConfig(), UrdfModel.from_file(urdf_path))
+    sim.command_velocity(0.5, 0.0)
+    while sim.time_s < 10.0:
+        for reading in sim.step():
+            ...
+
+Given the same config (including its seed) and the same command sequence,
+a run is deterministic: ODE's solver is seeded and every noise model has a
+seed derived from ``SimulatorConfig.seed``.
+
+Sensor frames come from the URDF (``base_link -> <sensor frame>`` fixed
+transforms), so the robot description stays the single source of truth.
+Sensors can be switched off individually (``set_sensor_active``), which the
+bridge does for topics nobody subscribes to: rendering is the expensive part.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from cottonsim_world.estimation.odometry_ekf import FilteredOdometry, OdometryEkf, OdometryEkfConfig
+from cottonsim_world.farm.config import FarmConfig
+from cottonsim_world.farm.generator import generate_farm
+from cottonsim_world.farm.model import Farm
+from cottonsim_world.geodesy import GpsNoiseConfig, GpsNoiseModel, HectorGeodesy
+from cottonsim_world.physics.husky_params import DriveLimits, HuskyParams
+from cottonsim_world.physics.imu_model import ImuConfig, ImuMeasurement, ImuModel
+from cottonsim_world.physics.ode_world import ContactEvent, OdeWorld, PhysicsConfig, RobotState
+from cottonsim_world.physics.wheel_odometry import OdometryEstimate, WheelOdometry, WheelOdometryConfig
+from cottonsim_world.robot.ur5e import JOINT_NAMES as ARM_JOINTS, Ur5eArm
+from cottonsim_world.robot.urdf_model import UrdfModel
+from cottonsim_world.sensors.camera import CameraConfig, CameraFrame, CameraIntrinsics, CameraModel
+from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
+                                                   original_passthrough_mask)
+from cottonsim_world.sensors.lidar import LidarConfig, LidarScan, Vlp16Model
+from cottonsim_world.sensors.scene import SceneConfig, SensorScene
+from cottonsim_world.transforms import pose_matrix
+
+CAMERA_NAMES = ("realsense_p", "realsense_secondary", "realsense_tertiary")
+WHEEL_JOINTS = ("front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint",
+                "rear_right_wheel_joint")
+ARM_PREFIX = "ur5e_"
+ARM_JOINT_NAMES = tuple(ARM_PREFIX + name for name in ARM_JOINTS)
+LIDAR_FRAME = "velodyne"
+IMU_FRAME = "imu_link"
+BASE_FRAME = "base_link"
+
+
+def optical_frame(camera: str) -> str:
+    return f"{camera}_color_optical_frame"
+
+
+def _positive_rate(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"SimulatorConfig.{name} must be a rate > 0 [Hz], got {value!r}")
+
+
+@dataclass(frozen=True)
+class SimulatorConfig:
+    """Everything that defines a simulated run.
+
+    cameras: (namespace, CameraConfig) pairs; namespaces must have a
+    ``<ns>_color_optical_frame`` in the URDF. ``camera_enabled`` /
+    ``lidar_enabled`` remove a sensor entirely (not built, never rendered).
+    Rates are in sim-time Hz. ``seed`` seeds every random process (physics
+    solver order, IMU, GPS, LiDAR and camera noise); the sub-configs' own
+    seeds are replaced by values derived from it.
+    """
+
+    farm: FarmConfig = FarmConfig()
+    physics: PhysicsConfig = PhysicsConfig()
+    husky: HuskyParams = HuskyParams()
+    drive_limits: DriveLimits = DriveLimits()
+    scene: SceneConfig = SceneConfig()
+    cameras: Tuple[Tuple[str, CameraConfig], ...] = tuple((name, CameraConfig()) for name in CAMERA_NAMES)
+    lidar: LidarConfig = LidarConfig()
+    lidar_enabled: bool = True
+    laserscan: LaserScanConfig = LaserScanConfig()
+    passthrough: PassThroughConfig = PassThroughConfig()
+    imu: ImuConfig = ImuConfig()
+    gps_noise: GpsNoiseConfig = GpsNoiseConfig()
+    gps_rate_hz: float = 40.0
+    geodesy_reference: Tuple[float, float, float, float] = (49.9, 8.9, 0.0, 0.0)  # lat, lon [deg], alt [m], heading [deg]
+    odometry_rate_hz: float = 50.0
+    ekf: OdometryEkfConfig = OdometryEkfConfig()
+    joint_states_rate_hz: float = 50.0
+    ground_truth_rate_hz: float = 50.0
+    contacts_rate_hz: float = 10.0
+    arm_initial_positions_rad: Tuple[float, ...] = (0.0, -2.2, 2.4, -1.77, -1.57, 0.0)   # stowed over the base
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("gps_rate_hz", "odometry_rate_hz", "joint_states_rate_hz", "ground_truth_rate_hz",
+                     "contacts_rate_hz"):
+            _positive_rate(name, getattr(self, name))
+        names = [name for name, _ in self.cameras]
+        if len(set(names)) != len(names):
+            raise ValueError(f"SimulatorConfig.cameras has duplicate names: {names}")
+        for name, cam in self.cameras:
+            if not isinstance(cam, CameraConfig):
+                raise ValueError(f"SimulatorConfig.cameras['{name}'] must be a CameraConfig")
+        if len(self.arm_initial_positions_rad) != 6:
+            raise ValueError("SimulatorConfig.arm_initial_positions_rad needs 6 joint angles [rad]")
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"SimulatorConfig.seed must be an int >= 0, got {self.seed!r}")
+
+    def with_seed_applied(self) -> "SimulatorConfig":
+        """A copy whose noise models carry seeds derived from ``seed``."""
+        seeds = np.random.SeedSequence(self.seed).generate_state(8)
+        cameras = tuple((name, dataclasses.replace(cam, seed=int(seeds[5]) + i))
+                        for i, (name, cam) in enumerate(self.cameras))
+        return dataclasses.replace(
+            self,
+            physics=dataclasses.replace(self.physics, seed=int(seeds[0])),
+            imu=dataclasses.replace(self.imu, seed=int(seeds[1])),
+            gps_noise=dataclasses.replace(self.gps_noise, seed=int(seeds[2])),
+            lidar=dataclasses.replace(self.lidar, seed=int(seeds[3])),
+            cameras=cameras)
+
+
+# ----------------------------------------------------------------------------- readings
+
+@dataclass
+class CameraReading:
+    stamp_s: float
+    camera: str
+    frame_id: str
+    frame: CameraFrame
+    intrinsics: CameraIntrinsics
+    cloud_xyz: Optional[np.ndarray] = None   # (N, 3) float32 in the optical frame, when wanted
+    cloud_rgb: Optional[np.ndarray] = None   # (N, 3) uint8
+
+
+@dataclass
+class LidarReading:
+    stamp_s: float
+    frame_id: str
+    scan: LidarScan
+    passthrough_points: np.ndarray           # (M, 3) float32, the paper's PassThrough filter
+    scan_ranges: np.ndarray                  # LaserScan ranges (inf = no return)
+    scan_config: LaserScanConfig
+
+
+@dataclass
+class ImuReading:
+    stamp_s: float
+    frame_id: str
+    measurement: ImuMeasurement
+
+
+@dataclass
+class GpsReading:
+    stamp_s: float
+    frame_id: str
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float
+    position_variance_m2: float
+
+
+@dataclass
+class OdometryReading:
+    stamp_s: float
+    wheel: OdometryEstimate
+    filtered: FilteredOdometry
+
+
+@dataclass
+class JointStatesReading:
+    stamp_s: float
+    names: List[str]
+    positions: np.ndarray
+    velocities: np.ndarray
+
+
+@dataclass
+class GroundTruthReading:
+    stamp_s: float
+    state: RobotState
+
+
+@dataclass
+class ContactsReading:
+    stamp_s: float
+    events: List[ContactEvent]
+    total_contact_events: int
+    plants_touched: List[int]
+
+
+@dataclass
+class _Schedule:
+    """A periodic task in sim time: due when now >= next_s."""
+
+    name: str
+    period_s: float
+    next_s: float = 0.0
+    active: bool = True
+    wall_s: float = 0.0          # accumulated wall time of its updates [s]
+    count: int = 0
+
+    def due(self, now_s: float) -> bool:
+        if now_s + 1e-9 < self.next_s:
+            return False
+        # Skip missed periods instead of bursting (a sensor fires once per step at most).
+        self.next_s += self.period_s * max(1, math.floor((now_s - self.next_s) / self.period_s + 1e-9) + 1)
+        return self.active
+
+
+class Simulator:
+    """Steps farm, physics and sensors; see the module docstring."""
+
+    def __init__(self, config: SimulatorConfig, urdf: UrdfModel, farm: Optional[Farm] = None):
+        self.config = config.with_seed_applied()
+        cfg = self.config
+        self.urdf = urdf
+        self.farm = farm if farm is not None else generate_farm(cfg.farm)
+
+        self.physics = OdeWorld(cfg.physics, cfg.husky, cfg.drive_limits)
+        self.physics.add_plants(self.farm.plants)
+        self.physics.spawn_robot(self.farm.spawn)
+        self.step_s = cfg.physics.step_s
+
+        self.geodesy = HectorGeodesy(*cfg.geodesy_reference)
+        self.gps_noise = GpsNoiseModel(cfg.gps_noise)
+        self.imu = ImuModel(cfg.imu)
+        self.wheel_odometry = WheelOdometry(WheelOdometryConfig.from_husky(cfg.husky, cfg.drive_limits))
+        self.ekf = OdometryEkf(cfg.ekf)
+        self.arm = Ur5eArm.from_urdf(urdf, ARM_PREFIX, initial_positions=cfg.arm_initial_positions_rad)
+
+        self.sensor_scene: Optional[SensorScene] = None
+        self.cameras: Dict[str, CameraModel] = {}
+        self.lidar: Optional[Vlp16Model] = None
+        if cfg.cameras or cfg.lidar_enabled:
+            self.sensor_scene = SensorScene(self.farm, cfg.scene)
+        self.base_T_sensor: Dict[str, np.ndarray] = {}
+        for name, cam_cfg in cfg.cameras:
+            self.cameras[name] = CameraModel(self.sensor_scene, cam_cfg)
+            self.base_T_sensor[name] = urdf.fixed_transform(BASE_FRAME, optical_frame(name))
+        if cfg.lidar_enabled:
+            self.lidar = Vlp16Model(self.sensor_scene, cfg.lidar)
+            self.base_T_sensor[LIDAR_FRAME] = urdf.fixed_transform(BASE_FRAME, LIDAR_FRAME)
+        self.base_T_sensor[IMU_FRAME] = urdf.fixed_transform(BASE_FRAME, IMU_FRAME)
+
+        self._schedules: Dict[str, _Schedule] = {}
+        for name, cam_cfg in cfg.cameras:
+            self._schedules[name] = _Schedule(name, 1.0 / cam_cfg.rate_hz)
+        if cfg.lidar_enabled:
+            self._schedules["lidar"] = _Schedule("lidar", 1.0 / cfg.lidar.rate_hz)
+        self._schedules["imu"] = _Schedule("imu", 1.0 / cfg.imu.rate_hz)
+        self._schedules["gps"] = _Schedule("gps", 1.0 / cfg.gps_rate_hz)
+        self._schedules["odometry"] = _Schedule("odometry", 1.0 / cfg.odometry_rate_hz)
+        self._schedules["joint_states"] = _Schedule("joint_states", 1.0 / cfg.joint_states_rate_hz)
+        self._schedules["ground_truth"] = _Schedule("ground_truth", 1.0 / cfg.ground_truth_rate_hz)
+        self._schedules["contacts"] = _Schedule("contacts", 1.0 / cfg.contacts_rate_hz)
+        self._camera_cloud_wanted = {name: True for name, _ in cfg.cameras}
+        self._last_gps_s = 0.0
+        self._last_odom_s = 0.0
+        self._physics_wall_s = 0.0
+        self._contacts: List[ContactEvent] = []
+
+    # ------------------------------------------------------------------ inputs
+    @property
+    def time_s(self) -> float:
+        return self.physics.sim_time_s
+
+    def command_velocity(self, linear_x_m_s: float, angular_z_rad_s: float) -> Optional[str]:
+        """A /cmd_vel command, stamped now; returns a reason if it was refused (NaN, inf)."""
+        return self.physics.set_command(linear_x_m_s, angular_z_rad_s, self.time_s)
+
+    def command_arm(self, positions_rad: Sequence[float]) -> np.ndarray:
+        """UR5e joint position targets [rad]; clamped to the URDF limits (returned)."""
+        return self.arm.command(positions_rad)
+
+    def set_sensor_active(self, name: str, active: bool) -> None:
+        """Switch a sensor's updates on/off (e.g. nobody subscribes). Names: see ``sensor_names``."""
+        if name not in self._schedules:
+            raise ValueError(f"unknown sensor '{name}', known: {sorted(self._schedules)}")
+        self._schedules[name].active = bool(active)
+
+    def set_camera_cloud_wanted(self, camera: str, wanted: bool) -> None:
+        """Whether a camera's depth point cloud is computed (it is the costly part of a reading)."""
+        if camera not in self._camera_cloud_wanted:
+            raise ValueError(f"unknown camera '{camera}', known: {sorted(self._camera_cloud_wanted)}")
+        self._camera_cloud_wanted[camera] = bool(wanted)
+
+    @property
+    def sensor_names(self) -> List[str]:
+        return list(self._schedules)
+
+    def sensor_timing_ms(self) -> Dict[str, float]:
+        """Mean wall time per update of each sensor so far [ms] (0 if never run)."""
+        return {s.name: (1e3 * s.wall_s / s.count if s.count else 0.0) for s in self._schedules.values()}
+
+    def physics_step_ms(self) -> float:
+        steps = max(1, round(self.time_s / self.step_s))
+        return 1e3 * self._physics_wall_s / steps
+
+    def world_T_base(self, state: Optional[RobotState] = None) -> np.ndarray:
+        state = state or self.physics.robot_state()
+        return pose_matrix(state.position_m, state.orientation_xyzw)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self) -> List[object]:
+        """Advance one physics step; return the readings due at the new time."""
+        t0 = time.perf_counter()
+        self.physics.step()
+        self._physics_wall_s += time.perf_counter() - t0
+        self.arm.step(self.step_s)
+        self._contacts.extend(self.physics.contacts_since_last_call())
+        now = self.time_s
+        readings: List[object] = []
+        state: Optional[RobotState] = None
+        for sched in self._schedules.values():
+            if not sched.due(now):
+                continue
+            if state is None:
+                state = self.physics.robot_state()
+            t1 = time.perf_counter()
+            reading = self._produce(sched.name, now, state)
+            sched.wall_s += time.perf_counter() - t1
+            sched.count += 1
+            if reading is not None:
+                readings.append(reading)
+        return readings
+
+    def step_for(self, duration_s: float) -> List[object]:
+        """Step for ``duration_s`` of sim time; all readings in order."""
+        out: List[object] = []
+        end = self.time_s + duration_s
+        while self.time_s < end - 1e-9:
+            out.extend(self.step())
+        return out
+
+    def _produce(self, name: str, now: float, state: RobotState):
+        if name in self.cameras:
+            return self._camera(name, now, state)
+        if name == "lidar":
+            return self._lidar(now, state)
+        if name == "imu":
+            m = self.imu.measure(now, state.orientation_xyzw, state.angular_velocity_body_rad_s,
+                                 state.linear_acceleration_body_m_s2)
+            if math.isfinite(m.angular_velocity_rad_s[2]):
+                self.ekf.update_imu(float(m.angular_velocity_rad_s[2]), float(m.angular_velocity_covariance[8]))
+            return ImuReading(now, IMU_FRAME, m)
+        if name == "gps":
+            dt = now - self._last_gps_s
+            self._last_gps_s = now
+            noisy = self.gps_noise.apply(state.position_m, dt)
+            lat, lon, alt = self.geodesy.world_to_geodetic(noisy[0], noisy[1], noisy[2])
+            var = float(max(max(self.config.gps_noise.gaussian_noise_m), max(self.config.gps_noise.drift_m))) ** 2
+            # The original's hector plugin reports the base_link position (its bodyName); so do we.
+            return GpsReading(now, BASE_FRAME, float(lat), float(lon), float(alt), var)
+        if name == "odometry":
+            dt = now - self._last_odom_s
+            self._last_odom_s = now
+            self.wheel_odometry.update(state.wheel_velocities_rad_s, dt)
+            wheel = self.wheel_odometry.estimate()
+            self.ekf.predict(dt)
+            self.ekf.update_wheel_odometry(wheel.linear_x_m_s, wheel.angular_z_rad_s,
+                                           (wheel.twist_covariance[0, 0], wheel.twist_covariance[5, 5]))
+            return OdometryReading(now, wheel, self.ekf.output())
+        if name == "joint_states":
+            names = list(WHEEL_JOINTS) + list(ARM_JOINT_NAMES)
+            positions = np.concatenate([state.wheel_angles_rad, self.arm.positions])
+            velocities = np.concatenate([state.wheel_velocities_rad_s, self.arm.velocities])
+            return JointStatesReading(now, names, positions, velocities)
+        if name == "ground_truth":
+            return GroundTruthReading(now, state)
+        if name == "contacts":
+            events, self._contacts = self._contacts, []
+            return ContactsReading(now, events, self.physics.total_contact_events,
+                                   sorted(self.physics.plants_touched))
+        raise KeyError(name)
+
+    def _camera(self, name: str, now: float, state: RobotState) -> CameraReading:
+        camera = self.cameras[name]
+        world_T_optical = self.world_T_base(state) @ self.base_T_sensor[name]
+        frame = camera.render(world_T_optical)
+        reading = CameraReading(now, name, optical_frame(name), frame, camera.intrinsics())
+        if self._camera_cloud_wanted[name]:
+            reading.cloud_xyz, reading.cloud_rgb = camera.point_cloud(frame)
+        return reading
+
+    def _lidar(self, now: float, state: RobotState) -> LidarReading:
+        world_T_lidar = self.world_T_base(state) @ self.base_T_sensor[LIDAR_FRAME]
+        scan = self.lidar.scan(world_T_lidar)
+        kept = scan.points[original_passthrough_mask(scan.points, self.config.passthrough)]
+        ranges = cloud_to_laserscan(scan.points, self.config.laserscan)
+        return LidarReading(now, LIDAR_FRAME, scan, kept, ranges, self.config.laserscan)
+
+    def close(self) -> None:
+        if self.sensor_scene is not None:
+            self.sensor_scene.close()
+            self.sensor_scene = None

@@ -1,0 +1,86 @@
+#!/usr/bin/env python3
+"""rostest node: straight-line accuracy of the drive and plant-contact counting."""
+import math
+import unittest
+
+import rospy
+import rostest
+from cottonsim_msgs.msg import PlantContacts
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+
+
+def yaw(q):
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+class SimDriveTest(unittest.TestCase):
+    def setUp(self):
+        self.truth = None
+        self.odom = None
+        self.contacts = None
+        rospy.Subscriber("/ground_truth/odom", Odometry, lambda m: setattr(self, "truth", m))
+        rospy.Subscriber("/odometry/filtered", Odometry, lambda m: setattr(self, "odom", m))
+        rospy.Subscriber("/ground_truth/plant_contacts", PlantContacts, lambda m: setattr(self, "contacts", m))
+        self.cmd = rospy.Publisher("/cmd_vel", Twist, queue_size=1)
+        while (self.truth is None or self.odom is None) and not rospy.is_shutdown():
+            rospy.rostime.wallsleep(0.05)
+
+    def drive(self, v, w, duration_s, until_travelled_m=None):
+        """Publish a constant command for duration_s of sim time, or until the truth moved far enough."""
+        x0, y0, _ = self.pose(self.truth)
+        end = rospy.Time.now() + rospy.Duration(duration_s)
+        msg = Twist()
+        msg.linear.x, msg.angular.z = v, w
+        speeds = []
+        while rospy.Time.now() < end and not rospy.is_shutdown():
+            x, y, _ = self.pose(self.truth)
+            travelled = math.hypot(x - x0, y - y0)
+            if until_travelled_m is not None and travelled >= until_travelled_m:
+                break
+            if 1.0 < travelled < until_travelled_m - 1.0 if until_travelled_m else False:
+                speeds.append(self.truth.twist.twist.linear.x)
+            self.cmd.publish(msg)
+            rospy.sleep(0.02)
+        self.cmd.publish(Twist())
+        rospy.sleep(1.0)
+        return speeds
+
+    @staticmethod
+    def pose(odom):
+        p = odom.pose.pose
+        return p.position.x, p.position.y, yaw(p.orientation)
+
+    def test_straight_then_into_a_row(self):
+        x0, y0, th0 = self.pose(self.truth)
+        ox0, oy0, _ = self.pose(self.odom)
+        speeds = self.drive(0.5, 0.0, 30.0, until_travelled_m=5.0)
+        x1, y1, th1 = self.pose(self.truth)
+        ox1, oy1, _ = self.pose(self.odom)
+        travelled = math.hypot(x1 - x0, y1 - y0)
+        # (the test node stops the robot a little late when the sim runs faster than real time)
+        self.assertTrue(5.0 <= travelled < 5.5, f"travelled {travelled:.3f} m")
+        # the controller holds the commanded speed while cruising
+        self.assertTrue(speeds)
+        mean_speed = sum(speeds) / len(speeds)
+        self.assertAlmostEqual(mean_speed, 0.5, delta=0.03, msg=f"cruise speed {mean_speed:.3f} m/s")
+        # straight: the truth stays on the start heading's line
+        lateral = -(x1 - x0) * math.sin(th0) + (y1 - y0) * math.cos(th0)
+        self.assertLess(abs(lateral), 0.05, f"lateral drift {lateral:.3f} m")
+        # the robot's own estimate (/odometry/filtered) ends within 5 cm of the truth
+        odom_travelled = math.hypot(ox1 - ox0, oy1 - oy0)
+        self.assertAlmostEqual(odom_travelled, travelled, delta=0.05,
+                               msg=f"odometry {odom_travelled:.3f} m vs truth {travelled:.3f} m")
+        self.assertEqual(self.contacts.total_contact_events, 0, "contacts on the open field")
+        # From Home (-6, 1) heading north, row 2's plants stand ahead (x ~ -5.93, from y ~ 8.95).
+        self.drive(0.8, 0.0, 6.0)
+        rospy.sleep(0.5)
+        self.assertGreater(self.contacts.total_contact_events, 0, "driving into a row registered no contact")
+        self.assertTrue(self.contacts.plants_touched)
+        rows = {pid // 20 for pid in self.contacts.plants_touched}
+        self.assertEqual(rows, {2}, f"touched plants of rows {rows}")
+
+
+if __name__ == "__main__":
+    rospy.init_node("check_sim_drive")
+    rostest.rosrun("cottonsim_world", "sim_drive", SimDriveTest)

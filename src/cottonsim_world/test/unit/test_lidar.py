@@ -1,0 +1,133 @@
+"""Tests of the VLP-16 ray caster and the PassThrough / LaserScan filters."""
+import math
+
+import numpy as np
+import pytest
+
+from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, SemanticClass, TriangleMesh
+from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
+                                                   original_passthrough_mask, passthrough)
+from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
+from cottonsim_world.sensors.scene import SceneConfig, SensorScene, standin_plant_model
+
+
+def wall_farm(distance_m):
+    """A wall in the plane x = distance_m (world), 8 m wide, 6 m tall."""
+    v = np.array([[0, -4, 0], [0, 4, 0], [0, 4, 6], [0, -4, 6]], np.float32)
+    f = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+    model = PlantModel({"leaf": TriangleMesh(v, f, (0.2, 0.6, 0.2, 1.0), SemanticClass.PLANT)}, [],
+                       np.zeros((0, 3)), np.zeros(0), 6.0, 8.0)
+    return Farm(None, [Plant(7, 0, 0, distance_m, 0.0, 0.0, model)], [], Pose2D(0.0, 0.0, 0.0))
+
+
+def sensor_at(z):
+    t = np.eye(4)
+    t[2, 3] = z
+    return t
+
+
+def test_wall_at_known_distance_on_every_ring():
+    cfg = LidarConfig(samples_per_ring=360, noise_std_m=0.0)
+    with SensorScene(wall_farm(5.0)) as scene:
+        scan = Vlp16Model(scene, cfg).scan(sensor_at(3.0))
+    ahead = np.abs(scan.azimuth_rad) < 1e-6                  # the azimuth-0 sample of each ring
+    assert sorted(scan.ring[ahead].tolist()) == list(range(16))
+    el = cfg.ring_elevations_rad()[scan.ring[ahead]]
+    rng = np.linalg.norm(scan.points[ahead], axis=1)
+    np.testing.assert_allclose(rng, 5.0 / np.cos(el), atol=1e-3)
+    np.testing.assert_allclose(scan.points[ahead, 0], 5.0, atol=1e-3)
+    assert np.all(scan.semantic[ahead] == SemanticClass.PLANT) and np.all(scan.plant_id[ahead] == 7)
+    assert scan.points.dtype == np.float32 and scan.ring.dtype == np.uint16
+    assert scan.intensity.dtype == np.float32 and len(scan.intensity) == len(scan.points)
+
+
+def test_ring_elevations_and_ground_ranges():
+    cfg = LidarConfig(samples_per_ring=90, noise_std_m=0.0)
+    np.testing.assert_allclose(np.degrees(cfg.ring_elevations_rad()), np.arange(-15, 16, 2), atol=1e-9)
+    h = 1.0
+    with SensorScene(wall_farm(1000.0)) as scene:          # the wall is out of range: ground only
+        scan = Vlp16Model(scene, cfg).scan(sensor_at(h))
+    # only the 8 downward rings hit the flat ground, at range h / sin(-elevation)
+    assert set(scan.ring.tolist()) == set(range(8))
+    el = np.arctan2(scan.points[:, 2], np.hypot(scan.points[:, 0], scan.points[:, 1]))
+    np.testing.assert_allclose(el, cfg.ring_elevations_rad()[scan.ring], atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(scan.points, axis=1), h / np.sin(-el), rtol=1e-4)
+    np.testing.assert_allclose(scan.points[:, 2], -h, atol=1e-4)
+    assert np.all(scan.semantic == SemanticClass.GROUND) and np.all(scan.plant_id == -1)
+    assert len(scan.points) == 8 * 90
+
+
+def test_range_limits_and_noise():
+    with SensorScene(wall_farm(5.0)) as scene:
+        far_only = Vlp16Model(scene, LidarConfig(samples_per_ring=90, max_range_m=4.0)).scan(sensor_at(3.0))
+        assert len(far_only.points) == 0                      # wall at >= 5 m, ground at >= 11.6 m
+        near_cut = Vlp16Model(scene, LidarConfig(samples_per_ring=90, min_range_m=6.0, noise_std_m=0.0)
+                              ).scan(sensor_at(3.0))
+        assert np.all(np.linalg.norm(near_cut.points, axis=1) >= 6.0)
+        cfg = LidarConfig(samples_per_ring=720, noise_std_m=0.05, seed=3)
+        a = Vlp16Model(scene, cfg).scan(sensor_at(3.0))
+        b = Vlp16Model(scene, cfg).scan(sensor_at(3.0))
+    np.testing.assert_array_equal(a.points, b.points)         # same seed, same scan
+    on_wall = a.semantic == SemanticClass.PLANT
+    x_err = a.points[on_wall, 0] - 5.0
+    ideal = np.linalg.norm(a.points[on_wall], axis=1) * 5.0 / a.points[on_wall, 0]   # noise along the ray
+    assert on_wall.sum() > 1000
+    assert np.std(np.linalg.norm(a.points[on_wall], axis=1) - ideal) == pytest.approx(0.05, rel=0.15)
+    assert abs(np.mean(x_err)) < 0.01
+
+
+def test_primitive_collision_canopy_is_hit():
+    model = standin_plant_model(seed=0, bolls=0)               # canopy cylinder radius 0.35 m, 0.25-1.0 m
+    farm = Farm(None, [Plant(0, 0, 0, 3.0, 0.0, 0.0, model)], [], Pose2D(0.0, 0.0, 0.0))
+    with SensorScene(farm, SceneConfig(collision_source="primitives")) as scene:
+        scan = Vlp16Model(scene, LidarConfig(samples_per_ring=360, noise_std_m=0.0)).scan(sensor_at(0.6))
+    ahead = (np.abs(scan.azimuth_rad) < 1e-6) & (scan.ring == 7)   # -1 deg ring, straight ahead
+    assert ahead.sum() == 1
+    assert scan.points[ahead, 0][0] == pytest.approx(3.0 - 0.35, abs=1e-3)
+
+
+def test_passthrough_filters():
+    pts = np.array([[0, -5, 0.2], [0, 1, 0.2], [0, -5, 0.7], [0, -10, 0.0], [0, 0, 0.5], [np.nan, np.nan, np.nan]],
+                   np.float32)
+    np.testing.assert_array_equal(passthrough(pts, "y", -10.0, 0.0), pts[[0, 2, 3, 4]])   # inclusive, NaN out
+    np.testing.assert_array_equal(passthrough(pts, 2, 0.0, 0.5), pts[[0, 1, 3, 4]])
+    np.testing.assert_array_equal(original_passthrough_mask(pts, PassThroughConfig()),
+                                  [True, False, False, True, True, False])
+    with pytest.raises(ValueError, match="axis"):
+        passthrough(pts, "w", 0.0, 1.0)
+    with pytest.raises(ValueError, match="points"):
+        passthrough(np.zeros(3), "x", 0.0, 1.0)
+
+
+def test_laserscan_bins_height_slice_and_inf():
+    cfg = LaserScanConfig()
+    n = cfg.bin_count
+    assert n == math.ceil((-0.785398 + 2.35619) / 0.0087) == 181
+    ang_mid = cfg.angle_min_rad + cfg.angle_increment_rad * np.array([10.5, 90.5, 150.5])
+    r = np.array([3.0, 5.0, 0.1])                              # the last is below range_min
+    pts = np.stack([r * np.cos(ang_mid), r * np.sin(ang_mid), np.full(3, 0.05)], axis=1)
+    extra = np.array([
+        [2.0 * np.cos(ang_mid[1]), 2.0 * np.sin(ang_mid[1]), 0.3],   # nearer but above max_height
+        [4.0 * np.cos(ang_mid[1]), 4.0 * np.sin(ang_mid[1]), 0.0],   # nearer, inside the slice: wins
+        [3.0, 0.0, 0.05],                                            # angle 0: outside the sector
+        [np.nan, np.nan, np.nan]])
+    ranges = cloud_to_laserscan(np.vstack([pts, extra]), cfg)
+    assert ranges.dtype == np.float32 and ranges.shape == (181,)
+    assert ranges[10] == pytest.approx(3.0) and ranges[90] == pytest.approx(4.0)
+    assert np.isinf(ranges[150])
+    assert np.sum(np.isfinite(ranges)) == 2
+    no_inf = cloud_to_laserscan(pts, LaserScanConfig(use_inf=False))
+    assert no_inf[0] == pytest.approx(21.0)                    # range_max + 1 for empty bins
+    assert np.all(np.isinf(cloud_to_laserscan(np.zeros((0, 3)), cfg)))
+    with pytest.raises(ValueError, match="angle_increment_rad"):
+        LaserScanConfig(angle_increment_rad=0.0)
+
+
+def test_lidar_config_validation():
+    with pytest.raises(ValueError, match="samples_per_ring"):
+        LidarConfig(samples_per_ring=0)
+    with pytest.raises(ValueError, match="min_range_m"):
+        LidarConfig(min_range_m=200.0)
+    with SensorScene(wall_farm(5.0)) as scene:
+        with pytest.raises(ValueError, match="world_T_sensor"):
+            Vlp16Model(scene, LidarConfig(samples_per_ring=8)).scan(np.full((4, 4), np.nan))
