@@ -313,7 +313,9 @@ class UrdfWriter:
         visuals: Sequence[Shape] = (),
         collisions: Sequence[Shape] = (),
         inertial: Optional[Inertial] = None,
+        massless: bool = False,
     ) -> None:
+        """Add a link; ``massless`` leaves out <inertial> (only for the root: KDL rejects a root with inertia)."""
         if name in self.link_names:
             raise ValueError(f"duplicate link {name!r}")
         self.link_names.append(name)
@@ -327,6 +329,8 @@ class UrdfWriter:
             col = ET.SubElement(el, "collision")
             self._origin(col, shape.xyz, shape.rpy)
             self._geometry(col, shape)
+        if massless:
+            return
         if inertial is None:
             inertial = Inertial(FRAME_MASS_KG, (0.0, 0.0, 0.0), (FRAME_INERTIA_KGM2,) * 3)
         ine = ET.SubElement(el, "inertial")
@@ -395,7 +399,11 @@ def add_husky(w: UrdfWriter) -> None:
     # Inertia of a solid box of the chassis size; centre of mass mid-body.
     body_size = (CHASSIS_LENGTH_M, CHASSIS_BODY_WIDTH_M, TOP_PLATE_XYZ_M[2])
     inertial = box_inertia(CHASSIS_MASS_KG, body_size, (0.0, 0.0, TOP_PLATE_XYZ_M[2] / 2.0))
-    w.link("base_link", visuals, collisions, inertial)
+    # As husky_description does, the chassis mass sits on a fixed child link: KDL (and so
+    # robot_state_publisher) does not support a root link with an inertia.
+    w.link("base_link", visuals, collisions, massless=True)
+    w.link("inertial_link", inertial=inertial)
+    w.joint("inertial_joint", "fixed", "base_link", "inertial_link", (0, 0, 0))
 
     w.link("base_footprint")
     w.joint("base_footprint_joint", "fixed", "base_link", "base_footprint", (0, 0, -BASE_LINK_HEIGHT_M))

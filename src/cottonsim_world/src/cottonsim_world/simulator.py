@@ -48,13 +48,14 @@ from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughC
                                                    original_passthrough_mask)
 from cottonsim_world.sensors.lidar import LidarConfig, LidarScan, Vlp16Model
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene
-from cottonsim_world.transforms import pose_matrix
+from cottonsim_world.transforms import matrix_to_quaternion, pose_matrix, quaternion_to_matrix
 
 CAMERA_NAMES = ("realsense_p", "realsense_secondary", "realsense_tertiary")
 WHEEL_JOINTS = ("front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint",
                 "rear_right_wheel_joint")
 ARM_PREFIX = "ur5e_"
 ARM_JOINT_NAMES = tuple(ARM_PREFIX + name for name in ARM_JOINTS)
+ARM_PERIOD_S = 0.01          # the kinematic UR5e follower runs at 100 Hz
 LIDAR_FRAME = "velodyne"
 IMU_FRAME = "imu_link"
 BASE_FRAME = "base_link"
@@ -271,6 +272,8 @@ class Simulator:
         self._last_odom_s = 0.0
         self._physics_wall_s = 0.0
         self._contacts: List[ContactEvent] = []
+        self._next_due_s = 0.0      # earliest next_s of all schedules: steps before it skip the scan
+        self._arm_dt_s = 0.0
 
     # ------------------------------------------------------------------ inputs
     @property
@@ -319,9 +322,15 @@ class Simulator:
         t0 = time.perf_counter()
         self.physics.step()
         self._physics_wall_s += time.perf_counter() - t0
-        self.arm.step(self.step_s)
+        self._arm_dt_s += self.step_s
+        if self._arm_dt_s >= ARM_PERIOD_S - 1e-12:
+            if not self.arm.at_target() or np.any(self.arm.velocities):
+                self.arm.step(self._arm_dt_s)
+            self._arm_dt_s = 0.0
         self._contacts.extend(self.physics.contacts_since_last_call())
         now = self.time_s
+        if now + 1e-9 < self._next_due_s:
+            return []
         readings: List[object] = []
         state: Optional[RobotState] = None
         for sched in self._schedules.values():
@@ -335,6 +344,7 @@ class Simulator:
             sched.count += 1
             if reading is not None:
                 readings.append(reading)
+        self._next_due_s = min(sched.next_s for sched in self._schedules.values())
         return readings
 
     def step_for(self, duration_s: float) -> List[object]:
@@ -355,7 +365,7 @@ class Simulator:
                                  state.linear_acceleration_body_m_s2)
             if math.isfinite(m.angular_velocity_rad_s[2]):
                 self.ekf.update_imu(float(m.angular_velocity_rad_s[2]), float(m.angular_velocity_covariance[8]))
-            return ImuReading(now, IMU_FRAME, m)
+            return ImuReading(now, IMU_FRAME, self._in_imu_axes(m))
         if name == "gps":
             dt = now - self._last_gps_s
             self._last_gps_s = now
@@ -385,6 +395,27 @@ class Simulator:
             return ContactsReading(now, events, self.physics.total_contact_events,
                                    sorted(self.physics.plants_touched))
         raise KeyError(name)
+
+    def _in_imu_axes(self, m: ImuMeasurement) -> ImuMeasurement:
+        """Express a base_link-axes IMU sample in the imu_link frame of the URDF (paper Table 1 mount).
+
+        Rates and specific force rotate with R_base_imu^T, covariances with R^T C R, and the
+        orientation becomes that of imu_link in the world (q_world_base * q_base_imu), as a
+        real IMU mounted that way reports; consumers use TF base_link <- imu_link.
+        """
+        r = self.base_T_sensor[IMU_FRAME][:3, :3]
+        q_world_imu = matrix_to_quaternion(quaternion_to_matrix(m.orientation_xyzw) @ r)
+
+        def cov(c):
+            return (r.T @ np.asarray(c, dtype=float).reshape(3, 3) @ r).reshape(9)
+
+        return dataclasses.replace(
+            m, orientation_xyzw=np.asarray(q_world_imu),
+            angular_velocity_rad_s=r.T @ np.asarray(m.angular_velocity_rad_s),
+            linear_acceleration_m_s2=r.T @ np.asarray(m.linear_acceleration_m_s2),
+            orientation_covariance=cov(m.orientation_covariance),
+            angular_velocity_covariance=cov(m.angular_velocity_covariance),
+            linear_acceleration_covariance=cov(m.linear_acceleration_covariance))
 
     def _camera(self, name: str, now: float, state: RobotState) -> CameraReading:
         camera = self.cameras[name]

@@ -8,6 +8,11 @@ import rostest
 from cottonsim_msgs.msg import PlantContacts
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+ARM_JOINTS = ["ur5e_shoulder_pan_joint", "ur5e_shoulder_lift_joint", "ur5e_elbow_joint",
+              "ur5e_wrist_1_joint", "ur5e_wrist_2_joint", "ur5e_wrist_3_joint"]
 
 
 def yaw(q):
@@ -45,6 +50,23 @@ class SimDriveTest(unittest.TestCase):
         self.cmd.publish(Twist())
         rospy.sleep(1.0)
         return speeds
+
+    def test_arm_follows_joint_commands_within_limits(self):
+        states = []
+        rospy.Subscriber("/joint_states", JointState, states.append, queue_size=500)
+        arm = rospy.Publisher("/arm_controller/command", JointTrajectory, queue_size=1, latch=True)
+        target = [0.5, -1.8, 2.0, -1.5, -1.57, 7.0]          # wrist 3 beyond its +2 pi limit
+        arm.publish(JointTrajectory(joint_names=ARM_JOINTS,
+                                    points=[JointTrajectoryPoint(positions=target)]))
+        rospy.sleep(3.0)
+        last = states[-1]
+        pos = dict(zip(last.name, last.position))
+        for joint, want in zip(ARM_JOINTS[:5], target[:5]):
+            self.assertAlmostEqual(pos[joint], want, delta=1e-3, msg=joint)
+        self.assertAlmostEqual(pos["ur5e_wrist_3_joint"], 2 * math.pi, delta=1e-3, msg="not clamped to the limit")
+        speeds = [abs(v) for m in states for n, v in zip(m.name, m.velocity) if n in ARM_JOINTS]
+        self.assertLessEqual(max(speeds), math.pi + 1e-6, "a joint moved faster than its velocity limit")
+        self.assertGreater(max(speeds), 0.5 * math.pi, "the arm did not move at speed")
 
     @staticmethod
     def pose(odom):

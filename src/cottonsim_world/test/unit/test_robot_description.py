@@ -95,7 +95,9 @@ def test_wheels_match_the_husky(model):
         # The cylinder's axis (its z) lies along the spin axis y.
         np.testing.assert_allclose(np.abs(col.origin[:3, 2]), [0, 1, 0], atol=1e-9)
     base = model.links["base_link"]
-    assert 40.0 < base.mass_kg < 50.0
+    assert base.mass_kg == 0.0          # the root carries no inertia (KDL); the chassis mass is on inertial_link
+    assert 40.0 < model.links["inertial_link"].mass_kg < 50.0
+    assert model.parent_joint("inertial_link").type == "fixed"
     assert base.collisions and base.visuals
 
 
@@ -182,7 +184,7 @@ def test_camera_body_visual(model):
 
 def test_every_physical_link_has_a_visual(model):
     frames_only = {
-        "base_footprint", "velodyne", "ur5e_base", "ur5e_flange", "ur5e_tool0",
+        "base_footprint", "inertial_link", "velodyne", "ur5e_base", "ur5e_flange", "ur5e_tool0",
         "realsense_p_color_optical_frame", "realsense_secondary_color_optical_frame",
         "realsense_tertiary_color_optical_frame",
     }
@@ -220,12 +222,13 @@ def test_pybullet_loads_the_urdf():
     client = p.connect(p.DIRECT)
     try:
         body = p.loadURDF(str(URDF_PATH), physicsClientId=client)
-        assert p.getNumJoints(body, physicsClientId=client) == 27
-        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(27)}
+        assert p.getNumJoints(body, physicsClientId=client) == 28
+        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(28)}
         assert {"front_left_wheel_link", "realsense_p_color_optical_frame", "ur5e_tool0"} <= names
-        # Every link carries its own inertial: pybullet's total mass equals the
-        # URDF's (a link without one would silently weigh 1 kg in pybullet).
-        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(-1, 27)]
+        # Every link but the root carries its own inertial: pybullet's total mass of the
+        # links equals the URDF's (a link without one would silently weigh 1 kg in pybullet;
+        # the massless root gets that default, so it is left out here).
+        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 28)]
         model = UrdfModel.from_file(URDF_PATH)
         assert sum(masses) == pytest.approx(sum(link.mass_kg for link in model.links.values()))
         assert 80.0 < sum(masses) < 95.0  # Husky ~50 kg + UR5e ~21 kg + control box and sensors

@@ -37,7 +37,9 @@ class Conv(nn.Module):
     def __init__(self, c_in: int, c_out: int, k: int = 1, s: int = 1, groups: int = 1, act: bool = True):
         super().__init__()
         self.conv = nn.Conv2d(c_in, c_out, k, s, k // 2, groups=groups, bias=False)
-        self.bn = nn.BatchNorm2d(c_out, eps=1e-3, momentum=0.03)
+        # momentum 0.1 (YOLOv8: 0.03): short CPU runs of a few hundred steps need the
+        # running statistics to follow the changing weights, else eval mode lags badly.
+        self.bn = nn.BatchNorm2d(c_out, eps=1e-3, momentum=0.1)
         self.act = nn.SiLU(inplace=True) if act else nn.Identity()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:

@@ -292,7 +292,12 @@ class OdeWorld:
         self.config = config
         self.husky = husky
         self.limits = limits
-        ctypes.CDLL("libode.so.8").dRandSetSeed(ctypes.c_ulong(config.seed))
+        # ODE's solver draws from one process-wide random generator (quickStep
+        # reorders constraints randomly). Re-seeding it before every step from
+        # (seed, step count) makes each world's run independent of any other
+        # world stepped in the same process, so runs replay bit for bit.
+        self._rand_set_seed = ctypes.CDLL("libode.so.8").dRandSetSeed
+        self._rand_set_seed(ctypes.c_ulong(config.seed))
         self._world = ode.World()
         self._world.setGravity((0.0, 0.0, config.gravity_m_s2))
         self._world.setQuickStepNumIterations(config.solver_iterations)
@@ -512,6 +517,7 @@ class OdeWorld:
                 hinge.setParam(PARAM_VEL, targets.left_rad_s if i % 2 == 0 else targets.right_rad_s)
             self._next_control_s += self._control_period_s
         self._touching_now: Set[Tuple[int, str]] = set()
+        self._rand_set_seed(ctypes.c_ulong((self.config.seed * 1_000_003 + self._step_count) & 0xFFFFFFFF))
         ode.collide2(self._robot_space, self._static_space, None, self._near_callback)
         self._world.quickStep(self.config.step_s)
         self._contact_group.empty()

@@ -1,0 +1,1 @@
+"""Localisation cores: AMCL (odometry motion model, likelihood-field laser model, KLD particle filter)."""

@@ -1,0 +1,231 @@
+"""AMCL: adaptive Monte-Carlo localisation of the robot in a known map (pure core of ROS amcl).
+
+Why: in the paper's map-based mode the robot follows waypoints given in the
+frame of a map built beforehand by SLAM; AMCL estimates where the robot is in
+that map from wheel odometry and the laser scan, and provides the map -> odom
+correction that turns odometry (smooth, drifting) into map poses.
+
+One filter cycle (:meth:`Amcl.update`), as in ROS amcl:
+
+1. Wait until odometry moved more than ``update_min_d_m`` (in x or y) or
+   turned more than ``update_min_a_rad`` since the last filter update
+   (the first scan after (re)initialisation is always used).
+2. Move every particle with the sampled differential odometry model
+   (:mod:`.motion_models`).
+3. Weigh particles with the likelihood-field laser model (:mod:`.sensor_models`).
+4. Every ``resample_interval`` updates, resample with KLD-sampling and
+   (when the recovery alphas are > 0) random particles in free space
+   (:mod:`.particle_filter`).
+5. Report the weighted mean and covariance of the heaviest particle cluster,
+   and ``map_to_odom = estimate (+) inverse(odom)``.
+
+Between filter updates :meth:`update` returns the last correction applied to
+the current odometry, so callers always get a current map pose.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from ..core.geometry import Pose2D, compose, inverse, normalize_angle
+from ..core.grid import GridSpec
+from .motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
+from .particle_filter import FreeSpaceSampler, ParticleFilter, ParticleFilterConfig
+from .sensor_models import LikelihoodField, LikelihoodFieldConfig, Scan
+
+
+@dataclass(frozen=True)
+class AmclConfig:
+    """All AMCL parameters (ROS amcl names minus prefixes; defaults = the original's values).
+
+    alpha1..alpha5: odometry noise (odom_alpha1..5, diff model; alpha5 unused);
+    min_particles, max_particles, kld_err, kld_z: KLD-sampling (see ParticleFilterConfig);
+    max_beams, laser_max_range_m, laser_min_range_m, z_hit, z_rand, sigma_hit_m,
+    likelihood_max_dist_m: likelihood-field model (laser_* parameters);
+    update_min_d_m [m], update_min_a_rad [rad]: motion needed before a filter update;
+    resample_interval: filter updates between resamplings;
+    recovery_alpha_slow, recovery_alpha_fast: augmented-MCL rates (0 = off, amcl's default);
+    initial_pose: (x_m, y_m, yaw_rad) used when update() runs before initialise();
+    initial_cov_xx_m2, initial_cov_yy_m2, initial_cov_aa_rad2: its covariance (amcl: 0.25, 0.25, (pi/12)^2);
+    occupied_threshold: map values above this are obstacles for the likelihood field (0..100).
+    """
+
+    alpha1: float = 0.2
+    alpha2: float = 0.2
+    alpha3: float = 0.2
+    alpha4: float = 0.2
+    alpha5: float = 0.1
+    min_particles: int = 500
+    max_particles: int = 2000
+    kld_err: float = 0.05
+    kld_z: float = 0.99
+    max_beams: int = 60
+    laser_max_range_m: float = 12.0
+    laser_min_range_m: float = 0.0
+    z_hit: float = 0.5
+    z_rand: float = 0.5
+    sigma_hit_m: float = 0.2
+    likelihood_max_dist_m: float = 2.0
+    update_min_d_m: float = 0.25
+    update_min_a_rad: float = 0.2
+    resample_interval: int = 1
+    recovery_alpha_slow: float = 0.0
+    recovery_alpha_fast: float = 0.0
+    initial_pose: tuple = (0.0, 0.0, 0.0)
+    initial_cov_xx_m2: float = 0.25
+    initial_cov_yy_m2: float = 0.25
+    initial_cov_aa_rad2: float = (math.pi / 12.0) ** 2
+    occupied_threshold: int = 65
+
+    def __post_init__(self) -> None:
+        # The sub-configs validate their own fields and name them.
+        self.motion_config()
+        self.sensor_config()
+        self.filter_config()
+        for name in ("update_min_d_m", "update_min_a_rad", "initial_cov_xx_m2", "initial_cov_yy_m2",
+                     "initial_cov_aa_rad2"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or value < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if isinstance(self.resample_interval, bool) or not isinstance(self.resample_interval, int) \
+                or self.resample_interval < 1:
+            raise ValueError(f"resample_interval must be an integer >= 1, got {self.resample_interval!r}")
+        pose = np.asarray(self.initial_pose, dtype=float).reshape(-1)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f"initial_pose must be 3 finite values, got {self.initial_pose!r}")
+        if not (0 <= self.occupied_threshold <= 100):
+            raise ValueError(f"occupied_threshold must lie in 0..100, got {self.occupied_threshold!r}")
+
+    def motion_config(self) -> OdometryMotionModelConfig:
+        return OdometryMotionModelConfig(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5)
+
+    def sensor_config(self) -> LikelihoodFieldConfig:
+        return LikelihoodFieldConfig(self.z_hit, self.z_rand, self.sigma_hit_m, self.likelihood_max_dist_m,
+                                     self.max_beams, self.laser_max_range_m, self.laser_min_range_m)
+
+    def filter_config(self) -> ParticleFilterConfig:
+        return ParticleFilterConfig(self.min_particles, self.max_particles, self.kld_err, self.kld_z,
+                                    alpha_slow=self.recovery_alpha_slow, alpha_fast=self.recovery_alpha_fast)
+
+    def initial_covariance(self) -> np.ndarray:
+        return np.diag([self.initial_cov_xx_m2, self.initial_cov_yy_m2, self.initial_cov_aa_rad2])
+
+
+@dataclass(frozen=True)
+class AmclResult:
+    """Output of one :meth:`Amcl.update`.
+
+    pose: robot pose in the map frame now; covariance: 3x3 (x, y, yaw) [m^2, rad^2];
+    map_to_odom: the map -> odom transform (publish as TF);
+    updated: a filter update ran on this scan; resampled: the set was resampled;
+    n_particles: current set size.
+    """
+
+    pose: Pose2D
+    covariance: np.ndarray
+    map_to_odom: Pose2D
+    updated: bool
+    resampled: bool
+    n_particles: int
+
+
+class Amcl:
+    """Adaptive Monte-Carlo localisation against an occupancy map.
+
+    Usage::
+
+        amcl = Amcl(AmclConfig(), rng=np.random.default_rng(0))
+        amcl.set_map(occupancy, spec)                 # nav_msgs/OccupancyGrid values, GridSpec
+        amcl.initialise(Pose2D(x, y, yaw), cov3x3)    # or amcl.global_localization()
+        result = amcl.update(odom_pose, scan)         # every scan; odom_pose (x_m, y_m, yaw_rad)
+    """
+
+    def __init__(self, config: AmclConfig = AmclConfig(), rng: Optional[np.random.Generator] = None) -> None:
+        if not isinstance(config, AmclConfig):
+            raise ValueError(f"config must be an AmclConfig, got {type(config).__name__}")
+        self.config = config
+        self.rng = rng if rng is not None else np.random.default_rng()
+        self.filter = ParticleFilter(config.filter_config(), self.rng)
+        self._motion = config.motion_config()
+        self.field: Optional[LikelihoodField] = None
+        self._free: Optional[FreeSpaceSampler] = None
+        self._odom_ref: Optional[np.ndarray] = None     # odometry at the last filter update
+        self._force_update = True
+        self._updates = 0
+        self._estimate = None
+        self._map_to_odom = Pose2D(0.0, 0.0, 0.0)
+
+    # --- set-up -----------------------------------------------------------------
+    def set_map(self, occupancy, spec: GridSpec) -> None:
+        """Use a new map (occupancy -1 / 0..100 on ``spec``): rebuilds the likelihood field."""
+        self.field = LikelihoodField(occupancy, spec, self.config.sensor_config(), self.config.occupied_threshold)
+        self._free = FreeSpaceSampler(occupancy, spec)
+
+    def initialise(self, pose, covariance=None) -> None:
+        """Gaussian particle set around ``pose`` (map frame); covariance 3x3, default from the config."""
+        mean = _as_pose_array(pose, "pose")
+        cov = self.config.initial_covariance() if covariance is None else covariance
+        self.filter.init_gaussian(mean, cov)
+        self._after_reinit()
+
+    def global_localization(self) -> None:
+        """Spread max_particles uniformly over the map's free cells (amcl's global_localization service)."""
+        if self._free is None:
+            raise ValueError("global_localization needs a map: call set_map first")
+        self.filter.init_uniform(self._free)
+        self._after_reinit()
+
+    def _after_reinit(self) -> None:
+        self._force_update = True
+        self._updates = 0
+        self._estimate = None
+
+    @property
+    def particles(self) -> np.ndarray:
+        return self.filter.particles
+
+    @property
+    def initialised(self) -> bool:
+        return self.filter.n > 0
+
+    # --- the filter cycle ------------------------------------------------------------
+    def update(self, odom_pose, scan: Scan) -> AmclResult:
+        """Feed one scan with the odometry pose at its time; see the module docstring."""
+        if self.field is None:
+            raise ValueError("Amcl.update needs a map: call set_map first")
+        if not isinstance(scan, Scan):
+            raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
+        odom = _as_pose_array(odom_pose, "odom_pose")
+        if not self.initialised:
+            self.initialise(self.config.initial_pose)
+        if self._odom_ref is None:
+            self._odom_ref = odom.copy()
+            self._force_update = True
+        delta = odom - self._odom_ref
+        moved = (abs(delta[0]) > self.config.update_min_d_m or abs(delta[1]) > self.config.update_min_d_m
+                 or abs(normalize_angle(delta[2])) > self.config.update_min_a_rad)
+        updated = resampled = False
+        if moved or self._force_update:
+            if moved:
+                self.filter.particles = sample_motion_model_odometry(self.filter.particles, self._odom_ref, odom,
+                                                                     self._motion, self.rng)
+            self.filter.update_weights(self.field.weights(self.filter.particles, scan))
+            self._updates += 1
+            if self._updates % self.config.resample_interval == 0:
+                self.filter.resample(self._free)
+                resampled = True
+            self._estimate = self.filter.estimate()
+            mean = self._estimate.mean
+            self._map_to_odom = compose(Pose2D(*mean), inverse(Pose2D(*odom)))
+            self._odom_ref = odom.copy()
+            self._force_update = False
+            updated = True
+        if self._estimate is None:
+            self._estimate = self.filter.estimate()
+        pose = compose(self._map_to_odom, Pose2D(*odom))
+        return AmclResult(pose, self._estimate.covariance.copy(), self._map_to_odom, updated, resampled,
+                          self.filter.n)

@@ -1,0 +1,220 @@
+"""GPS + IMU localisation in the map frame: the map -> odom correction.
+
+Why: in the original GPS mode robot_localization ran a second EKF in the
+``map`` frame that fused the wheel/IMU odometry with the GPS position from
+navsat_transform (/odometry/gps) and the IMU's absolute heading; its only
+product the rest of the stack uses is the TF map -> odom. This module
+replaces it by a complementary filter, which is all a planar robot with a
+good odometry and an unbiased GPS needs:
+
+* the odometry (odom -> base_link) supplies the fast, smooth motion;
+* the GPS position and the IMU heading (both absolute, in the ENU map frame)
+  slowly pull the map pose of base_link towards them.
+
+The filter state is the transform ``T = map -> odom`` (x, y, yaw). The map
+pose of the robot is ``T o odom_pose``. A GPS position ``g`` measured when the
+odometry said ``o`` corrects it as
+
+    e = T o o                                   (estimate at the fix's time)
+    e.xy  <- e.xy + a_p (g - e.xy),            a_p = 1 - exp(-dt / position_time_constant_s)
+    T     <- e o o^-1
+
+and an IMU heading ``h`` (robot yaw in the map) as
+
+    e.yaw <- e.yaw + a_y wrap(h - e.yaw),      a_y = 1 - exp(-dt / yaw_time_constant_s)
+
+rotating T about the robot (its map position stays put). ``dt`` is the time
+since the previous correction of the same kind, so the blending does not
+depend on the sensor rates; a time constant of 0 trusts each measurement
+fully. Because the caller pairs every measurement with the odometry pose at
+the measurement's own stamp, a moving robot is not dragged back by latency.
+
+The first GPS position, once a heading is known, sets T outright; before
+that ``ready`` is False and no transform should be published.
+
+:func:`robot_yaw_from_imu` turns an IMU orientation given for a rotated
+sensor frame (imu_link) into the robot's (base_link's) yaw, as
+robot_localization does with the static transform base_link <- imu_link;
+:func:`enu_yaw` adds the yaw offset and magnetic declination.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from cottonsim_navigation.core.geometry import Pose2D, compose, inverse, normalize_angle
+
+
+@dataclass(frozen=True)
+class GpsLocalizationConfig:
+    """Parameters of the GPS/IMU complementary filter and its node.
+
+    position_time_constant_s [s]: how fast the map position follows the GPS
+        (0 = jump to every fix). Default 0.5.
+    yaw_time_constant_s [s]: how fast the map heading follows the IMU (0 = jump).
+        Default 1.0.
+    yaw_offset [rad]: added to the IMU yaw so 0 means east (navsat_transform's
+        parameter; the original 1.570796327 for an IMU reading 0 facing north).
+    magnetic_declination_radians [rad]: added to the IMU yaw (original 0).
+    max_dt_s [s]: longest gap between corrections used for the blending
+        weight (a long gap gives at most this weight). Default 1.0.
+    frequency [Hz]: rate at which the node publishes map -> odom. Default 30.
+    transform_tolerance_s [s]: how far the published transform is
+        post-dated, so that lookups at the newest odometry time succeed (amcl's
+        transform_tolerance). Default 0.1.
+    """
+
+    position_time_constant_s: float = 0.5
+    yaw_time_constant_s: float = 1.0
+    yaw_offset: float = 1.570796327
+    magnetic_declination_radians: float = 0.0
+    max_dt_s: float = 1.0
+    frequency: float = 30.0
+    transform_tolerance_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("position_time_constant_s", "yaw_time_constant_s", "yaw_offset",
+                     "magnetic_declination_radians", "max_dt_s", "frequency", "transform_tolerance_s"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"{name} must be a finite number, got {value!r}")
+        for name in ("position_time_constant_s", "yaw_time_constant_s", "transform_tolerance_s"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        for name in ("max_dt_s", "frequency"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+
+
+def _quat(q: Sequence[float], name: str) -> np.ndarray:
+    arr = np.asarray(q, dtype=float).reshape(-1)
+    if arr.shape != (4,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be 4 finite numbers (x, y, z, w), got {q!r}")
+    n = float(np.linalg.norm(arr))
+    if n < 1e-9:
+        raise ValueError(f"{name} must not be the zero quaternion")
+    return arr / n
+
+
+def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz])
+
+
+def robot_yaw_from_imu(q_world_imu: Sequence[float], q_base_imu: Sequence[float] = (0.0, 0.0, 0.0, 1.0)) -> float:
+    """Yaw [rad] of base_link in the IMU's world frame.
+
+    q_world_imu: orientation the IMU reports (its own frame in the world), xyzw.
+    q_base_imu: rotation of the IMU frame in base_link (TF base_link <- imu_link), xyzw.
+    The robot's orientation is q_world_imu * q_base_imu^-1; its yaw is returned.
+    """
+    qw = _quat(q_world_imu, "q_world_imu")
+    qb = _quat(q_base_imu, "q_base_imu")
+    qb_inv = np.array([-qb[0], -qb[1], -qb[2], qb[3]])
+    x, y, z, w = _quat_multiply(qw, qb_inv)
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def enu_yaw(imu_robot_yaw_rad: float, yaw_offset_rad: float, magnetic_declination_rad: float = 0.0) -> float:
+    """Robot heading in ENU [rad, 0 = east] from the IMU's robot yaw plus the corrections."""
+    return float(normalize_angle(imu_robot_yaw_rad + yaw_offset_rad + magnetic_declination_rad))
+
+
+def _blend_weight(dt_s: float, time_constant_s: float, max_dt_s: float) -> float:
+    if time_constant_s <= 0.0:
+        return 1.0
+    dt = min(max(dt_s, 0.0), max_dt_s)
+    return 1.0 - math.exp(-dt / time_constant_s)
+
+
+class GpsLocalizer:
+    """Complementary filter for map -> odom (see the module docstring).
+
+    Call ``update_heading`` with each IMU heading and ``update_gps`` with each
+    GPS position, each together with the odometry pose (odom -> base_link) at
+    the measurement's stamp; read ``map_to_odom`` (None until ``ready``).
+    Stamps are seconds on one clock and may arrive slightly out of order.
+    """
+
+    def __init__(self, config: GpsLocalizationConfig = GpsLocalizationConfig()):
+        self.config = config
+        self._map_to_odom: Optional[Pose2D] = None
+        self._heading: Optional[float] = None         # latest IMU heading in the map
+        self._heading_odom_yaw: Optional[float] = None
+        self._last_gps_s: Optional[float] = None
+        self._last_heading_s: Optional[float] = None
+        self.gps_updates = 0
+        self.heading_updates = 0
+
+    @property
+    def ready(self) -> bool:
+        """True once the first GPS position (with a known heading) has set map -> odom."""
+        return self._map_to_odom is not None
+
+    @property
+    def map_to_odom(self) -> Optional[Pose2D]:
+        return self._map_to_odom
+
+    def map_pose(self, odom_pose: Pose2D) -> Optional[Pose2D]:
+        """The robot's map pose for an odometry pose, or None before the first fix."""
+        if self._map_to_odom is None:
+            return None
+        return compose(self._map_to_odom, odom_pose)
+
+    @staticmethod
+    def _check(stamp_s: float, odom_pose: Pose2D, **values: float) -> None:
+        if not isinstance(odom_pose, Pose2D):
+            raise ValueError(f"odom_pose must be a Pose2D, got {type(odom_pose).__name__}")
+        for name, v in dict(values, stamp_s=stamp_s).items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"{name} must be a finite number, got {v!r}")
+
+    def update_heading(self, stamp_s: float, odom_pose: Pose2D, map_yaw_rad: float) -> None:
+        """An absolute heading of the robot in the map [rad] (ENU yaw from the IMU)."""
+        self._check(stamp_s, odom_pose, map_yaw_rad=map_yaw_rad)
+        self.heading_updates += 1
+        self._heading = float(map_yaw_rad)
+        self._heading_odom_yaw = odom_pose.yaw_rad
+        if self._map_to_odom is None:
+            self._last_heading_s = stamp_s
+            return
+        dt = 0.0 if self._last_heading_s is None else stamp_s - self._last_heading_s
+        if dt < 0.0:                                   # out of order: use it, weight from its own gap
+            dt = 0.0
+        self._last_heading_s = max(stamp_s, self._last_heading_s or stamp_s)
+        a = _blend_weight(dt, self.config.yaw_time_constant_s, self.config.max_dt_s)
+        est = compose(self._map_to_odom, odom_pose)
+        new_yaw = est.yaw_rad + a * float(normalize_angle(map_yaw_rad - est.yaw_rad))
+        self._map_to_odom = compose(Pose2D(est.x_m, est.y_m, float(normalize_angle(new_yaw))), inverse(odom_pose))
+
+    def update_gps(self, stamp_s: float, odom_pose: Pose2D, x_m: float, y_m: float) -> bool:
+        """A GPS position of base_link in the map [m]. Returns True when it was used.
+
+        The first fix is used only once a heading is known (else False).
+        """
+        self._check(stamp_s, odom_pose, x_m=x_m, y_m=y_m)
+        if self._map_to_odom is None:
+            if self._heading is None:
+                return False
+            # the robot's map yaw now = heading measured + odometry turn since then
+            yaw = self._heading + (odom_pose.yaw_rad - self._heading_odom_yaw)
+            est = Pose2D(float(x_m), float(y_m), float(normalize_angle(yaw)))
+            self._map_to_odom = compose(est, inverse(odom_pose))
+            self._last_gps_s = stamp_s
+            self.gps_updates += 1
+            return True
+        dt = max(0.0, stamp_s - self._last_gps_s) if self._last_gps_s is not None else 0.0
+        self._last_gps_s = max(stamp_s, self._last_gps_s if self._last_gps_s is not None else stamp_s)
+        a = _blend_weight(dt, self.config.position_time_constant_s, self.config.max_dt_s)
+        est = compose(self._map_to_odom, odom_pose)
+        corrected = Pose2D(est.x_m + a * (x_m - est.x_m), est.y_m + a * (y_m - est.y_m), est.yaw_rad)
+        self._map_to_odom = compose(corrected, inverse(odom_pose))
+        self.gps_updates += 1
+        return True

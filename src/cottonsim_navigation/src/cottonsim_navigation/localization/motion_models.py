@@ -1,0 +1,125 @@
+"""Odometry motion model of a differential-drive robot (sampling form).
+
+Why: AMCL and the SLAM particle filter both move every particle by the
+odometry measured since the last filter update, with noise that grows with
+the distance driven and the angle turned. This is the ``diff`` model of ROS
+amcl, which is Probabilistic Robotics' ``sample_motion_model_odometry``
+(Table 5.6): the odometry increment between two odometry poses is split into
+a first rotation ``rot1`` (towards the direction of travel), a translation
+``trans`` and a second rotation ``rot2``; each part is perturbed with a
+zero-mean Gaussian whose variance is
+
+    rot1, rot2:  alpha1 * rot^2   + alpha2 * trans^2
+    trans:       alpha3 * trans^2 + alpha4 * (rot1^2 + rot2^2)
+
+and the perturbed increment is applied to every particle in its own frame.
+As in ROS amcl, the rotation noise of a backwards step uses the rotation
+angle folded to the nearest of 0 and pi (driving backwards is not a 180 deg
+turn), and for steps below 1 cm ``rot1`` is 0 (the direction of a tiny step
+is noise). alpha5 exists only for the omni-directional model; it is kept for
+parameter compatibility and unused here.
+
+Everything is vectorised over particles: poses are (N, 3) arrays of
+(x_m, y_m, yaw_rad).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+
+from ..core.geometry import normalize_angle
+
+# Below this translation [m] the heading of the step is not meaningful (ROS amcl: 0.01 m).
+MIN_TRANSLATION_FOR_HEADING_M = 0.01
+
+
+@dataclass(frozen=True)
+class OdometryMotionModelConfig:
+    """Noise of the differential odometry model (ROS amcl odom_alpha1..5; the original's values).
+
+    alpha1: rotation noise from rotation [rad^2 / rad^2];
+    alpha2: rotation noise from translation [rad^2 / m^2];
+    alpha3: translation noise from translation [m^2 / m^2];
+    alpha4: translation noise from rotation [m^2 / rad^2];
+    alpha5: translation noise of the omni model (unused by the diff model).
+    """
+
+    alpha1: float = 0.2
+    alpha2: float = 0.2
+    alpha3: float = 0.2
+    alpha4: float = 0.2
+    alpha5: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("alpha1", "alpha2", "alpha3", "alpha4", "alpha5"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+
+
+def _as_pose_array(pose, name: str) -> np.ndarray:
+    """(3,) float array from a Pose2D-like object or a sequence; ValueError naming ``name``."""
+    if hasattr(pose, "x_m"):
+        arr = np.array([pose.x_m, pose.y_m, getattr(pose, "yaw_rad", 0.0)], dtype=float)
+    else:
+        try:
+            arr = np.asarray(pose, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be (x_m, y_m, yaw_rad), got {pose!r}") from None
+    if arr.shape != (3,):
+        raise ValueError(f"{name} must have 3 values (x_m, y_m, yaw_rad), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
+    return arr
+
+
+def odometry_increment(odom_prev, odom_now) -> Tuple[float, float, float]:
+    """Split the odometry step into (rot1_rad, trans_m, rot2_rad) as ROS amcl does."""
+    p0 = _as_pose_array(odom_prev, "odom_prev")
+    p1 = _as_pose_array(odom_now, "odom_now")
+    dx, dy = p1[0] - p0[0], p1[1] - p0[1]
+    trans = math.hypot(dx, dy)
+    if trans < MIN_TRANSLATION_FOR_HEADING_M:
+        rot1 = 0.0
+    else:
+        rot1 = normalize_angle(math.atan2(dy, dx) - p0[2])
+    rot2 = normalize_angle(normalize_angle(p1[2] - p0[2]) - rot1)
+    return rot1, trans, rot2
+
+
+def sample_motion_model_odometry(particles: np.ndarray, odom_prev, odom_now,
+                                 config: OdometryMotionModelConfig = OdometryMotionModelConfig(),
+                                 rng: Optional[np.random.Generator] = None) -> np.ndarray:
+    """Move every particle by the noisy odometry increment ``odom_prev -> odom_now``.
+
+    particles: (N, 3) poses (x_m, y_m, yaw_rad) in the map frame;
+    odom_prev, odom_now: odometry poses (x_m, y_m, yaw_rad) in the odom frame;
+    returns a new (N, 3) array (the input is not modified), yaws in [-pi, pi).
+    """
+    parts = np.asarray(particles, dtype=float)
+    if parts.ndim != 2 or parts.shape[1] != 3:
+        raise ValueError(f"particles must be an (N, 3) array of (x_m, y_m, yaw_rad), got shape {parts.shape}")
+    if rng is None:
+        rng = np.random.default_rng()
+    rot1, trans, rot2 = odometry_increment(odom_prev, odom_now)
+    # A backwards step should not look like a half turn to the noise model.
+    rot1_noise = min(abs(normalize_angle(rot1)), abs(normalize_angle(rot1 - math.pi)))
+    rot2_noise = min(abs(normalize_angle(rot2)), abs(normalize_angle(rot2 - math.pi)))
+    a = config
+    sd_rot1 = math.sqrt(a.alpha1 * rot1_noise ** 2 + a.alpha2 * trans ** 2)
+    sd_trans = math.sqrt(a.alpha3 * trans ** 2 + a.alpha4 * (rot1_noise ** 2 + rot2_noise ** 2))
+    sd_rot2 = math.sqrt(a.alpha1 * rot2_noise ** 2 + a.alpha2 * trans ** 2)
+    n = parts.shape[0]
+    r1 = rot1 - sd_rot1 * rng.standard_normal(n)
+    tr = trans - sd_trans * rng.standard_normal(n)
+    r2 = rot2 - sd_rot2 * rng.standard_normal(n)
+    out = np.empty_like(parts)
+    heading = parts[:, 2] + r1
+    out[:, 0] = parts[:, 0] + tr * np.cos(heading)
+    out[:, 1] = parts[:, 1] + tr * np.sin(heading)
+    out[:, 2] = normalize_angle(parts[:, 2] + r1 + r2)
+    return out

@@ -1,0 +1,1 @@
+"""Mapping cores: gmapping-style scan matcher and Rao-Blackwellised particle-filter SLAM."""

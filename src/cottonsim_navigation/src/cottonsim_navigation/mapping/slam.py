@@ -1,0 +1,460 @@
+"""Rao-Blackwellised particle-filter SLAM (the pure core of a gmapping-like mapper).
+
+Why: the paper's map-based mode first drives the farm with gmapping to build
+the occupancy map that AMCL later localises in. This module does that job
+without ROS: feed it odometry poses and laser scans, read back the map, the
+robot's map pose and the map -> odom correction.
+
+Each particle is a pose trajectory hypothesis with its own occupancy map
+(log-odds). One update (when the robot moved ``linear_update_m`` /
+``angular_update_rad`` or ``temporal_update_s`` passed), as gmapping does it:
+
+1. predict every particle with the odometry motion model (gmapping's
+   srr/srt/str/stt noise, mapped onto the alpha model of
+   :mod:`..localization.motion_models` as alpha = s^2);
+2. refine each pose by matching the scan against the particle's own map
+   (:mod:`.scan_matcher`; rejected matches keep the odometry pose);
+3. add the match log-likelihood ``-sum(d^2) / (2 lsigma^2)`` to the
+   particle's accumulated log weight (normalised like gmapping with gain
+   ``1 / (ogain * N)``);
+4. resample (systematic) when N_eff / N < ``resample_threshold``;
+5. integrate the scan into each particle's map: Bresenham rays add
+   ``logodds_miss`` to the cells they cross and ``logodds_hit`` to the end
+   cell (beams longer than ``max_urange_m`` or without return only clear up to
+   ``max_urange_m``).
+
+Crop rows and along-row drift: rows are long corridors of nearly touching
+plants, so the scan constrains the sideways position and heading well but the
+along-row position only weakly (and periodically). The matcher therefore
+carries an anisotropic odometry prior in the robot frame (tight along the
+heading, loose sideways; see :class:`ScanMatcherConfig`), i.e. along the row
+odometry is trusted and the scan corrects the rest; poor matches fall back to
+odometry entirely.
+
+Memory: maps are stored in 64 x 64-cell int16 tiles (log-odds x 100) that
+exist only where something was observed; resampled copies share tiles and copy
+one only when they write into it (copy-on-write). 30 particles over the farm
+cost a few MB, not 30 full 4000 x 4000 grids.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+
+from ..core.geometry import Pose2D, compose, inverse, normalize_angle
+from ..core.grid import GridSpec
+from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
+from ..localization.particle_filter import effective_sample_size, systematic_resample_indices, weight_entropy
+from ..localization.sensor_models import Scan
+from .scan_matcher import ScanMatcher, ScanMatcherConfig, build_match_field
+
+try:
+    from numba import njit
+except ImportError as exc:  # pragma: no cover - numba is a declared dependency
+    raise ImportError("cottonsim_navigation needs numba (pip install numba) for SLAM") from exc
+
+TILE = 64                 # cells per tile edge
+LOGODDS_SCALE = 100.0     # int16 map value = log-odds * LOGODDS_SCALE
+
+
+@dataclass(frozen=True)
+class SlamConfig:
+    """RBPF-SLAM parameters (gmapping names in brackets; defaults = the original's values).
+
+    particles: number of particles [particles 100; 30 is the benchmark point];
+    max_urange_m: beams are used up to this range [maxUrange 5.5];
+    max_range_m: readings at or beyond this count as no return [maxRange 6.1];
+    linear_update_m, angular_update_rad: motion before a scan is processed [linearUpdate 0.3, angularUpdate 0.5];
+    temporal_update_s: also process after this much time without motion (<= 0: off) [temporalUpdate 2.0];
+    resample_threshold: resample when N_eff / N falls below [resampleThreshold 0.5];
+    delta_m: map resolution [delta 0.05];
+    xmin_m, ymin_m, xmax_m, ymax_m: map extent [xmin.. +/-100];
+    srr, srt, str_, stt: odometry noise (trans<-trans, trans<-rot, rot<-trans, rot<-rot) [srr 0.1, srt 0.2, str 0.1, stt 0.2];
+    lsigma_m: end-point sigma of the particle likelihood [lsigma 0.075];
+    ogain: likelihood smoothing gain [ogain 3.0];
+    lskip: use every (lskip+1)-th beam for matching [lskip 0];
+    logodds_hit, logodds_miss, logodds_clamp: map update per hit / pass and the |log-odds| bound;
+    occupied_prob: cells above this probability are occupied (100) in the output map;
+    matcher: the scan matcher's parameters.
+    """
+
+    particles: int = 100
+    max_urange_m: float = 5.5
+    max_range_m: float = 6.1
+    linear_update_m: float = 0.3
+    angular_update_rad: float = 0.5
+    temporal_update_s: float = 2.0
+    resample_threshold: float = 0.5
+    delta_m: float = 0.05
+    xmin_m: float = -100.0
+    ymin_m: float = -100.0
+    xmax_m: float = 100.0
+    ymax_m: float = 100.0
+    srr: float = 0.1
+    srt: float = 0.2
+    str_: float = 0.1
+    stt: float = 0.2
+    lsigma_m: float = 0.075
+    ogain: float = 3.0
+    lskip: int = 0
+    logodds_hit: float = 0.85
+    logodds_miss: float = -0.4
+    logodds_clamp: float = 3.5
+    occupied_prob: float = 0.65
+    matcher: ScanMatcherConfig = field(default_factory=ScanMatcherConfig)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.particles, bool) or not isinstance(self.particles, int) or self.particles < 1:
+            raise ValueError(f"particles must be an integer >= 1, got {self.particles!r}")
+        if isinstance(self.lskip, bool) or not isinstance(self.lskip, int) or self.lskip < 0:
+            raise ValueError(f"lskip must be an integer >= 0, got {self.lskip!r}")
+        for name in ("max_urange_m", "max_range_m", "delta_m", "lsigma_m", "ogain", "logodds_hit",
+                     "logodds_clamp"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        for name in ("linear_update_m", "angular_update_rad", "srr", "srt", "str_", "stt"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if not (isinstance(self.temporal_update_s, (int, float)) and not math.isnan(self.temporal_update_s)):
+            raise ValueError(f"temporal_update_s must be a number, got {self.temporal_update_s!r}")
+        if self.max_urange_m > self.max_range_m:
+            raise ValueError(f"max_urange_m ({self.max_urange_m}) must not exceed max_range_m ({self.max_range_m})")
+        if not (0 <= self.resample_threshold <= 1):
+            raise ValueError(f"resample_threshold must lie in [0, 1], got {self.resample_threshold!r}")
+        if not (math.isfinite(self.logodds_miss) and self.logodds_miss < 0):
+            raise ValueError(f"logodds_miss must be a finite number < 0, got {self.logodds_miss!r}")
+        if self.logodds_clamp * LOGODDS_SCALE > 30000:
+            raise ValueError(f"logodds_clamp must be <= 300 (int16 storage), got {self.logodds_clamp}")
+        if not (0.5 < self.occupied_prob < 1):
+            raise ValueError(f"occupied_prob must lie in (0.5, 1), got {self.occupied_prob!r}")
+        for lo, hi in (("xmin_m", "xmax_m"), ("ymin_m", "ymax_m")):
+            a, b = getattr(self, lo), getattr(self, hi)
+            if not (math.isfinite(a) and math.isfinite(b) and a < b):
+                raise ValueError(f"need finite {lo} < {hi}, got {a}, {b}")
+        if not isinstance(self.matcher, ScanMatcherConfig):
+            raise ValueError(f"matcher must be a ScanMatcherConfig, got {type(self.matcher).__name__}")
+
+    def motion_config(self) -> OdometryMotionModelConfig:
+        """gmapping's noise as the alpha model: rot<-rot stt^2, rot<-trans str^2, trans<-trans srr^2, trans<-rot srt^2."""
+        return OdometryMotionModelConfig(self.stt ** 2, self.str_ ** 2, self.srr ** 2, self.srt ** 2)
+
+    def map_spec(self) -> GridSpec:
+        """The whole map extent as a grid (cells are allocated lazily in tiles)."""
+        w = int(math.ceil((self.xmax_m - self.xmin_m) / self.delta_m))
+        h = int(math.ceil((self.ymax_m - self.ymin_m) / self.delta_m))
+        return GridSpec(self.delta_m, w, h, self.xmin_m, self.ymin_m)
+
+
+class TiledLogOddsMap:
+    """A log-odds grid stored as copy-on-write tiles (int16, log-odds x LOGODDS_SCALE; absent = 0 = unknown)."""
+
+    def __init__(self, spec: GridSpec, tiles: Optional[Dict[Tuple[int, int], np.ndarray]] = None) -> None:
+        self.spec = spec
+        self.tiles: Dict[Tuple[int, int], np.ndarray] = {} if tiles is None else tiles
+
+    def clone(self) -> "TiledLogOddsMap":
+        """A copy sharing every tile array. Tile arrays are never changed in place (write() stores
+        new arrays), so sharing is safe: this is copy-on-write at tile granularity."""
+        return TiledLogOddsMap(self.spec, dict(self.tiles))
+
+    def tile_range(self, mx0: int, my0: int, mx1: int, my1: int) -> Tuple[int, int, int, int]:
+        """Tiles (tx0, ty0, tx1, ty1), inclusive, covering cells [mx0, mx1] x [my0, my1] clipped to the grid."""
+        nx = (self.spec.width + TILE - 1) // TILE
+        ny = (self.spec.height + TILE - 1) // TILE
+        tx0 = min(max(mx0 // TILE, 0), nx - 1)
+        ty0 = min(max(my0 // TILE, 0), ny - 1)
+        tx1 = min(max(mx1 // TILE, 0), nx - 1)
+        ty1 = min(max(my1 // TILE, 0), ny - 1)
+        return tx0, ty0, tx1, ty1
+
+    def read(self, tr: Tuple[int, int, int, int]) -> np.ndarray:
+        """Dense copy of the tiles in range ``tr`` (cell (0, 0) = first cell of tile (tx0, ty0))."""
+        tx0, ty0, tx1, ty1 = tr
+        out = np.zeros(((ty1 - ty0 + 1) * TILE, (tx1 - tx0 + 1) * TILE), dtype=np.int16)
+        for (ty, tx), tile in self.tiles.items():
+            if tx0 <= tx <= tx1 and ty0 <= ty <= ty1:
+                out[(ty - ty0) * TILE:(ty - ty0 + 1) * TILE, (tx - tx0) * TILE:(tx - tx0 + 1) * TILE] = tile
+        return out
+
+    def write(self, tr: Tuple[int, int, int, int], dense: np.ndarray, touched: np.ndarray) -> None:
+        """Store fresh copies of the tiles of ``dense`` flagged in ``touched`` [(ty1-ty0+1), (tx1-tx0+1)]."""
+        tx0, ty0, _, _ = tr
+        for iy, ix in zip(*np.nonzero(touched)):
+            key = (ty0 + int(iy), tx0 + int(ix))
+            self.tiles[key] = dense[iy * TILE:(iy + 1) * TILE, ix * TILE:(ix + 1) * TILE].copy()
+
+    def window_spec(self, tr: Tuple[int, int, int, int]) -> GridSpec:
+        tx0, ty0, tx1, ty1 = tr
+        r = self.spec.resolution_m
+        return GridSpec(r, (tx1 - tx0 + 1) * TILE, (ty1 - ty0 + 1) * TILE,
+                        self.spec.origin_x_m + tx0 * TILE * r, self.spec.origin_y_m + ty0 * TILE * r)
+
+    def nbytes(self) -> int:
+        return sum(t.nbytes for t in self.tiles.values())
+
+
+@njit(cache=True, nogil=True)
+def _integrate(grid, touched, x0, y0, ex, ey, hit, add_miss, add_hit, clamp):
+    """Ray-trace beams from cell (x0, y0) to (ex[i], ey[i]) adding log-odds; marks touched tiles."""
+    h, w = grid.shape
+    for i in range(ex.shape[0]):
+        bx = ex[i]
+        by = ey[i]
+        dx = abs(bx - x0)
+        dy = abs(by - y0)
+        sx = 1 if bx > x0 else -1
+        sy = 1 if by > y0 else -1
+        err = dx - dy
+        x = x0
+        y = y0
+        while not (x == bx and y == by):
+            if 0 <= x < w and 0 <= y < h:
+                v = grid[y, x] + add_miss
+                grid[y, x] = v if v > -clamp else -clamp
+                touched[y // 64, x // 64] = True
+            e2 = 2 * err
+            if e2 > -dy:
+                err -= dy
+                x += sx
+            if e2 < dx:
+                err += dx
+                y += sy
+        if 0 <= bx < w and 0 <= by < h:
+            if hit[i]:
+                v = grid[by, bx] + add_hit
+                grid[by, bx] = v if v < clamp else clamp
+            else:
+                v = grid[by, bx] + add_miss
+                grid[by, bx] = v if v > -clamp else -clamp
+            touched[by // 64, bx // 64] = True
+
+
+@dataclass(frozen=True)
+class SlamResult:
+    """Output of :meth:`RbpfSlam.update`.
+
+    updated: the scan was processed; pose: best particle's pose in the map frame;
+    map_to_odom: the correction to publish as TF; neff: effective sample size;
+    entropy: entropy of the particle weights [nats]; resampled: the set was resampled;
+    match_score: best particle's scan-match score (0..1, 0 when no match ran).
+    """
+
+    updated: bool
+    pose: Pose2D
+    map_to_odom: Pose2D
+    neff: float
+    entropy: float
+    resampled: bool
+    match_score: float
+
+
+class RbpfSlam:
+    """gmapping-style SLAM: feed (odometry pose, scan, time) with :meth:`update`; read :meth:`occupancy`.
+
+    The map frame is the odometry frame at the first scan (map -> odom starts as identity).
+    """
+
+    def __init__(self, config: SlamConfig = SlamConfig(), rng: Optional[np.random.Generator] = None) -> None:
+        if not isinstance(config, SlamConfig):
+            raise ValueError(f"config must be a SlamConfig, got {type(config).__name__}")
+        self.config = config
+        self.rng = rng if rng is not None else np.random.default_rng()
+        self.spec = config.map_spec()
+        self.matcher = ScanMatcher(config.matcher)
+        self._motion = config.motion_config()
+        self.poses = np.zeros((config.particles, 3))
+        self.log_weights = np.zeros(config.particles)
+        self.maps = [TiledLogOddsMap(self.spec) for _ in range(config.particles)]
+        self._last_odom: Optional[np.ndarray] = None
+        self._last_time_s: Optional[float] = None
+        self._map_to_odom = Pose2D(0.0, 0.0, 0.0)
+        self._scores = np.zeros(config.particles)
+        self.n_updates = 0
+
+    # --- weights -------------------------------------------------------------------
+    def normalised_weights(self) -> np.ndarray:
+        """gmapping's normalise: exp(gain * (l - max l)), gain = 1 / (ogain * N), summed to 1."""
+        gain = 1.0 / (self.config.ogain * self.config.particles)
+        w = np.exp(gain * (self.log_weights - self.log_weights.max()))
+        return w / w.sum()
+
+    @property
+    def best_index(self) -> int:
+        return int(np.argmax(self.log_weights))
+
+    # --- the update ------------------------------------------------------------------
+    def update(self, odom_pose, scan: Scan, stamp_s: float = 0.0) -> SlamResult:
+        """Process one scan taken at odometry pose ``odom_pose`` (x_m, y_m, yaw_rad) and time ``stamp_s``."""
+        if not isinstance(scan, Scan):
+            raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
+        odom = _as_pose_array(odom_pose, "odom_pose")
+        if not (isinstance(stamp_s, (int, float)) and math.isfinite(stamp_s)):
+            raise ValueError(f"stamp_s must be a finite number, got {stamp_s!r}")
+        cfg = self.config
+        first = self._last_odom is None
+        resampled = False
+        if first:
+            self.poses[:] = odom
+        else:
+            d = odom - self._last_odom
+            moved = (math.hypot(d[0], d[1]) >= cfg.linear_update_m
+                     or abs(normalize_angle(d[2])) >= cfg.angular_update_rad)
+            timed = cfg.temporal_update_s > 0 and stamp_s - self._last_time_s >= cfg.temporal_update_s
+            if not (moved or timed):
+                return self._result(False, False, odom)
+            self.poses = sample_motion_model_odometry(self.poses, self._last_odom, odom, self._motion, self.rng)
+        hits, ends, hit_mask = self._beams(scan)
+        if not first:
+            self._match_all(hits)
+            w = self.normalised_weights()
+            if effective_sample_size(w) < cfg.resample_threshold * cfg.particles:
+                self._resample(w)
+                resampled = True
+        self._integrate_all(scan, ends, hit_mask)
+        self._last_odom = odom.copy()
+        self._last_time_s = float(stamp_s)
+        self.n_updates += 1
+        best = self.poses[self.best_index]
+        self._map_to_odom = compose(Pose2D(*best), inverse(Pose2D(*odom)))
+        return self._result(True, resampled, odom)
+
+    def _result(self, updated: bool, resampled: bool, odom: np.ndarray) -> SlamResult:
+        w = self.normalised_weights()
+        return SlamResult(updated, compose(self._map_to_odom, Pose2D(*odom)), self._map_to_odom,
+                          effective_sample_size(w), weight_entropy(w), resampled,
+                          float(self._scores[self.best_index]))
+
+    def _beams(self, scan: Scan):
+        """Robot-frame end points: hits for matching (< max_urange), ray ends and hit flags for the map."""
+        cfg = self.config
+        r = scan.ranges_m.copy()
+        with np.errstate(invalid="ignore"):
+            usable = ~np.isnan(r) & (r >= scan.range_min_m)
+            no_return = ~np.isfinite(r) | (r >= scan.range_max_m) | (r >= cfg.max_range_m)
+        hit = usable & ~no_return & (r < cfg.max_urange_m)
+        ray_r = np.where(hit, r, cfg.max_urange_m)
+        keep = usable
+        ends = scan.points_in_robot_frame(ray_r[keep], scan.angles_rad[keep])
+        hit_mask = hit[keep]
+        step = cfg.lskip + 1
+        hits = scan.points_in_robot_frame(r[hit][::step], scan.angles_rad[hit][::step])
+        return hits, ends, hit_mask
+
+    def _window(self, pose: np.ndarray, pts: np.ndarray, margin_m: float):
+        """Tile range covering the robot and the end points placed at ``pose``, plus a margin."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        wx = pose[0] + c * pts[:, 0] - s * pts[:, 1]
+        wy = pose[1] + s * pts[:, 0] + c * pts[:, 1]
+        xs = np.append(wx, pose[0])
+        ys = np.append(wy, pose[1])
+        (mx0, mx1), (my0, my1) = self.spec.world_to_map(
+            np.array([xs.min() - margin_m, xs.max() + margin_m]), np.array([ys.min() - margin_m, ys.max() + margin_m]))
+        return self.maps[0].tile_range(int(mx0), int(my0), int(mx1), int(my1))
+
+    def _match_all(self, hits: np.ndarray) -> None:
+        cfg = self.config
+        thr = int(round(LOGODDS_SCALE * math.log(cfg.occupied_prob / (1 - cfg.occupied_prob))))
+        inv2 = 1.0 / (2.0 * cfg.lsigma_m ** 2)
+        margin = cfg.matcher.max_dist_m + 0.5
+        self._scores[:] = 0.0
+        if hits.shape[0] == 0:
+            return
+        for i in range(cfg.particles):
+            tr = self._window(self.poses[i], hits, margin)
+            dense = self.maps[i].read(tr)
+            fld = build_match_field(dense > thr, self.maps[i].window_spec(tr), cfg.matcher.max_dist_m)
+            res = self.matcher.match(fld, self.poses[i], hits)
+            if res.accepted:
+                self.poses[i] = res.pose
+                d = self.matcher.distances(fld, res.pose, hits)
+                self.log_weights[i] += -float(np.sum(d * d)) * inv2
+            self._scores[i] = res.score
+
+    def _resample(self, w: np.ndarray) -> None:
+        idx = systematic_resample_indices(w, self.config.particles, self.rng)
+        parents_used = set()
+        new_maps = []
+        for j in idx:
+            j = int(j)
+            if j in parents_used:
+                new_maps.append(self.maps[j].clone())
+            else:
+                parents_used.add(j)
+                new_maps.append(self.maps[j])
+        self.maps = new_maps
+        self.poses = self.poses[idx].copy()
+        self._scores = self._scores[idx].copy()
+        self.log_weights = np.zeros(self.config.particles)
+
+    def _integrate_all(self, scan: Scan, ends: np.ndarray, hit_mask: np.ndarray) -> None:
+        cfg = self.config
+        if ends.shape[0] == 0:
+            return
+        lx, ly, _ = scan.laser_pose
+        add_miss = int(round(cfg.logodds_miss * LOGODDS_SCALE))
+        add_hit = int(round(cfg.logodds_hit * LOGODDS_SCALE))
+        clamp = int(round(cfg.logodds_clamp * LOGODDS_SCALE))
+        hit_u8 = hit_mask.astype(np.uint8)
+        for i in range(cfg.particles):
+            p = self.poses[i]
+            tr = self._window(p, ends, 0.1)
+            m = self.maps[i]
+            dense = m.read(tr)
+            ws = m.window_spec(tr)
+            c, s = math.cos(p[2]), math.sin(p[2])
+            ox = p[0] + c * lx - s * ly
+            oy = p[1] + s * lx + c * ly
+            emx, emy = ws.world_to_map(p[0] + c * ends[:, 0] - s * ends[:, 1], p[1] + s * ends[:, 0] + c * ends[:, 1])
+            omx, omy = ws.world_to_map(ox, oy)
+            touched = np.zeros((dense.shape[0] // TILE, dense.shape[1] // TILE), dtype=np.bool_)
+            grid = dense.astype(np.int32)
+            _integrate(grid, touched, int(omx), int(omy), emx.astype(np.int64), emy.astype(np.int64), hit_u8,
+                       add_miss, add_hit, clamp)
+            m.write(tr, grid.astype(np.int16), touched)
+
+    # --- outputs ------------------------------------------------------------------------
+    @property
+    def map_to_odom(self) -> Pose2D:
+        return self._map_to_odom
+
+    def occupancy(self, particle: Optional[int] = None, crop: bool = True) -> Tuple[np.ndarray, GridSpec]:
+        """The (best) particle's map as nav_msgs/OccupancyGrid values and its GridSpec.
+
+        100 where p(occupied) > occupied_prob, -1 where never observed, 0 elsewhere.
+        ``crop`` limits the grid to the tiles that hold observations (else the full extent).
+        """
+        i = self.best_index if particle is None else int(particle)
+        if not (0 <= i < self.config.particles):
+            raise ValueError(f"particle must lie in 0..{self.config.particles - 1}, got {particle!r}")
+        m = self.maps[i]
+        if crop and m.tiles:
+            keys = np.array(list(m.tiles.keys()))
+            tr = (int(keys[:, 1].min()), int(keys[:, 0].min()), int(keys[:, 1].max()), int(keys[:, 0].max()))
+        else:
+            tr = m.tile_range(0, 0, self.spec.width - 1, self.spec.height - 1)
+        dense = m.read(tr)
+        ws = m.window_spec(tr)
+        thr = LOGODDS_SCALE * math.log(self.config.occupied_prob / (1 - self.config.occupied_prob))
+        occ = np.zeros(dense.shape, dtype=np.int8)
+        occ[dense == 0] = -1
+        occ[dense > thr] = 100
+        if not crop:   # trim the padding of the last tiles to the configured extent
+            occ = occ[:self.spec.height, :self.spec.width]
+            ws = self.spec
+        return occ, ws
+
+    def memory_bytes(self) -> int:
+        """Bytes held by distinct map tiles over all particles (shared tiles counted once)."""
+        seen = {}
+        for m in self.maps:
+            for t in m.tiles.values():
+                seen[id(t)] = t.nbytes
+        return int(sum(seen.values()))
+
+    def entropy(self) -> float:
+        return weight_entropy(self.normalised_weights())

@@ -1,0 +1,206 @@
+"""Experiment recorder: measures a waypoint run against ground truth and writes its report.
+
+The robot never sees ground truth; this node does, only to score the run
+the way the paper does (Eq. 4-7: E per waypoint, AE, RMSE, CR) plus plant
+contacts (crop damage), in-row cross-track error and durations. The work is
+done by the ROS-free :mod:`cottonsim_navigation.evaluation.experiment`; the
+offline evaluator (scripts/evaluate_bag) calls the same code on a bag.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import math
+import os
+import threading
+import time
+
+import numpy as np
+import rospy
+from cottonsim_msgs.msg import PlantContacts
+from nav_msgs.msg import Odometry
+from std_msgs.msg import String
+
+from cottonsim_navigation.evaluation.experiment import (MODES, TrajectoryLog, TrajectoryLogConfig,
+                                                        planned_world_from_gps, planned_world_from_map,
+                                                        sim_world_from_settings, summary_line, write_experiment)
+from cottonsim_navigation.waypoints.files import WaypointFileError, load_gps_waypoints, load_map_waypoints
+from cottonsim_world.farm.model import Pose2D
+from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
+
+
+class RecorderStartError(RuntimeError):
+    """Bad parameters or an unreadable route file; the node exits non-zero."""
+
+
+class ExperimentRecorderNode:
+    """Records ground truth during a waypoint run and writes results/<run>/ when the navigator is done.
+
+    Subscriptions
+      /ground_truth/odom (nav_msgs/Odometry, world frame): the true pose, kept every ~record_period_s
+      /ground_truth/plant_contacts (cottonsim_msgs/PlantContacts): total_contact_events (counted from
+        the first message received)
+      ~state_topic (std_msgs/String, default /gps_waypoint_navigator/state): the navigator's JSON state;
+        the run's durations go from its first "navigating" to "finished", which triggers the report
+    Parameters (private)
+      ~mode (str, "gps"): "gps" (waypoints are "lat lon") or "map" (x, y, yaw in the map = Home frame)
+      ~waypoints_file (str, required): the planned route, the file the navigator drives
+      ~run_name (str, "run_<date>_<time>"), ~results_dir (str, "results"): output folder results_dir/run_name
+      ~sim_settings_param (str, "/sim_bridge/sim"): parameter holding the simulator's settings (farm,
+        geodesy reference), to rebuild the plants, lanes and Home
+      ~home (list [x m, y m, yaw rad], world; default: the farm's spawn): the map frame of map routes
+      ~record_period_s (float, 0.05): sim-time spacing of the kept poses [s]
+      ~plot (bool, true): write trajectory.png
+      ~shutdown_when_done (bool, true): end the node (and, as a required node, the launch) after writing
+    Files: report.json, trajectory.csv, trajectory.png (see evaluation.experiment). On shutdown before
+    the navigator finished, the same files are written with "complete": false.
+    """
+
+    def __init__(self):
+        self.mode = str(rospy.get_param("~mode", "gps"))
+        self.waypoints_file = str(rospy.get_param("~waypoints_file", ""))
+        stamp = datetime.datetime.now().strftime("%Y%m%d_%H%M%S")
+        self.run_name = str(rospy.get_param("~run_name", "") or f"run_{stamp}")
+        self.results_dir = str(rospy.get_param("~results_dir", "results"))
+        self.state_topic = str(rospy.get_param("~state_topic", "/gps_waypoint_navigator/state"))
+        settings_param = str(rospy.get_param("~sim_settings_param", "/sim_bridge/sim"))
+        home = rospy.get_param("~home", None)
+        period = float(rospy.get_param("~record_period_s", 0.05))
+        self.plot = bool(rospy.get_param("~plot", True))
+        self.shutdown_when_done = bool(rospy.get_param("~shutdown_when_done", True))
+        if self.mode not in MODES:
+            raise RecorderStartError(f"~mode must be one of {MODES}, got {self.mode!r}")
+        if not self.waypoints_file:
+            raise RecorderStartError("~waypoints_file is not set")
+        if os.sep in self.run_name or self.run_name in (".", ".."):
+            raise RecorderStartError(f"~run_name must be a plain folder name, got {self.run_name!r}")
+        try:
+            self.log = TrajectoryLog(TrajectoryLogConfig(min_period_s=period))
+        except ValueError as exc:
+            raise RecorderStartError(f"~record_period_s: {exc}") from None
+        try:
+            self.world = sim_world_from_settings(rospy.get_param(settings_param, {}) or {})
+        except ValueError as exc:
+            raise RecorderStartError(f"simulator settings in {settings_param}: {exc}") from None
+        self.home = self.world.home
+        if home not in (None, "", []):
+            try:
+                self.home = Pose2D(float(home[0]), float(home[1]), float(home[2]))
+            except (TypeError, ValueError, IndexError):
+                raise RecorderStartError(f"~home must be [x m, y m, yaw rad], got {home!r}") from None
+        try:
+            if self.mode == "gps":
+                self.route = load_gps_waypoints(self.waypoints_file)
+                self.planned_latlon = np.array([[w.lat, w.lon] for w in self.route], dtype=float)
+                self.planned_world = planned_world_from_gps(self.route, self.world.geodesy)
+            else:
+                self.route = load_map_waypoints(self.waypoints_file)
+                self.planned_latlon = None
+                self.planned_world = planned_world_from_map(self.route, self.home)
+        except WaypointFileError as exc:
+            raise RecorderStartError(f"bad waypoint file {exc}") from None
+        self.out_dir = os.path.join(self.results_dir, self.run_name)
+
+        self._lock = threading.Lock()
+        self._contacts_first = None
+        self._contacts_last = None
+        self._start = None            # (sim s, wall s) of the route start
+        self._end = None
+        self._first_seen = None       # (sim s, wall s) of the first ground truth, fallback start
+        self._navigator = {}
+        self._done = threading.Event()
+        self._written = False
+        rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth, queue_size=50)
+        rospy.Subscriber("/ground_truth/plant_contacts", PlantContacts, self._on_contacts, queue_size=10)
+        rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=10)
+        rospy.on_shutdown(self._on_shutdown)
+        rospy.loginfo("experiment_recorder: %s route of %d waypoints from %s -> %s", self.mode, len(self.route),
+                      self.waypoints_file, self.out_dir)
+
+    # ------------------------------------------------------------------ inputs
+    def _on_truth(self, msg: Odometry):
+        p = msg.pose.pose
+        t = msg.header.stamp.to_sec()
+        yaw = yaw_from_quaternion_msg(p.orientation)
+        with self._lock:
+            if not self.log.add(t, p.position.x, p.position.y, yaw):
+                if not all(math.isfinite(v) for v in (t, p.position.x, p.position.y, yaw)):
+                    rospy.logwarn_throttle(10.0, "experiment_recorder: ground truth with NaN ignored")
+            if self._first_seen is None:
+                self._first_seen = (t, time.monotonic())
+
+    def _on_contacts(self, msg: PlantContacts):
+        with self._lock:
+            if self._contacts_first is None:
+                self._contacts_first = int(msg.total_contact_events)
+            self._contacts_last = int(msg.total_contact_events)
+
+    def _on_state(self, msg: String):
+        try:
+            state = json.loads(msg.data)
+            name = state["state"]
+        except (ValueError, KeyError, TypeError):
+            rospy.logwarn_throttle(10.0, f"experiment_recorder: unreadable navigator state {msg.data[:80]!r}")
+            return
+        now = (rospy.get_time(), time.monotonic())
+        with self._lock:
+            self._navigator = state
+            if name in ("navigating", "returning_home") and self._start is None:
+                self._start = now
+            if name == "finished" and self._end is None:
+                self._end = now
+                self._done.set()
+
+    # ------------------------------------------------------------------ output
+    def write(self, complete: bool, reason: str = "") -> dict:
+        with self._lock:
+            if self._written:
+                return {}
+            self._written = True
+            traj = self.log.array
+            start = self._start or self._first_seen or (rospy.get_time(), time.monotonic())
+            end = self._end or (traj[-1, 0] if len(traj) else start[0], time.monotonic())
+            contacts = 0 if self._contacts_first is None else self._contacts_last - self._contacts_first
+            navigator = dict(self._navigator)
+        report = write_experiment(
+            self.out_dir, self.mode, self.planned_world, traj, max(0.0, end[0] - start[0]),
+            max(0.0, end[1] - start[1]), contacts, lanes=self.world.lanes, plant_xy=self.world.plant_xy,
+            geodesy=self.world.geodesy, planned_latlon=self.planned_latlon, complete=complete,
+            incomplete_reason=reason, run_name=self.run_name, waypoints_file=self.waypoints_file,
+            navigator=navigator, plot=self.plot)
+        rospy.loginfo("experiment_recorder: %s", summary_line(report))
+        rospy.loginfo("experiment_recorder: wrote %s", self.out_dir)
+        return report
+
+    def _on_shutdown(self):
+        if not self._written:
+            try:
+                self.write(False, "shut down before the navigator finished")
+            except (OSError, ValueError) as exc:
+                rospy.logerr(f"experiment_recorder: could not write the report: {exc}")
+
+    def spin(self):
+        while not rospy.is_shutdown():
+            if self._done.wait(0.2):
+                try:
+                    rospy.sleep(0.5)           # let the last poses arrive
+                except rospy.ROSInterruptException:
+                    return                     # the shutdown hook writes the report
+                try:
+                    self.write(True)
+                except (OSError, ValueError) as exc:
+                    rospy.logerr(f"experiment_recorder: could not write the report: {exc}")
+                if self.shutdown_when_done:
+                    rospy.signal_shutdown("experiment recorded")
+                    return
+                self._done.clear()
+
+
+def main():
+    rospy.init_node("experiment_recorder")
+    try:
+        node = ExperimentRecorderNode()
+    except RecorderStartError as exc:
+        rospy.logfatal(f"experiment_recorder: {exc}")
+        raise SystemExit(1)
+    node.spin()

@@ -1,0 +1,143 @@
+"""gps_localization: TF map -> odom from the GPS position and the IMU heading.
+
+Stands in for robot_localization's second (map-frame) EKF of the original GPS
+mode. The filter is ``cottonsim_navigation.localization.gps_localization.
+GpsLocalizer``; this node pairs each measurement with the odometry pose
+(TF odom -> base_link) at the measurement's own stamp and publishes the result.
+"""
+from __future__ import annotations
+
+import threading
+from typing import Optional
+
+import rospy
+import tf2_ros
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Imu
+
+from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
+from cottonsim_navigation.localization.gps_localization import GpsLocalizationConfig, GpsLocalizer, enu_yaw
+from cottonsim_navigation.ros.navsat_transform_node import ImuYawReader
+from cottonsim_navigation.ros.params import config_from_params, typed_param
+from cottonsim_world.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
+
+_TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
+
+
+class GpsLocalizationNode:
+    """Publishes TF map -> odom so that map -> base_link follows the GPS and the IMU heading.
+
+    Subscriptions
+      /odometry/gps   nav_msgs/Odometry   GPS position of base_link in the map (navsat_transform)
+      /imu/data       sensor_msgs/Imu     absolute heading (IMU yaw + ~yaw_offset + declination = ENU)
+    Publications
+      ~pose           nav_msgs/Odometry   the robot's map pose after each GPS update (for logging)
+    TF
+      publishes ~map_frame -> ~odom_frame at ~frequency, post-dated by ~transform_tolerance_s,
+      only after the first GPS position (nothing before);
+      uses ~odom_frame -> ~base_link_frame (odometry, looked up at each measurement's stamp)
+      and base_link <- imu frame (static).
+    Parameters (private)
+      ~frequency (float, 30): TF rate [Hz]
+      ~position_time_constant_s (float, 0.5): GPS blending time constant [s] (0 = follow each fix)
+      ~yaw_time_constant_s (float, 1.0): IMU heading blending time constant [s]
+      ~yaw_offset (float, 1.570796327): [rad], as navsat_transform's
+      ~magnetic_declination_radians (float, 0): [rad]
+      ~max_dt_s (float, 1.0): longest gap used for a blending weight [s]
+      ~transform_tolerance_s (float, 0.1): post-dating of the published transform [s]
+      ~map_frame (map), ~odom_frame (odom), ~base_link_frame (base_link)
+    Messages with NaN are ignored with a warning.
+    """
+
+    def __init__(self):
+        self.config = config_from_params(GpsLocalizationConfig)
+        self.map_frame = typed_param("~map_frame", "map")
+        self.odom_frame = typed_param("~odom_frame", "odom")
+        self.base_frame = typed_param("~base_link_frame", "base_link")
+        self.filter = GpsLocalizer(self.config)
+        self._lock = threading.Lock()
+        self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        self.tf_pub = tf2_ros.TransformBroadcaster()
+        self.imu = ImuYawReader(self.tf_buffer, self.base_frame, "gps_localization")
+        self.pose_pub = rospy.Publisher("~pose", Odometry, queue_size=10)
+        self._last_published: Optional[rospy.Time] = None
+        rospy.Subscriber("/odometry/gps", Odometry, self._on_gps, queue_size=20)
+        rospy.Subscriber("/imu/data", Imu, self._on_imu, queue_size=20)
+        self.timer = rospy.Timer(rospy.Duration(1.0 / self.config.frequency), self._on_timer)
+
+    def _odom_pose(self, stamp: rospy.Time) -> Optional[Pose2D]:
+        """odom -> base_link at ``stamp`` (waits briefly for the odometry to catch up)."""
+        try:
+            t = self.tf_buffer.lookup_transform(self.odom_frame, self.base_frame, stamp, rospy.Duration(0.2))
+        except _TF_ERRORS as exc:
+            rospy.logwarn_throttle(5.0, f"gps_localization: no TF {self.odom_frame} -> {self.base_frame} "
+                                        f"at {stamp.to_sec():.3f}: {exc}")
+            return None
+        tr = t.transform
+        return Pose2D(tr.translation.x, tr.translation.y, yaw_from_quaternion_msg(tr.rotation))
+
+    def _on_imu(self, msg: Imu):
+        yaw = self.imu.robot_yaw(msg)
+        if yaw is None:
+            return
+        odom = self._odom_pose(msg.header.stamp)
+        if odom is None:
+            return
+        heading = enu_yaw(yaw, self.config.yaw_offset, self.config.magnetic_declination_radians)
+        with self._lock:
+            self.filter.update_heading(msg.header.stamp.to_sec(), odom, heading)
+
+    def _on_gps(self, msg: Odometry):
+        p = msg.pose.pose.position
+        if not finite_or_none(p.x, p.y):
+            rospy.logwarn_throttle(5.0, "gps_localization: /odometry/gps with NaN ignored")
+            return
+        if msg.header.frame_id and msg.header.frame_id.lstrip("/") != self.map_frame:
+            rospy.logwarn_throttle(5.0, f"gps_localization: /odometry/gps in frame '{msg.header.frame_id}', "
+                                        f"expected '{self.map_frame}'; ignored")
+            return
+        odom = self._odom_pose(msg.header.stamp)
+        if odom is None:
+            return
+        with self._lock:
+            first = not self.filter.ready
+            used = self.filter.update_gps(msg.header.stamp.to_sec(), odom, p.x, p.y)
+            pose = self.filter.map_pose(odom)
+        if not used:
+            rospy.logwarn_throttle(5.0, "gps_localization: waiting for an IMU heading before the first fix")
+            return
+        if first:
+            rospy.loginfo("gps_localization: first fix, robot at map (%.3f, %.3f, %.3f rad)",
+                          pose.x_m, pose.y_m, pose.yaw_rad)
+        out = Odometry()
+        out.header.stamp = msg.header.stamp
+        out.header.frame_id = self.map_frame
+        out.child_frame_id = self.base_frame
+        out.pose.pose.position.x, out.pose.pose.position.y = pose.x_m, pose.y_m
+        q = yaw_to_quaternion(pose.yaw_rad)
+        o = out.pose.pose.orientation
+        o.x, o.y, o.z, o.w = q
+        self.pose_pub.publish(out)
+
+    def _on_timer(self, _event):
+        with self._lock:
+            t = self.filter.map_to_odom
+        if t is None:
+            return
+        stamp = rospy.Time.now() + rospy.Duration(self.config.transform_tolerance_s)
+        if self._last_published is not None and stamp <= self._last_published:
+            return                                            # sim time stood still: no duplicate stamp
+        self._last_published = stamp
+        self.tf_pub.sendTransform(transform_msg(self.map_frame, self.odom_frame, (t.x_m, t.y_m, 0.0),
+                                                yaw_to_quaternion(t.yaw_rad), stamp))
+
+
+def main():
+    rospy.init_node("gps_localization")
+    try:
+        GpsLocalizationNode()
+    except ValueError as exc:
+        rospy.logfatal(f"gps_localization: {exc}")
+        raise SystemExit(2)
+    rospy.spin()

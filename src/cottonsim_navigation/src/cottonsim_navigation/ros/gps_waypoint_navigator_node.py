@@ -1,0 +1,122 @@
+"""GPS waypoint navigator: the paper's GPS-based route, one move_base goal per "lat lon" waypoint.
+
+Replaces the original's GPS node, which listened on the wrong topic, sent the
+robot's own position as goal and took the goal yaw from the y coordinate.
+Here each waypoint is converted into the map frame (ENU at the GPS datum,
+the frame the GPS localisation publishes map -> odom in) with the same UTM
+conversion as navsat_transform, and faces the next waypoint.
+"""
+from __future__ import annotations
+
+import math
+import threading
+from typing import List, Optional
+
+import rospy
+from sensor_msgs.msg import NavSatFix, NavSatStatus
+
+from cottonsim_navigation.geodesy.utm import NavsatConfig, NavsatTransform
+from cottonsim_navigation.ros.waypoint_navigator import NavigatorStartError, WaypointNavigatorBase, run_node
+from cottonsim_navigation.waypoints.files import MapWaypoint, load_gps_waypoints
+from cottonsim_navigation.waypoints.goals import gps_goals_in_map
+
+
+class GpsWaypointNavigatorNode(WaypointNavigatorBase):
+    """Follows a GPS route ("lat lon" lines or YAML) through move_base.
+
+    Everything of :class:`~cottonsim_navigation.ros.waypoint_navigator.WaypointNavigatorBase`
+    (move_base action client, /battery/state, ~state, ~on_failure, ~return_home_percentage, ...), plus:
+
+    Subscriptions
+      /navsat_transform/datum (sensor_msgs/NavSatFix, latched, ~datum_topic): lat/lon of the map
+        origin, published by navsat_transform when it takes its datum. The route starts only once
+        it is known (and TF map -> base_link exists).
+      /navsat/fix (sensor_msgs/NavSatFix, ~fix_topic): used only when ~datum_topic is "": the first
+        good fix (status >= STATUS_FIX, finite) after TF map -> base_link exists pins lat/lon to the
+        robot's map pose. NaN fixes are ignored.
+    The map frame is ENU (x east, y north) at the datum, as navsat_transform builds it; the waypoints
+    are converted with the same UTM core (geodesy.utm.NavsatTransform).
+    Parameters (private)
+      ~datum (list [lat deg, lon deg], unset): lat/lon of the map origin (0, 0); when set, neither
+        topic is needed
+      ~datum_topic (str, "/navsat_transform/datum"), ~fix_topic (str, "/navsat/fix")
+    Home = the robot's map pose when the route starts (the first fix, i.e. the datum, at map ~(0, 0),
+    with the start heading).
+    """
+
+    NAME = "gps_waypoint_navigator"
+
+    def __init__(self):
+        self.fix_topic = str(rospy.get_param("~fix_topic", "/navsat/fix"))
+        self.datum_topic = str(rospy.get_param("~datum_topic", "/navsat_transform/datum"))
+        datum = rospy.get_param("~datum", None)
+        # ENU map: the transform's rotation must be zero, so no IMU yaw offset is applied here
+        self.navsat = NavsatTransform(NavsatConfig(yaw_offset=0.0, magnetic_declination_radians=0.0))
+        self._fix_lock = threading.Lock()
+        self._fix: Optional[tuple] = None
+        if datum not in (None, "", []):
+            try:
+                lat, lon = float(datum[0]), float(datum[1])
+                self.navsat.set_datum(lat, lon, 0.0, 0.0, 0.0, 0.0)
+            except (TypeError, ValueError, IndexError) as exc:
+                raise NavigatorStartError(f"~datum must be [lat deg, lon deg], got {datum!r} ({exc})") from None
+        super().__init__()
+        if not self.navsat.has_datum:
+            if self.datum_topic:
+                rospy.Subscriber(self.datum_topic, NavSatFix, self._on_datum, queue_size=2)
+            else:
+                rospy.Subscriber(self.fix_topic, NavSatFix, self._on_fix, queue_size=5)
+
+    def load_route(self, path: str) -> list:
+        return load_gps_waypoints(path)
+
+    @staticmethod
+    def _latlon(msg: NavSatFix, what: str) -> Optional[tuple]:
+        if not (math.isfinite(msg.latitude) and math.isfinite(msg.longitude)):
+            rospy.logwarn_throttle(10.0, f"gps_waypoint_navigator: {what} with NaN latitude/longitude ignored")
+            return None
+        if not (-90.0 <= msg.latitude <= 90.0 and -180.0 <= msg.longitude <= 180.0):
+            rospy.logwarn_throttle(10.0, f"gps_waypoint_navigator: {what} outside lat/lon range ignored")
+            return None
+        return (msg.latitude, msg.longitude)
+
+    def _on_fix(self, msg: NavSatFix):
+        if msg.status.status < NavSatStatus.STATUS_FIX:
+            return
+        latlon = self._latlon(msg, "GPS fix")
+        if latlon is not None:
+            with self._fix_lock:
+                self._fix = latlon
+
+    def _on_datum(self, msg: NavSatFix):
+        latlon = self._latlon(msg, "datum")
+        if latlon is None:
+            return
+        with self._fix_lock:
+            if not self.navsat.has_datum:
+                self.navsat.set_datum(latlon[0], latlon[1], 0.0, 0.0, 0.0, 0.0)    # ENU map, origin at the datum
+                rospy.loginfo("%s: datum lat %.9f lon %.9f = map (0, 0)", self.NAME, latlon[0], latlon[1])
+
+    def localisation_ready(self) -> bool:
+        pose = self.robot_pose()
+        if pose is None:
+            return False
+        with self._fix_lock:
+            if self.navsat.has_datum:
+                return True
+            fix = self._fix
+        if fix is None:
+            return False
+        # the fix is where the robot is now: that pins lat/lon onto the (ENU) map
+        self.navsat.set_datum(fix[0], fix[1], imu_yaw_rad=pose.yaw_rad, robot_x_m=pose.x_m, robot_y_m=pose.y_m,
+                              robot_yaw_rad=pose.yaw_rad)
+        rospy.loginfo("%s: datum lat %.9f lon %.9f at map (%.3f, %.3f)", self.NAME, fix[0], fix[1], pose.x_m,
+                      pose.y_m)
+        return True
+
+    def make_goals(self, waypoints: list) -> List[MapWaypoint]:
+        return gps_goals_in_map(waypoints, self.navsat)
+
+
+def main():
+    run_node(GpsWaypointNavigatorNode, "gps_waypoint_navigator")

@@ -1,0 +1,309 @@
+"""The shared ROS machinery of the GPS and map waypoint navigators.
+
+Both navigators do the same thing once their route is a list of map-frame
+goal poses: wait for localisation, send the goals one by one to move_base,
+react to aborts (skip or stop), go Home when the battery runs low, publish
+their state and end with a summary. Only "how do waypoints become map
+goals" and "when is localisation ready" differ; subclasses supply those
+(:meth:`WaypointNavigatorBase.load_route`, :meth:`localisation_ready`,
+:meth:`make_goals`). The decision logic itself is the ROS-free
+:class:`cottonsim_navigation.waypoints.follower.WaypointFollower`.
+
+Goal tracking: every goal gets a sequence number; move_base's result is
+accepted only for the goal it belongs to, so a late result of a cancelled
+goal can never be taken for the current one (the original's stale-status
+defect).
+
+State (std_msgs/String on ~state, latched): a JSON object
+``{"state": waiting|navigating|returning_home|finished, "index": i (1-based goal), "total": N,
+"label": ..., "goal": [x, y, yaw], "succeeded": n, "aborted": n, "skipped": n,
+"returned_home": bool, "home_reached": bool|null, "reason": ...}``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import threading
+import time
+from typing import List, Optional
+
+import actionlib
+import rospy
+import tf2_ros
+from actionlib_msgs.msg import GoalStatus
+from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from sensor_msgs.msg import BatteryState
+from std_msgs.msg import String
+
+from cottonsim_navigation.core.geometry import yaw_to_quaternion
+from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
+from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
+                                                     WaypointFollower)
+from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
+
+_STATUS_NAMES = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", "SUCCEEDED", "ABORTED",
+                                                     "REJECTED", "PREEMPTING", "RECALLING", "RECALLED", "LOST")}
+
+
+class NavigatorStartError(RuntimeError):
+    """The navigator cannot start (bad parameter, unreadable waypoint file); the node exits non-zero."""
+
+
+class WaypointNavigatorBase:
+    """Sends a route of map-frame goals to move_base (ROS API shared by both navigators).
+
+    Subscriptions
+      /battery/state (sensor_msgs/BatteryState, ~battery_topic): percentage in [0, 1];
+        at or below ~return_home_percentage the active goal is cancelled, Home is sent
+        and the navigator stops once it is reached. NaN percentages are ignored.
+    Publications
+      ~state (std_msgs/String, latched): JSON state, see the module docstring.
+    Action client
+      move_base (move_base_msgs/MoveBaseAction, ~move_base_action): one goal at a time, frame ~goal_frame.
+    TF
+      reads ~goal_frame -> ~robot_frame (map -> base_link): localisation is ready once it exists;
+      the robot's pose there when the route starts is Home.
+    Parameters (private)
+      ~waypoints_file (str, required): the route file
+      ~on_failure (str, "skip"): after an aborted goal, "skip" to the next one or "stop" the route
+      ~return_home_percentage (float, 40.0): battery charge [%] at which the robot drives Home; 0 = never
+      ~battery_topic (str, "/battery/state")
+      ~move_base_action (str, "move_base"): action namespace
+      ~goal_frame (str, "map"), ~robot_frame (str, "base_link")
+      ~server_timeout_s (float, 60.0): wall time to wait for the move_base server; 0 = forever
+      ~goal_timeout_s (float, 300.0): sim time after which a goal counts as aborted (cancelled); 0 = never
+      ~loop_hz (float, 10.0): decision loop rate [Hz, sim time]
+    """
+
+    NAME = "waypoint_navigator"
+
+    # ------------------------------------------------------------------ hooks for subclasses
+    def load_route(self, path: str) -> list:
+        """Read the waypoint file; raise WaypointFileError (or ValueError) on any problem."""
+        raise NotImplementedError
+
+    def localisation_ready(self) -> bool:
+        """True once goals can be placed in the map (TF map -> base_link by default)."""
+        return self.robot_pose() is not None
+
+    def make_goals(self, waypoints: list) -> List[MapWaypoint]:
+        """The route as map-frame goals; called once localisation is ready."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ setup
+    def __init__(self):
+        self.waypoints_file = str(rospy.get_param("~waypoints_file", ""))
+        on_failure = str(rospy.get_param("~on_failure", "skip"))
+        self.return_home_percentage = float(rospy.get_param("~return_home_percentage", 40.0))
+        self.battery_topic = str(rospy.get_param("~battery_topic", "/battery/state"))
+        self.action_ns = str(rospy.get_param("~move_base_action", "move_base"))
+        self.goal_frame = str(rospy.get_param("~goal_frame", "map"))
+        self.robot_frame = str(rospy.get_param("~robot_frame", "base_link"))
+        self.server_timeout_s = float(rospy.get_param("~server_timeout_s", 60.0))
+        self.goal_timeout_s = float(rospy.get_param("~goal_timeout_s", 300.0))
+        self.loop_hz = float(rospy.get_param("~loop_hz", 10.0))
+        try:
+            self.follower_config = FollowerConfig(on_failure=on_failure)
+        except ValueError as exc:
+            raise NavigatorStartError(f"~on_failure: {exc}") from None
+        if not (math.isfinite(self.return_home_percentage) and 0.0 <= self.return_home_percentage <= 100.0):
+            raise NavigatorStartError(f"~return_home_percentage must be a percentage in [0, 100], "
+                                      f"got {self.return_home_percentage}")
+        if 0.0 < self.return_home_percentage < 1.0:
+            rospy.logwarn("%s: ~return_home_percentage %.3f is in percent (40 = 40 %%), not a fraction",
+                          self.NAME, self.return_home_percentage)
+        for name in ("server_timeout_s", "goal_timeout_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise NavigatorStartError(f"~{name} must be finite and >= 0, got {v}")
+        if not (math.isfinite(self.loop_hz) and self.loop_hz > 0.0):
+            raise NavigatorStartError(f"~loop_hz must be > 0, got {self.loop_hz}")
+        if not self.waypoints_file:
+            raise NavigatorStartError("~waypoints_file is not set")
+        try:
+            self.waypoints = self.load_route(self.waypoints_file)
+        except WaypointFileError as exc:
+            raise NavigatorStartError(f"bad waypoint file {exc}") from None
+        except ValueError as exc:
+            raise NavigatorStartError(f"bad waypoint file {self.waypoints_file}: {exc}") from None
+        rospy.loginfo("%s: %d waypoints from %s", self.NAME, len(self.waypoints), self.waypoints_file)
+
+        self._lock = threading.Lock()
+        self._goal_seq = 0              # sequence number of the goal in flight (0: none)
+        self._result = None             # (seq, GoalStatus) of a finished goal
+        self._goal_sent_at = None
+        self._battery_low = False
+        self.follower: Optional[WaypointFollower] = None
+        self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        self.state_pub = rospy.Publisher("~state", String, queue_size=10, latch=True)
+        self.client = actionlib.SimpleActionClient(self.action_ns, MoveBaseAction)
+        rospy.Subscriber(self.battery_topic, BatteryState, self._on_battery, queue_size=5)
+
+    # ------------------------------------------------------------------ inputs
+    def _on_battery(self, msg: BatteryState):
+        pct = float(msg.percentage)
+        if not math.isfinite(pct):
+            rospy.logwarn_throttle(10.0, f"{self.NAME}: battery percentage is NaN; ignored")
+            return
+        if self.return_home_percentage > 0.0 and pct * 100.0 <= self.return_home_percentage and not self._battery_low:
+            rospy.logwarn("%s: battery at %.1f %% (<= %.1f %%): returning Home", self.NAME, pct * 100.0,
+                          self.return_home_percentage)
+            self._battery_low = True
+
+    def _on_done(self, seq: int, status: int, _result):
+        with self._lock:
+            if seq == self._goal_seq:
+                self._result = (seq, status)
+
+    def robot_pose(self) -> Optional[MapWaypoint]:
+        """The robot's pose in ~goal_frame from TF, or None when the transform is not there yet."""
+        try:
+            t = self.tf_buffer.lookup_transform(self.goal_frame, self.robot_frame, rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+            return None
+        tr = t.transform.translation
+        yaw = yaw_from_quaternion_msg(t.transform.rotation)
+        if not all(math.isfinite(v) for v in (tr.x, tr.y, yaw)):
+            return None
+        return MapWaypoint(tr.x, tr.y, yaw, "Home")
+
+    # ------------------------------------------------------------------ outputs
+    def publish_state(self, state: str, reason: str = "", goal: Optional[MapWaypoint] = None):
+        f = self.follower
+        s = f.summary if f is not None else None
+        msg = {"state": state,
+               "index": (f.index + 1) if f is not None and not f.finished else None,
+               "total": s.total if s else len(self.waypoints),
+               "label": goal.label if goal is not None else "",
+               "goal": [goal.x_m, goal.y_m, goal.yaw_rad] if goal is not None else None,
+               "succeeded": s.succeeded if s else 0, "aborted": s.aborted if s else 0,
+               "skipped": s.skipped if s else 0, "returned_home": s.returned_home if s else False,
+               "home_reached": s.home_reached if s else None,
+               "reason": reason or (s.stopped_reason if s else "")}
+        self.state_pub.publish(String(data=json.dumps(msg)))
+
+    def _send(self, goal: MapWaypoint):
+        mb = MoveBaseGoal()
+        mb.target_pose.header.frame_id = self.goal_frame
+        mb.target_pose.header.stamp = rospy.Time.now()
+        mb.target_pose.pose.position.x = goal.x_m
+        mb.target_pose.pose.position.y = goal.y_m
+        q = yaw_to_quaternion(goal.yaw_rad)
+        mb.target_pose.pose.orientation.x, mb.target_pose.pose.orientation.y = float(q[0]), float(q[1])
+        mb.target_pose.pose.orientation.z, mb.target_pose.pose.orientation.w = float(q[2]), float(q[3])
+        with self._lock:
+            self._goal_seq += 1
+            self._result = None
+            seq = self._goal_seq
+        self._goal_sent_at = rospy.Time.now()
+        self.client.send_goal(mb, done_cb=lambda status, result, s=seq: self._on_done(s, status, result))
+        home = self.follower.going_home
+        rospy.loginfo("%s: goal %s%s (%.2f, %.2f, yaw %.2f) sent", self.NAME,
+                      "Home" if home else f"{self.follower.index + 1}/{len(self.waypoints)} ",
+                      "" if home else goal.label, goal.x_m, goal.y_m, goal.yaw_rad)
+        self.publish_state("returning_home" if home else "navigating", goal=goal)
+
+    def _cancel_active(self):
+        with self._lock:
+            self._goal_seq += 1          # any late result of the cancelled goal is now ignored
+            self._result = None
+        self.client.cancel_all_goals()
+
+    # ------------------------------------------------------------------ main loop
+    def _wait(self, what: str, ready) -> bool:
+        """Poll ready() (wall-time sleeps, so a paused /clock cannot hang us unnoticed)."""
+        start = time.monotonic()
+        warned = False
+        while not rospy.is_shutdown():
+            if ready():
+                return True
+            if not warned and time.monotonic() - start > 5.0:
+                rospy.loginfo("%s: waiting for %s", self.NAME, what)
+                warned = True
+            rospy.rostime.wallsleep(0.1)
+        return False
+
+    def run(self) -> int:
+        """Drive the route; returns the process exit code (0 = ran to the end, even with skipped goals)."""
+        self.publish_state("waiting", reason="waiting for move_base and localisation")
+        wall_deadline = None if self.server_timeout_s == 0 else time.monotonic() + self.server_timeout_s
+        while not rospy.is_shutdown():
+            if self.client.wait_for_server(rospy.Duration(0.5)):
+                break
+            if wall_deadline is not None and time.monotonic() > wall_deadline:
+                rospy.logfatal("%s: no move_base action server at '%s' after %.0f s", self.NAME, self.action_ns,
+                               self.server_timeout_s)
+                self.publish_state("finished", reason="no move_base action server")
+                return 1
+        if not self._wait("localisation (TF %s -> %s)" % (self.goal_frame, self.robot_frame), self.localisation_ready):
+            return 0
+        home = self.robot_pose()
+        try:
+            goals = self.make_goals(self.waypoints)
+        except ValueError as exc:
+            rospy.logfatal("%s: cannot place the waypoints in the map: %s", self.NAME, exc)
+            self.publish_state("finished", reason=str(exc))
+            return 1
+        self.follower = WaypointFollower(goals, self.follower_config, home=home)
+        rospy.loginfo("%s: Home = (%.2f, %.2f, yaw %.2f) in %s; starting the route", self.NAME, home.x_m, home.y_m,
+                      home.yaw_rad, self.goal_frame)
+        rate = rospy.Rate(self.loop_hz)
+        while not rospy.is_shutdown() and not self.follower.finished:
+            self._step()
+            if self.follower.finished:
+                break
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                break
+        if not self.follower.finished:
+            self._cancel_active()
+            self.publish_state("finished", reason="shut down before the route ended")
+            return 0
+        s = self.follower.summary
+        self.publish_state("finished")
+        rospy.loginfo("%s: finished (%s): %d/%d waypoints succeeded, %d aborted, %d skipped%s", self.NAME,
+                      s.stopped_reason, s.succeeded, s.total, s.aborted, s.skipped,
+                      (", Home reached" if s.home_reached else ", Home NOT reached") if s.returned_home else "")
+        return 0
+
+    def _step(self):
+        f = self.follower
+        if self._battery_low and not f.going_home:
+            if f.state is FollowerState.ACTIVE:
+                self._cancel_active()
+            f.battery_low()
+        with self._lock:
+            result, self._result = self._result, None
+        if result is not None and f.state is FollowerState.ACTIVE:
+            status = result[1]
+            ok = status == GoalStatus.SUCCEEDED
+            if not ok:
+                rospy.logwarn("%s: goal %s ended %s", self.NAME, "Home" if f.going_home else f.index + 1,
+                              _STATUS_NAMES.get(status, status))
+            f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED)
+        elif (f.state is FollowerState.ACTIVE and self.goal_timeout_s > 0 and self._goal_sent_at is not None
+              and (rospy.Time.now() - self._goal_sent_at).to_sec() > self.goal_timeout_s):
+            rospy.logwarn("%s: goal %s timed out after %.0f s; cancelled", self.NAME, f.index + 1, self.goal_timeout_s)
+            self._cancel_active()
+            f.report_result(GoalResult.ABORTED)
+        if f.finished:
+            return
+        goal = f.next_goal(localisation_ready=True)
+        if goal is not None:
+            self._send(goal)
+
+
+def run_node(node_class, name: str):
+    """init_node, build the navigator, run it and exit: non-zero on a start error (before the robot moves)."""
+    rospy.init_node(name)
+    try:
+        node = node_class()
+    except NavigatorStartError as exc:
+        rospy.logfatal("%s: %s", name, exc)
+        sys.exit(1)
+    code = node.run()
+    rospy.signal_shutdown("waypoint route finished")   # actionlib threads would keep the process alive
+    sys.exit(code)

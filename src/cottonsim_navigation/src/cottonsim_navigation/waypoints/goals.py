@@ -1,0 +1,101 @@
+"""Turn a waypoint route into move_base goal poses (position + heading), free of ROS.
+
+Why: move_base needs a full pose for every goal, but a GPS route only gives
+positions, and the original map route carries defective headings (yaw = 1 rad
+on return passes). The original GPS node took the goal yaw from the
+waypoint's y coordinate, which points the robot in an arbitrary direction.
+Here every goal faces the *next* waypoint, so the robot arrives already
+turned towards where it drives next and never spins in place in the middle of
+a straight pass; the last goal keeps the heading of the final leg.
+
+GPS waypoints become map-frame goals through a
+:class:`~cottonsim_navigation.geodesy.utm.NavsatTransform` (the same UTM
+conversion as the navsat/GPS localisation, so a goal and the robot's own
+GPS-based position share any projection error and it cancels).
+"""
+from __future__ import annotations
+
+import math
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+from cottonsim_navigation.geodesy.utm import NavsatTransform
+from cottonsim_navigation.waypoints.files import GpsWaypoint, MapWaypoint
+
+GOAL_YAW_MODES = ("toward_next", "file")
+
+
+def route_headings(xy_m, final_yaw_rad: Optional[float] = None, min_step_m: float = 1e-3) -> np.ndarray:
+    """Heading [rad] of each waypoint: the direction from it to the next waypoint.
+
+    xy_m: (N, 2) positions [m]. The last waypoint takes the direction of the
+    leg that reaches it (or ``final_yaw_rad`` when given). Legs shorter than
+    ``min_step_m`` have no direction: such a waypoint takes the heading of the
+    next waypoint that has one (or the previous one at the end of the route);
+    a route whose points all coincide gets ``final_yaw_rad`` or 0.
+    """
+    p = np.asarray(xy_m, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"xy_m must be an (N, 2) array, got shape {p.shape}")
+    if len(p) == 0:
+        raise ValueError("xy_m has no waypoints")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("xy_m contains non-finite values")
+    if not (math.isfinite(min_step_m) and min_step_m >= 0.0):
+        raise ValueError(f"min_step_m must be finite and >= 0, got {min_step_m}")
+    if final_yaw_rad is not None and not math.isfinite(final_yaw_rad):
+        raise ValueError(f"final_yaw_rad must be finite, got {final_yaw_rad}")
+    n = len(p)
+    leg = np.diff(p, axis=0)                                  # leg i goes from waypoint i to i + 1
+    leg_ok = np.hypot(leg[:, 0], leg[:, 1]) >= max(min_step_m, 1e-12)
+    leg_yaw = np.arctan2(leg[:, 1], leg[:, 0])
+    yaw = np.full(n, np.nan)
+    # each waypoint faces along its outgoing leg, or the next usable one
+    nxt = np.nan
+    for i in range(n - 2, -1, -1):
+        if leg_ok[i]:
+            nxt = leg_yaw[i]
+        yaw[i] = nxt
+    # the last waypoint: its incoming leg (the last usable one), unless told otherwise
+    if final_yaw_rad is not None:
+        yaw[n - 1] = final_yaw_rad
+    else:
+        usable = np.flatnonzero(leg_ok)
+        yaw[n - 1] = leg_yaw[usable[-1]] if usable.size else np.nan
+    # waypoints after the last usable leg take the heading before them
+    prev = final_yaw_rad if final_yaw_rad is not None else 0.0
+    for i in range(n):
+        if np.isnan(yaw[i]):
+            yaw[i] = prev
+        prev = yaw[i]
+    return yaw
+
+
+def gps_goals_in_map(waypoints: Sequence[GpsWaypoint], navsat: NavsatTransform,
+                     final_yaw_rad: Optional[float] = None) -> List[MapWaypoint]:
+    """GPS waypoints -> map-frame goals [m, rad] facing the next waypoint.
+
+    ``navsat`` must have its datum set (it fixes where the map origin lies).
+    Labels carry over; an unlabelled waypoint is named by its 1-based index.
+    """
+    if len(waypoints) == 0:
+        raise ValueError("no GPS waypoints")
+    if not navsat.has_datum:
+        raise ValueError("the navsat transform has no datum yet: cannot place GPS waypoints in the map")
+    xy = np.array([navsat.fix_to_map(w.lat, w.lon)[:2] for w in waypoints], dtype=float)
+    yaw = route_headings(xy, final_yaw_rad)
+    return [MapWaypoint(float(x), float(y), float(a), w.label or str(i + 1))
+            for i, (w, (x, y), a) in enumerate(zip(waypoints, xy, yaw))]
+
+
+def map_goals(waypoints: Sequence[MapWaypoint], goal_yaw: str = "toward_next") -> List[MapWaypoint]:
+    """Map waypoints -> goals; goal_yaw 'toward_next' recomputes headings, 'file' keeps the file's yaw."""
+    if goal_yaw not in GOAL_YAW_MODES:
+        raise ValueError(f"goal_yaw must be one of {GOAL_YAW_MODES}, got {goal_yaw!r}")
+    if len(waypoints) == 0:
+        raise ValueError("no map waypoints")
+    if goal_yaw == "file":
+        return [MapWaypoint(w.x_m, w.y_m, w.yaw_rad, w.label or str(i + 1)) for i, w in enumerate(waypoints)]
+    yaw = route_headings(np.array([[w.x_m, w.y_m] for w in waypoints], dtype=float))
+    return [MapWaypoint(w.x_m, w.y_m, float(a), w.label or str(i + 1)) for i, (w, a) in enumerate(zip(waypoints, yaw))]

@@ -1,0 +1,248 @@
+"""Flat arrays of the static farm for the numba camera and LiDAR kernels.
+
+Why: compiled kernels want plain contiguous arrays, not dictionaries of
+meshes. Two layouts are built from the same plants, each only when a sensor
+needs it:
+
+``InstancedPlants`` (camera)
+    The farm shares a few plant models between many plants (farm.generator
+    makes 8 variants by default), so the model meshes are stored once, in
+    plant-local coordinates, and each plant is an instance (model index,
+    x, y, yaw). The rasteriser transforms a visible plant's vertices into
+    the camera frame once per frame. Every (plant, face) pair has a *global
+    triangle id* ``plant_gbase[p] + face``; per global id we keep the shaded
+    colour (flat Lambert shading under the scene's sun, fixed because the
+    farm is static), the SemanticClass and the plant id, so the rasteriser
+    only stores triangle ids per pixel and colours at the end.
+
+``TriangleGrid`` (LiDAR)
+    All triangles in world coordinates (same global ids) binned into a
+    uniform 3-D grid of cubic cells (a triangle is listed in every cell its
+    axis-aligned bounding box touches), as compressed rows: the triangles
+    of cell c are ``items[offsets[c]:offsets[c + 1]]``. Rays walk the grid
+    cell by cell (3-D DDA) and test only the triangles listed there.
+
+Frames: world z up [m]; plant-local as in ``farm.model``.
+"""
+from __future__ import annotations
+
+import math
+from typing import Dict, List, Sequence, Tuple
+
+import numpy as np
+from numba import njit
+from scipy import ndimage
+
+from cottonsim_world.farm.model import Plant, PlantModel
+
+_MAX_GRID_CELLS = 16_000_000   # ~130 MB of int64 offsets; the cell grows beyond this
+
+
+def _model_arrays(model: PlantModel) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One model's meshes merged: vertices, faces, face semantic, face rgb, face unit normal."""
+    verts, faces, sem, rgb = [], [], [], []
+    offset = 0
+    for mesh in model.meshes.values():
+        v = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
+        if len(f) == 0:
+            continue
+        verts.append(v)
+        faces.append(f + offset)
+        sem.append(np.full(len(f), int(mesh.semantic), dtype=np.uint8))
+        rgb.append(np.tile(np.asarray(mesh.rgba[:3], dtype=np.float64), (len(f), 1)))
+        offset += len(v)
+    if not faces:
+        return (np.zeros((0, 3)), np.zeros((0, 3), np.int32), np.zeros(0, np.uint8), np.zeros((0, 3)),
+                np.zeros((0, 3)))
+    v = np.concatenate(verts)
+    f = np.concatenate(faces)
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 0.0, n / np.maximum(length, 1e-300), 0.0)
+    return v, f.astype(np.int32), np.concatenate(sem), np.concatenate(rgb), n
+
+
+class InstancedPlants:
+    """Plant models stored once (plant-local) plus one instance per plant.
+
+    Arrays (M models, P plants, G = sum over plants of their face count):
+    model_verts (sum V, 3) float64 [m]; model_faces (sum F, 3) int32
+    (indices into model_verts, already offset by the model's vertex base);
+    model_vbase/model_vcount/model_fbase/model_fcount (M,) int64;
+    plant_model (P,) int64; plant_pose (P, 4) float64 = x [m], y [m],
+    cos(yaw), sin(yaw); plant_gbase (P,) int64 first global triangle id;
+    g_rgb (G, 3) uint8 shaded colour; g_semantic (G,) uint8; g_plant (G,)
+    int32 plant id.
+    """
+
+    def __init__(self, plants: Sequence[Plant], sun_direction: np.ndarray, ambient: float, diffuse: float,
+                 light_rgb: Sequence[float]) -> None:
+        index_of: Dict[int, int] = {}
+        per_model: List[Tuple[np.ndarray, ...]] = []
+        plant_model = np.zeros(len(plants), dtype=np.int64)
+        for i, plant in enumerate(plants):
+            key = id(plant.model)
+            if key not in index_of:
+                index_of[key] = len(per_model)
+                per_model.append(_model_arrays(plant.model))
+            plant_model[i] = index_of[key]
+        m = len(per_model)
+        self.model_vcount = np.array([len(a[0]) for a in per_model], dtype=np.int64)
+        self.model_fcount = np.array([len(a[1]) for a in per_model], dtype=np.int64)
+        self.model_vbase = np.concatenate([[0], np.cumsum(self.model_vcount)[:-1]]).astype(np.int64) if m else \
+            np.zeros(0, np.int64)
+        self.model_fbase = np.concatenate([[0], np.cumsum(self.model_fcount)[:-1]]).astype(np.int64) if m else \
+            np.zeros(0, np.int64)
+        if m:
+            self.model_verts = np.ascontiguousarray(np.concatenate([a[0] for a in per_model]), dtype=np.float64)
+            self.model_faces = np.ascontiguousarray(np.concatenate(
+                [a[1] + self.model_vbase[k] for k, a in enumerate(per_model)]), dtype=np.int32)
+        else:
+            self.model_verts = np.zeros((0, 3))
+            self.model_faces = np.zeros((0, 3), np.int32)
+        self.max_model_verts = int(self.model_vcount.max()) if m else 0
+        self.plant_model = plant_model
+        self.plant_ids = np.array([p.plant_id for p in plants], dtype=np.int32)
+        yaw = np.array([p.yaw_rad for p in plants], dtype=np.float64)
+        self.plant_pose = np.ascontiguousarray(np.stack(
+            [np.array([p.x_m for p in plants], float), np.array([p.y_m for p in plants], float),
+             np.cos(yaw), np.sin(yaw)], axis=1).reshape(-1, 4))
+        fcount = self.model_fcount[plant_model] if len(plants) else np.zeros(0, np.int64)
+        self.plant_gbase = np.concatenate([[0], np.cumsum(fcount)[:-1]]).astype(np.int64) if len(plants) else \
+            np.zeros(0, np.int64)
+        self.triangle_count = int(fcount.sum())
+        g = self.triangle_count
+        self.g_rgb = np.zeros((g, 3), dtype=np.uint8)
+        self.g_semantic = np.zeros(g, dtype=np.uint8)
+        self.g_plant = np.zeros(g, dtype=np.int32)
+        sun = np.asarray(sun_direction, dtype=np.float64)
+        light = np.asarray(light_rgb, dtype=np.float64)
+        for k, (_, _, sem, rgb, nrm) in enumerate(per_model):
+            members = np.nonzero(plant_model == k)[0]
+            if len(members) == 0 or len(sem) == 0:
+                continue
+            c, s = self.plant_pose[members, 2:3], self.plant_pose[members, 3:4]
+            # n_world . sun with n_world = Rz(yaw) n_local
+            lambert = nrm[None, :, 0] * (c * sun[0] + s * sun[1]) + nrm[None, :, 1] * (c * sun[1] - s * sun[0]) \
+                + nrm[None, :, 2] * sun[2]
+            intensity = ambient + diffuse * np.maximum(lambert, 0.0)                   # (Pm, Fm)
+            colour = np.clip(255.0 * rgb[None] * light[None, None] * intensity[..., None], 0.0, 255.0)
+            nf = len(sem)
+            for row, p in enumerate(members):
+                sl = slice(self.plant_gbase[p], self.plant_gbase[p] + nf)
+                self.g_rgb[sl] = colour[row].astype(np.uint8)
+                self.g_semantic[sl] = sem
+                self.g_plant[sl] = self.plant_ids[p]
+        self._per_model_faces = [(a[0], a[1]) for a in per_model]
+
+    def world_triangles(self) -> np.ndarray:
+        """(G, 3, 3) float64 world-space triangle corners, in global id order."""
+        out = np.zeros((self.triangle_count, 3, 3), dtype=np.float64)
+        for k, (v, f) in enumerate(self._per_model_faces):
+            members = np.nonzero(self.plant_model == k)[0]
+            if len(members) == 0 or len(f) == 0:
+                continue
+            corners = v[f]                                                          # (F, 3, 3) local
+            for p in members:
+                x, y, c, s = self.plant_pose[p]
+                sl = slice(self.plant_gbase[p], self.plant_gbase[p] + len(f))
+                out[sl, :, 0] = x + c * corners[..., 0] - s * corners[..., 1]
+                out[sl, :, 1] = y + s * corners[..., 0] + c * corners[..., 1]
+                out[sl, :, 2] = corners[..., 2]
+        return out
+
+
+@njit(cache=True)
+def _bin_triangles(tri, lo, cell_m, dims):  # pragma: no cover - compiled
+    """Compressed-row lists of the triangles whose bounding box touches each cell."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    n_cells = nx * ny * nz
+    counts = np.zeros(n_cells + 1, dtype=np.int64)
+    g = tri.shape[0]
+    box = np.empty((g, 6), dtype=np.int64)
+    for i in range(g):
+        for a in range(3):
+            mn = min(tri[i, 0, a], tri[i, 1, a], tri[i, 2, a])
+            mx = max(tri[i, 0, a], tri[i, 1, a], tri[i, 2, a])
+            i0 = int(math.floor((mn - lo[a]) / cell_m))
+            i1 = int(math.floor((mx - lo[a]) / cell_m))
+            box[i, a] = min(max(i0, 0), dims[a] - 1)
+            box[i, 3 + a] = min(max(i1, 0), dims[a] - 1)
+        for iz in range(box[i, 2], box[i, 5] + 1):
+            for iy in range(box[i, 1], box[i, 4] + 1):
+                for ix in range(box[i, 0], box[i, 3] + 1):
+                    counts[(iz * ny + iy) * nx + ix + 1] += 1
+    offsets = np.cumsum(counts)
+    fill = offsets[:-1].copy()
+    items = np.empty(offsets[-1], dtype=np.int32)
+    for i in range(g):
+        for iz in range(box[i, 2], box[i, 5] + 1):
+            for iy in range(box[i, 1], box[i, 4] + 1):
+                for ix in range(box[i, 0], box[i, 3] + 1):
+                    c = (iz * ny + iy) * nx + ix
+                    items[fill[c]] = i
+                    fill[c] += 1
+    return offsets, items
+
+
+class TriangleGrid:
+    """World-space triangles in a uniform 3-D grid (see the module docstring).
+
+    The triangles are stored sorted along a Morton (z-order) curve of their
+    centroids, so that the triangles of one cell lie close together in
+    memory: ``tri`` (G, 9) float32 holds per sorted triangle its first
+    corner and its two edge vectors [m]; ``tri_id`` (G,) int32 maps a sorted
+    index back to the global triangle id. lo (3,) grid origin [m]; cell_m
+    edge of a cubic cell [m] (grown if the grid would exceed 16 million
+    cells); dims (3,) int64 cells along x, y, z; offsets (cells + 1,) int64
+    and items (N,) int32 (sorted triangle indices) list the triangles of
+    each cell; empty_radius (cells,) uint8 is the chessboard distance
+    [cells] from each cell to the nearest non-empty cell (0 where the cell
+    lists triangles), so a ray may jump over the empty cube around a cell.
+    """
+
+    def __init__(self, triangles: np.ndarray, cell_m: float) -> None:
+        if not (cell_m > 0.0 and math.isfinite(cell_m)):
+            raise ValueError(f"cell_m must be > 0, got {cell_m}")
+        tri = np.ascontiguousarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+        if len(tri):
+            lo = tri.reshape(-1, 3).min(axis=0) - 1e-6
+            hi = tri.reshape(-1, 3).max(axis=0) + 1e-6
+        else:
+            lo, hi = np.zeros(3), np.full(3, 1e-3)
+        ext = np.maximum(hi - lo, 1e-6)
+        while True:
+            dims = np.maximum(1, np.ceil(ext / cell_m)).astype(np.int64)
+            if int(np.prod(dims)) <= _MAX_GRID_CELLS:
+                break
+            cell_m *= 1.25
+        order = np.argsort(_morton_keys((tri.mean(axis=1) - lo) / cell_m), kind="stable")
+        tri = tri[order]
+        self.tri_id = order.astype(np.int32)
+        self.lo = lo.astype(np.float64)
+        self.cell_m = float(cell_m)
+        self.dims = dims
+        self.hi = lo + dims * cell_m
+        self.offsets, self.items = _bin_triangles(tri, self.lo, self.cell_m, dims)
+        packed = np.empty((len(tri), 9), dtype=np.float32)
+        packed[:, 0:3] = tri[:, 0]
+        packed[:, 3:6] = tri[:, 1] - tri[:, 0]
+        packed[:, 6:9] = tri[:, 2] - tri[:, 0]
+        self.tri = packed
+        occupied = (np.diff(self.offsets) > 0).reshape(dims[2], dims[1], dims[0])
+        if occupied.any():
+            radius = ndimage.distance_transform_cdt(~occupied, metric="chessboard")
+        else:
+            radius = np.full(occupied.shape, 255)
+        self.empty_radius = np.minimum(radius, 255).astype(np.uint8).ravel()
+
+
+def _morton_keys(cells: np.ndarray) -> np.ndarray:
+    """Interleaved-bit (z-order) keys of non-negative 3-D cell coordinates."""
+    c = np.clip(cells, 0, 2 ** 21 - 1).astype(np.uint64)
+    key = np.zeros(len(c), dtype=np.uint64)
+    for bit in range(21):
+        for axis in range(3):
+            key |= ((c[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return key
