@@ -68,7 +68,7 @@ class ScanMatcherConfig:
     min_score: float = 0.05
     min_points: int = 10
     prior_weight: float = 1.0
-    prior_sigma_along_m: float = 0.05
+    prior_sigma_along_m: float = 0.1
     prior_sigma_lateral_m: float = 0.25
     prior_sigma_yaw_rad: float = 0.15
 

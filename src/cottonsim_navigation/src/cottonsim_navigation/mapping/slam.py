@@ -76,6 +76,7 @@ class SlamConfig:
     lsigma_m: end-point sigma of the particle likelihood [lsigma 0.075];
     ogain: likelihood smoothing gain [ogain 3.0];
     lskip: use every (lskip+1)-th beam for matching [lskip 0];
+    match_max_beams: at most this many evenly spaced end points are matched (a speed bound of this port);
     logodds_hit, logodds_miss, logodds_clamp: map update per hit / pass and the |log-odds| bound;
     occupied_prob: cells above this probability are occupied (100) in the output map;
     matcher: the scan matcher's parameters.
@@ -100,6 +101,7 @@ class SlamConfig:
     lsigma_m: float = 0.075
     ogain: float = 3.0
     lskip: int = 0
+    match_max_beams: int = 90
     logodds_hit: float = 0.85
     logodds_miss: float = -0.4
     logodds_clamp: float = 3.5
@@ -109,6 +111,9 @@ class SlamConfig:
     def __post_init__(self) -> None:
         if isinstance(self.particles, bool) or not isinstance(self.particles, int) or self.particles < 1:
             raise ValueError(f"particles must be an integer >= 1, got {self.particles!r}")
+        if isinstance(self.match_max_beams, bool) or not isinstance(self.match_max_beams, int) \
+                or self.match_max_beams < 3:
+            raise ValueError(f"match_max_beams must be an integer >= 3, got {self.match_max_beams!r}")
         if isinstance(self.lskip, bool) or not isinstance(self.lskip, int) or self.lskip < 0:
             raise ValueError(f"lskip must be an integer >= 0, got {self.lskip!r}")
         for name in ("max_urange_m", "max_range_m", "delta_m", "lsigma_m", "ogain", "logodds_hit",
@@ -364,10 +369,28 @@ class RbpfSlam:
         self._scores[:] = 0.0
         if hits.shape[0] == 0:
             return
+        if hits.shape[0] > cfg.match_max_beams:
+            hits = hits[np.round(np.linspace(0, hits.shape[0] - 1, cfg.match_max_beams)).astype(np.int64)]
         for i in range(cfg.particles):
-            tr = self._window(self.poses[i], hits, margin)
+            p = self.poses[i]
+            tr = self._window(p, hits, margin)
             dense = self.maps[i].read(tr)
-            fld = build_match_field(dense > thr, self.maps[i].window_spec(tr), cfg.matcher.max_dist_m)
+            ws = self.maps[i].window_spec(tr)
+            # crop the tile-aligned window to the end points' box + margin: the distance
+            # transform's cost is proportional to the cells it covers
+            c, s = math.cos(p[2]), math.sin(p[2])
+            wx = p[0] + c * hits[:, 0] - s * hits[:, 1]
+            wy = p[1] + s * hits[:, 0] + c * hits[:, 1]
+            (cx0, cx1), (cy0, cy1) = ws.world_to_map(np.array([wx.min() - margin, wx.max() + margin]),
+                                                     np.array([wy.min() - margin, wy.max() + margin]))
+            cx0, cy0 = max(int(cx0), 0), max(int(cy0), 0)
+            cx1, cy1 = min(int(cx1), ws.width - 1), min(int(cy1), ws.height - 1)
+            if cx1 < cx0 or cy1 < cy0:      # the scan lies off the map extent: keep odometry
+                continue
+            crop = dense[cy0:cy1 + 1, cx0:cx1 + 1]
+            cs = GridSpec(ws.resolution_m, crop.shape[1], crop.shape[0],
+                          ws.origin_x_m + cx0 * ws.resolution_m, ws.origin_y_m + cy0 * ws.resolution_m)
+            fld = build_match_field(crop > thr, cs, cfg.matcher.max_dist_m)
             res = self.matcher.match(fld, self.poses[i], hits)
             if res.accepted:
                 self.poses[i] = res.pose

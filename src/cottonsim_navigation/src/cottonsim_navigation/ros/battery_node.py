@@ -7,6 +7,7 @@ navigator, which reads /battery/state.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 from typing import Optional
@@ -62,6 +63,8 @@ class BatteryNode:
       ~design_capacity_ah (20), ~initial_percentage (1.0, 0..1), ~idle_power_w (60),
       ~motion_power_w_per_mps (120), ~turn_power_w_per_radps (30), ~voltage_full_v (25.46),
       ~voltage_empty_v (23.16), ~internal_resistance_ohm (0.05), ~drain_scale (1.0)
+    ~drain_scale fast-forwards the drain: each sim second drains like drain_scale seconds, while
+    current and voltage stay those of the real pack at that speed.
     The drain between two odometry messages uses the speed of the earlier one;
     without odometry for 1 s the robot counts as at rest (idle drain only).
     """
@@ -72,7 +75,10 @@ class BatteryNode:
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise ValueError(f"parameter ~rate: must be > 0 [Hz], got {self.rate_hz}")
         self.frame_id = typed_param("~frame_id", "base_link")
-        self.model = BatteryModel(self.config)
+        # drain_scale fast-forwards the charge counter (dt x scale) rather than scaling the power
+        # in the model: the published current and voltage then stay those of the real pack.
+        self.time_scale = self.config.drain_scale
+        self.model = BatteryModel(dataclasses.replace(self.config, drain_scale=1.0))
         self._lock = threading.Lock()
         self._v = 0.0
         self._w = 0.0
@@ -90,7 +96,7 @@ class BatteryNode:
         v, w = self._v, self._w
         if self._last_odom_s is None or now_s - self._last_odom_s > _STALE_ODOMETRY_S:
             v = w = 0.0
-        self.model.step(now_s - self._last_step_s, v, w)
+        self.model.step((now_s - self._last_step_s) * self.time_scale, v, w)
         self._last_step_s = now_s
 
     def _on_odom(self, msg: Odometry):

@@ -305,5 +305,6 @@ def run_node(node_class, name: str):
         rospy.logfatal("%s: %s", name, exc)
         sys.exit(1)
     code = node.run()
+    rospy.rostime.wallsleep(1.0)     # let the latched final state reach its subscribers before we go
     rospy.signal_shutdown("waypoint route finished")   # actionlib threads would keep the process alive
     sys.exit(code)

@@ -35,7 +35,7 @@ from scipy import ndimage
 
 from cottonsim_world.farm.model import Plant, PlantModel
 
-_MAX_GRID_CELLS = 16_000_000   # ~130 MB of int64 offsets; the cell grows beyond this
+_MAX_GRID_CELLS = 16_000_000   # ~80 MB of offsets and distances; the cell grows beyond this
 
 
 def _model_arrays(model: PlantModel) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -136,43 +136,78 @@ class InstancedPlants:
                 self.g_plant[sl] = self.plant_ids[p]
         self._per_model_faces = [(a[0], a[1]) for a in per_model]
 
-    def world_triangles(self) -> np.ndarray:
-        """(G, 3, 3) float64 world-space triangle corners, in global id order."""
-        out = np.zeros((self.triangle_count, 3, 3), dtype=np.float64)
+    def world_triangles(self, one_sided_duplicates: bool = True) -> Tuple[np.ndarray, np.ndarray]:
+        """World-space triangle corners (N, 3, 3) float64 [m] and their global ids (N,) int32.
+
+        With ``one_sided_duplicates`` a face that repeats another with the
+        opposite winding (the back side of a two-sided leaf) is left out:
+        a ray hits both at the same distance, so ray casting needs one.
+        """
+        tris, ids = [], []
         for k, (v, f) in enumerate(self._per_model_faces):
             members = np.nonzero(self.plant_model == k)[0]
             if len(members) == 0 or len(f) == 0:
                 continue
-            corners = v[f]                                                          # (F, 3, 3) local
+            keep = _first_of_each_face(f) if one_sided_duplicates else np.arange(len(f))
+            corners = v[f[keep]]                                                    # (F, 3, 3) local
             for p in members:
                 x, y, c, s = self.plant_pose[p]
-                sl = slice(self.plant_gbase[p], self.plant_gbase[p] + len(f))
-                out[sl, :, 0] = x + c * corners[..., 0] - s * corners[..., 1]
-                out[sl, :, 1] = y + s * corners[..., 0] + c * corners[..., 1]
-                out[sl, :, 2] = corners[..., 2]
-        return out
+                out = np.empty_like(corners)
+                out[..., 0] = x + c * corners[..., 0] - s * corners[..., 1]
+                out[..., 1] = y + s * corners[..., 0] + c * corners[..., 1]
+                out[..., 2] = corners[..., 2]
+                tris.append(out)
+                ids.append(self.plant_gbase[p] + keep)
+        if not tris:
+            return np.zeros((0, 3, 3)), np.zeros(0, np.int32)
+        return np.concatenate(tris), np.concatenate(ids).astype(np.int32)
+
+
+def _first_of_each_face(faces: np.ndarray) -> np.ndarray:
+    """Indices of the faces whose vertex set has not appeared before (any winding)."""
+    key = np.sort(faces, axis=1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    return np.sort(first)
+
+
+BRICK = 4                       # fine cells per brick edge (a brick holds BRICK ** 3 cells)
+_BRICK_CELLS = BRICK ** 3
 
 
 @njit(cache=True)
-def _bin_triangles(tri, lo, cell_m, dims):  # pragma: no cover - compiled
-    """Compressed-row lists of the triangles whose bounding box touches each cell."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    n_cells = nx * ny * nz
-    counts = np.zeros(n_cells + 1, dtype=np.int64)
+def _bin_triangles(tri, lo, cell_m, dims, bdims):  # pragma: no cover - compiled
+    """Bricked compressed-row lists of the triangles whose bounding box touches each cell.
+
+    Returns brick_of (coarse cells,) int32 (brick id or -1 if empty),
+    offsets (bricks * BRICK**3 + 1,) int64 and items (N,) int32.
+    """
     g = tri.shape[0]
     box = np.empty((g, 6), dtype=np.int64)
+    n_coarse = bdims[0] * bdims[1] * bdims[2]
+    brick_of = np.full(n_coarse, -1, dtype=np.int32)
     for i in range(g):
         for a in range(3):
             mn = min(tri[i, 0, a], tri[i, 1, a], tri[i, 2, a])
             mx = max(tri[i, 0, a], tri[i, 1, a], tri[i, 2, a])
-            i0 = int(math.floor((mn - lo[a]) / cell_m))
-            i1 = int(math.floor((mx - lo[a]) / cell_m))
-            box[i, a] = min(max(i0, 0), dims[a] - 1)
-            box[i, 3 + a] = min(max(i1, 0), dims[a] - 1)
+            box[i, a] = min(max(int(math.floor((mn - lo[a]) / cell_m)), 0), dims[a] - 1)
+            box[i, 3 + a] = min(max(int(math.floor((mx - lo[a]) / cell_m)), 0), dims[a] - 1)
+        for iz in range(box[i, 2] // BRICK, box[i, 5] // BRICK + 1):
+            for iy in range(box[i, 1] // BRICK, box[i, 4] // BRICK + 1):
+                for ix in range(box[i, 0] // BRICK, box[i, 3] // BRICK + 1):
+                    brick_of[(iz * bdims[1] + iy) * bdims[0] + ix] = 0
+    n_bricks = 0
+    for c in range(n_coarse):
+        if brick_of[c] == 0:
+            brick_of[c] = n_bricks
+            n_bricks += 1
+    counts = np.zeros(n_bricks * _BRICK_CELLS + 1, dtype=np.int64)
+    for i in range(g):
         for iz in range(box[i, 2], box[i, 5] + 1):
             for iy in range(box[i, 1], box[i, 4] + 1):
                 for ix in range(box[i, 0], box[i, 3] + 1):
-                    counts[(iz * ny + iy) * nx + ix + 1] += 1
+                    b = brick_of[((iz // BRICK) * bdims[1] + iy // BRICK) * bdims[0] + ix // BRICK]
+                    local = ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
+                    counts[b * _BRICK_CELLS + local + 1] += 1
     offsets = np.cumsum(counts)
     fill = offsets[:-1].copy()
     items = np.empty(offsets[-1], dtype=np.int32)
@@ -180,29 +215,35 @@ def _bin_triangles(tri, lo, cell_m, dims):  # pragma: no cover - compiled
         for iz in range(box[i, 2], box[i, 5] + 1):
             for iy in range(box[i, 1], box[i, 4] + 1):
                 for ix in range(box[i, 0], box[i, 3] + 1):
-                    c = (iz * ny + iy) * nx + ix
+                    b = brick_of[((iz // BRICK) * bdims[1] + iy // BRICK) * bdims[0] + ix // BRICK]
+                    c = b * _BRICK_CELLS + ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
                     items[fill[c]] = i
                     fill[c] += 1
-    return offsets, items
+    return brick_of, offsets, items
 
 
 class TriangleGrid:
-    """World-space triangles in a uniform 3-D grid (see the module docstring).
+    """World-space triangles in a uniform 3-D grid of small cubic cells, stored in bricks.
 
     The triangles are stored sorted along a Morton (z-order) curve of their
     centroids, so that the triangles of one cell lie close together in
     memory: ``tri`` (G, 9) float32 holds per sorted triangle its first
     corner and its two edge vectors [m]; ``tri_id`` (G,) int32 maps a sorted
-    index back to the global triangle id. lo (3,) grid origin [m]; cell_m
-    edge of a cubic cell [m] (grown if the grid would exceed 16 million
-    cells); dims (3,) int64 cells along x, y, z; offsets (cells + 1,) int64
-    and items (N,) int32 (sorted triangle indices) list the triangles of
-    each cell; empty_radius (cells,) uint8 is the chessboard distance
-    [cells] from each cell to the nearest non-empty cell (0 where the cell
-    lists triangles), so a ray may jump over the empty cube around a cell.
+    index back to the global triangle id.
+
+    Cells: lo (3,) grid origin [m]; cell_m edge of a cell [m] (grown if the
+    grid would exceed 16 million cells); dims (3,) int64 cells along x, y,
+    z. Cells are grouped in bricks of BRICK^3 cells (bdims (3,) bricks
+    along x, y, z); only bricks holding triangles are stored, so the lists
+    of neighbouring cells share cache lines: ``brick_of`` (bricks in the
+    box,) int32 is the stored brick id or -1; the triangles of local cell l
+    of brick b are ``items[offsets[b * BRICK**3 + l]:offsets[b * BRICK**3
+    + l + 1]]`` (sorted triangle indices). ``empty_radius`` (bricks in the
+    box,) uint8 is the chessboard distance [bricks] from a brick to the
+    nearest stored one, so a ray may jump over the empty cube around it.
     """
 
-    def __init__(self, triangles: np.ndarray, cell_m: float) -> None:
+    def __init__(self, triangles: np.ndarray, triangle_ids: np.ndarray, cell_m: float) -> None:
         if not (cell_m > 0.0 and math.isfinite(cell_m)):
             raise ValueError(f"cell_m must be > 0, got {cell_m}")
         tri = np.ascontiguousarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
@@ -219,22 +260,26 @@ class TriangleGrid:
             cell_m *= 1.25
         order = np.argsort(_morton_keys((tri.mean(axis=1) - lo) / cell_m), kind="stable")
         tri = tri[order]
-        self.tri_id = order.astype(np.int32)
+        self.tri_id = np.asarray(triangle_ids, dtype=np.int32)[order]
         self.lo = lo.astype(np.float64)
         self.cell_m = float(cell_m)
         self.dims = dims
+        self.bdims = (dims + BRICK - 1) // BRICK
         self.hi = lo + dims * cell_m
-        self.offsets, self.items = _bin_triangles(tri, self.lo, self.cell_m, dims)
+        self.brick_of, offsets, self.items = _bin_triangles(tri, self.lo, self.cell_m, dims, self.bdims)
+        if offsets[-1] >= 2 ** 31:
+            raise ValueError(f"too many triangle-cell entries ({offsets[-1]}) for cell_m={cell_m}; use larger cells")
+        self.offsets = offsets.astype(np.int32)
         packed = np.empty((len(tri), 9), dtype=np.float32)
         packed[:, 0:3] = tri[:, 0]
         packed[:, 3:6] = tri[:, 1] - tri[:, 0]
         packed[:, 6:9] = tri[:, 2] - tri[:, 0]
         self.tri = packed
-        occupied = (np.diff(self.offsets) > 0).reshape(dims[2], dims[1], dims[0])
-        if occupied.any():
-            radius = ndimage.distance_transform_cdt(~occupied, metric="chessboard")
+        stored = (self.brick_of >= 0).reshape(self.bdims[2], self.bdims[1], self.bdims[0])
+        if stored.any():
+            radius = ndimage.distance_transform_cdt(~stored, metric="chessboard")
         else:
-            radius = np.full(occupied.shape, 255)
+            radius = np.full(stored.shape, 255)
         self.empty_radius = np.minimum(radius, 255).astype(np.uint8).ravel()
 
 

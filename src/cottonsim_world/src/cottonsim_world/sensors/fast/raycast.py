@@ -19,6 +19,9 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from cottonsim_world.sensors.fast.geometry import BRICK
+
+BRICK3 = BRICK ** 3
 HIT_NONE = -1
 HIT_GROUND = -2
 
@@ -53,20 +56,20 @@ def _ray_triangle(ox, oy, oz, dx, dy, dz, tri, i, t_best):  # pragma: no cover
 
 
 @njit(parallel=True, cache=True)
-def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, offsets, items, empty_radius,
+def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, bdims, brick_of, offsets, items,
+              empty_radius,
               out_range, out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
 
     tri (G, 9) float32: corner, edge, edge per sorted triangle; tri_id maps
-    the sorted index to the global id; empty_radius (cells,) uint8 is the
-    chessboard distance [cells] from each cell to the nearest non-empty one
-    (0 = non-empty); the rest is ``TriangleGrid``.
+    the sorted index to the global id; the rest is ``TriangleGrid``.
 
     Writes out_range (N,) [m] (inf when nothing is hit) and out_hit (N,)
     int32: triangle id, HIT_GROUND or HIT_NONE.
     """
     n = dirs.shape[0]
     nx, ny, nz = dims[0], dims[1], dims[2]
+    nbx, nby = bdims[0], bdims[1]
     ox, oy, oz = origin[0], origin[1], origin[2]
     for r in prange(n):
         sx, sy, sz = dirs[r, 0], dirs[r, 1], dirs[r, 2]
@@ -115,23 +118,26 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, o
                 tmy = ((lo[1] + (iy + (1 if dy > 0.0 else 0)) * cell_m - oy) / dy) if dy != 0.0 else math.inf
                 tmz = ((lo[2] + (iz + (1 if dz > 0.0 else 0)) * cell_m - oz) / dz) if dz != 0.0 else math.inf
                 while True:
-                    c = (iz * ny + iy) * nx + ix
-                    free = empty_radius[c]
-                    if free >= 2:
-                        # the cube of cells within free - 1 of this one is empty: jump to where
-                        # the ray leaves it and restart the walk there
-                        h = free - 1
-                        bx = lo[0] + (ix + h + 1 if dx > 0.0 else ix - h) * cell_m
-                        by = lo[1] + (iy + h + 1 if dy > 0.0 else iy - h) * cell_m
-                        bz = lo[2] + (iz + h + 1 if dz > 0.0 else iz - h) * cell_m
-                        t_jump = min((bx - ox) / dx if dx != 0.0 else math.inf,
-                                     (by - oy) / dy if dy != 0.0 else math.inf,
-                                     (bz - oz) / dz if dz != 0.0 else math.inf)
+                    bx, by, bz = ix // BRICK, iy // BRICK, iz // BRICK
+                    cb = (bz * nby + by) * nbx + bx
+                    brick = brick_of[cb]
+                    if brick < 0:
+                        # the cube of bricks within empty_radius - 1 of this one is empty:
+                        # jump to where the ray leaves it and restart the walk there
+                        h = np.int64(empty_radius[cb]) - 1
+                        span = BRICK * cell_m
+                        ex = lo[0] + (bx + h + 1 if dx > 0.0 else bx - h) * span
+                        ey = lo[1] + (by + h + 1 if dy > 0.0 else by - h) * span
+                        ez = lo[2] + (bz + h + 1 if dz > 0.0 else bz - h) * span
+                        t_jump = min((ex - ox) / dx if dx != 0.0 else math.inf,
+                                     (ey - oy) / dy if dy != 0.0 else math.inf,
+                                     (ez - oz) / dz if dz != 0.0 else math.inf)
                         if t_jump > t1:
                             walking = False
                         else:
                             t_at = t_jump + 1e-9
                         break
+                    c = brick * BRICK3 + ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
                     for k in range(offsets[c], offsets[c + 1]):
                         g = items[k]
                         t_hit = _ray_triangle(ox, oy, oz, dx, dy, dz, tri, g, best)
