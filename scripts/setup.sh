@@ -22,6 +22,7 @@ APT_PACKAGES=(
   python3-tf2-msgs python3-visualization-msgs python3-map-msgs
   ros-robot-state-publisher joint-state-publisher rviz python3-pyode python3-venv
   python3-trajectory-msgs python3-rosgraph-msgs python3-matplotlib python3-rospkg
+  python3-std-srvs ros-std-srvs
   xvfb
 )
 

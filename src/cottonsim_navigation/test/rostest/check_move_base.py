@@ -16,7 +16,7 @@ import rostest
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, TransformStamped
-from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from move_base_msgs.msg import MoveBaseAction, MoveBaseActionResult, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.srv import GetPlan, GetPlanRequest
 
@@ -113,6 +113,20 @@ class MoveBaseTest(unittest.TestCase):
         self.assertIn("obstacle", text)
         self.assertIn("cost 254", text)
         self.assertLess(took, 15.0)
+
+    def test_2b_simple_goal_topic_is_forwarded_to_the_action_server(self):
+        results = []
+        sub = rospy.Subscriber("/move_base/result", MoveBaseActionResult, results.append)
+        pub = rospy.Publisher("/move_base_simple/goal", PoseStamped, queue_size=1)
+        self.assertTrue(wait_until(lambda: pub.get_num_connections() > 0 and sub.get_num_connections() > 0, 10.0))
+        plant = FARM.plants[50]
+        gx, gy = world_to_frame(HOME, plant.x_m, plant.y_m)
+        pub.publish(pose_stamped(float(gx), float(gy), 0.0))
+        self.assertTrue(wait_until(lambda: any("obstacle" in r.status.text for r in results), 15.0),
+                        f"no aborted result for the simple goal: {[r.status.text for r in results]}")
+        self.assertEqual([r.status.status for r in results if "obstacle" in r.status.text][0], GoalStatus.ABORTED)
+        sub.unregister()
+        pub.unregister()
 
     def test_3_nan_goal_is_rejected_with_a_reason(self):
         finished, state, text, _ = self.send(pose_stamped(float("nan"), 0.0, 0.0), 10.0)

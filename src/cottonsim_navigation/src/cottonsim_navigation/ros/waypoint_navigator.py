@@ -138,7 +138,8 @@ class WaypointNavigatorBase:
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.state_pub = rospy.Publisher("~state", String, queue_size=10, latch=True)
-        self.client = actionlib.SimpleActionClient(self.action_ns, MoveBaseAction)
+        self.client = actionlib.ActionClient(self.action_ns, MoveBaseAction)
+        self._goal_handle = None
         rospy.Subscriber(self.battery_topic, BatteryState, self._on_battery, queue_size=5)
 
     # ------------------------------------------------------------------ inputs
@@ -152,7 +153,11 @@ class WaypointNavigatorBase:
                           self.return_home_percentage)
             self._battery_low = True
 
-    def _on_done(self, seq: int, status: int, _result):
+    def _on_transition(self, seq: int, gh):
+        """actionlib transition callback, bound to the goal's sequence number when it was sent."""
+        if gh.get_comm_state() != actionlib.CommState.DONE:
+            return
+        status = gh.get_goal_status()
         with self._lock:
             if seq == self._goal_seq:
                 self._result = (seq, status)
@@ -198,7 +203,7 @@ class WaypointNavigatorBase:
             self._result = None
             seq = self._goal_seq
         self._goal_sent_at = rospy.Time.now()
-        self.client.send_goal(mb, done_cb=lambda status, result, s=seq: self._on_done(s, status, result))
+        self._goal_handle = self.client.send_goal(mb, transition_cb=lambda gh, s=seq: self._on_transition(s, gh))
         home = self.follower.going_home
         rospy.loginfo("%s: goal %s%s (%.2f, %.2f, yaw %.2f) sent", self.NAME,
                       "Home" if home else f"{self.follower.index + 1}/{len(self.waypoints)} ",
@@ -209,7 +214,9 @@ class WaypointNavigatorBase:
         with self._lock:
             self._goal_seq += 1          # any late result of the cancelled goal is now ignored
             self._result = None
-        self.client.cancel_all_goals()
+        if self._goal_handle is not None:
+            self._goal_handle.cancel()
+            self._goal_handle = None
 
     # ------------------------------------------------------------------ main loop
     def _wait(self, what: str, ready) -> bool:

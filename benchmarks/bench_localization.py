@@ -1,0 +1,70 @@
+#!/usr/bin/env python3
+"""Speed of the localisation / mapping cores: one AMCL update (2000 particles, 60 beams), one SLAM update (30 particles).
+
+Run:  cd /work/main && source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_localization.py
+Targets: AMCL <= 20 ms, SLAM <= 100 ms. Prints medians in ms (JIT-compiling first calls excluded).
+"""
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
+
+from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
+from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E402
+from cottonsim_navigation.localization.sensor_models import simulate_scan  # noqa: E402
+from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig  # noqa: E402
+
+
+def farm_map():
+    """9 rows x 20 plants (0.6 m discs), rows along +y 1.8 m apart, 0.05 m cells."""
+    spec = GridSpec(0.05, 600, 600, -20.0, -5.0)
+    occ = np.zeros(spec.shape, np.int8)
+    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(600), np.arange(600)))
+    for r in range(9):
+        for i in range(20):
+            occ[(gx - (-2.35 - 1.8 * r)) ** 2 + (gy - (9.0 + 0.7 * i)) ** 2 <= 0.3 ** 2] = 100
+    return spec, occ
+
+
+def main():
+    spec, occ = farm_map()
+    rng = np.random.default_rng(0)
+    sector = np.arange(-math.pi / 4, math.pi / 4, 0.0087)          # the simulator's /scan sector
+    full = np.linspace(-math.pi, math.pi, 720, endpoint=False)
+    print("machine: 2 shared CPU cores (loaded by other users); OMP_NUM_THREADS=1")
+    amcl = Amcl(AmclConfig(), rng=rng)
+    amcl.set_map(occ, spec)
+    amcl.initialise((-3.25, 10.0, math.pi / 2), np.diag([0.25, 0.25, 0.07]))
+    truth = np.array([-3.25, 10.0, math.pi / 2])
+    times = []
+    for k in range(25):
+        truth = truth + [0.0, 0.3, 0.0]
+        scan = simulate_scan(occ, spec, truth, sector, range_max_m=20.0, noise_sd_m=0.01, rng=rng)
+        t = time.perf_counter()
+        res = amcl.update((0.3 * (k + 1), 0.0, 0.0), scan)
+        if k > 0:
+            times.append((time.perf_counter() - t) * 1000)
+    print(f"AMCL update (2000 -> {res.n_particles} particles, 60 beams): median {statistics.median(times):6.2f} ms, "
+          f"max {max(times):6.2f} ms   [target <= 20 ms]")
+    for name, angles in (("+/-45 deg sector, 181 beams", sector), ("360 deg, 720 beams", full)):
+        slam = RbpfSlam(SlamConfig(particles=30), rng=np.random.default_rng(1))
+        truth = np.array([-3.25, 7.0, math.pi / 2])
+        times = []
+        for k in range(30):
+            truth = truth + [0.0, 0.3, 0.0]
+            scan = simulate_scan(occ, spec, truth, angles, range_max_m=20.0, noise_sd_m=0.01, rng=rng)
+            t = time.perf_counter()
+            slam.update((0.3 * (k + 1) * 1.01, 0.0, 0.0), scan, float(k))
+            if k > 1:
+                times.append((time.perf_counter() - t) * 1000)
+        print(f"SLAM update (30 particles, {name}): median {statistics.median(times):6.1f} ms, "
+              f"max {max(times):6.1f} ms, maps {slam.memory_bytes() / 1e6:.1f} MB   [target <= 100 ms]")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,71 @@
+#!/usr/bin/env python3
+"""Real-time factor of the whole simulator core (no ROS), per sensor set.
+
+Profiles (the issue's two aims):
+  all   - every sensor at the paper's rates: 3 cameras 640x480 at 30 Hz (+ point clouds),
+          VLP-16 at 10 Hz, IMU 50 Hz, GPS 40 Hz, odometry 50 Hz
+  nav   - navigation sensors only: front camera 320x240 at 10 Hz, VLP-16 10 Hz, IMU, GPS
+  none  - physics, IMU, GPS and odometry only
+
+The robot drives an arc through the farm's headland while the clock runs.
+Prints sim seconds, wall seconds, the real-time factor and ms per update of each sensor.
+
+  OMP_NUM_THREADS=2 python benchmarks/bench_sim.py [--profiles all,nav,none] [--seconds 5]
+"""
+import argparse
+import os
+import pathlib
+import platform
+import time
+
+from cottonsim_world.config_io import simulator_config_from_dict
+from cottonsim_world.robot.urdf_model import UrdfModel
+from cottonsim_world.simulator import Simulator
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+URDF = ROOT / "src/cottonsim_description/urdf/cottonsim_robot.urdf"
+OFF = {"enabled": False}
+PROFILES = {
+    "all": {"cameras": {c: {"width": 640, "height": 480, "rate_hz": 30.0}
+                        for c in ("realsense_p", "realsense_secondary", "realsense_tertiary")}},
+    "nav": {"cameras": {"realsense_p": {"width": 320, "height": 240, "rate_hz": 10.0},
+                        "realsense_secondary": OFF, "realsense_tertiary": OFF}},
+    "none": {"cameras": {"realsense_p": OFF, "realsense_secondary": OFF, "realsense_tertiary": OFF},
+             "lidar_enabled": False},
+}
+
+
+def run(profile: str, seconds: float, clouds: bool):
+    sim = Simulator(simulator_config_from_dict(PROFILES[profile]), UrdfModel.from_file(URDF))
+    for cam in sim.cameras:
+        sim.set_camera_cloud_wanted(cam, clouds and profile == "all")
+    sim.step_for(0.2)                      # warm-up (first renders, JIT)
+    t0_sim, t0 = sim.time_s, time.perf_counter()
+    while sim.time_s - t0_sim < seconds:
+        sim.command_velocity(0.5, 0.15)
+        sim.step()
+    wall = time.perf_counter() - t0
+    sim_s = sim.time_s - t0_sim
+    timing = {k: v for k, v in sim.sensor_timing_ms().items() if v > 0}
+    sim.close()
+    return sim_s, wall, timing, sim.physics_step_ms()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--profiles", default="all,nav,none")
+    parser.add_argument("--seconds", type=float, default=5.0, help="sim seconds per profile")
+    parser.add_argument("--no-clouds", action="store_true", help="skip the cameras' point clouds")
+    args = parser.parse_args()
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; "
+          f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
+    for profile in args.profiles.split(","):
+        sim_s, wall, timing, physics_ms = run(profile, args.seconds, not args.no_clouds)
+        print(f"\n[{profile}] {sim_s:.1f} sim s in {wall:.1f} wall s: real-time factor {sim_s / wall:.2f}")
+        print(f"  physics step {physics_ms:.3f} ms")
+        for name, ms in timing.items():
+            print(f"  {name:22s} {ms:8.2f} ms per update")
+
+
+if __name__ == "__main__":
+    main()
