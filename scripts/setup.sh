@@ -59,9 +59,10 @@ fi
 
 echo "[setup] catkin_make"
 # PYTHON_EXECUTABLE: the venv's python, so generated scripts and tests see its packages.
-# --force-cmake on a fresh tree: catkin caches an empty PYTHONPATH at the first configure.
-force=()
-[ -f build/CMakeCache.txt ] || force=(--force-cmake)
+# --force-cmake every time: it is cheap, the packages glob nodes/ and scripts/ at
+# configure time (new executables need a re-configure), and catkin caches an empty
+# PYTHONPATH at a fresh tree's first configure.
+force=(--force-cmake)
 catkin_make -DPYTHON_EXECUTABLE="$ROOT/.venv/bin/python" -DCMAKE_BUILD_TYPE=Release \
   -DCATKIN_ENABLE_TESTING=ON "${force[@]}" >logs_catkin.txt 2>&1 || {
     cat logs_catkin.txt; echo "[setup] catkin_make failed"; exit 1; }

@@ -91,6 +91,9 @@ class SimulatorConfig:
     lidar: LidarConfig = LidarConfig()
     lidar_enabled: bool = True
     laserscan: LaserScanConfig = LaserScanConfig()
+    # A full-circle scan from the same cloud, for SLAM and AMCL (the original's +/-45 deg
+    # forward sector leaves the particle filters ill-conditioned along crop rows).
+    laserscan_360: LaserScanConfig = LaserScanConfig(angle_min_rad=-math.pi, angle_max_rad=math.pi - 0.0087)
     passthrough: PassThroughConfig = PassThroughConfig()
     imu: ImuConfig = ImuConfig()
     gps_noise: GpsNoiseConfig = GpsNoiseConfig()
@@ -154,6 +157,8 @@ class LidarReading:
     passthrough_points: np.ndarray           # (M, 3) float32, the paper's PassThrough filter
     scan_ranges: np.ndarray                  # LaserScan ranges (inf = no return)
     scan_config: LaserScanConfig
+    scan_360_ranges: np.ndarray              # the full-circle scan
+    scan_360_config: LaserScanConfig
 
 
 @dataclass
@@ -431,7 +436,9 @@ class Simulator:
         scan = self.lidar.scan(world_T_lidar)
         kept = scan.points[original_passthrough_mask(scan.points, self.config.passthrough)]
         ranges = cloud_to_laserscan(scan.points, self.config.laserscan)
-        return LidarReading(now, LIDAR_FRAME, scan, kept, ranges, self.config.laserscan)
+        ranges_360 = cloud_to_laserscan(scan.points, self.config.laserscan_360)
+        return LidarReading(now, LIDAR_FRAME, scan, kept, ranges, self.config.laserscan,
+                            ranges_360, self.config.laserscan_360)
 
     def close(self) -> None:
         if self.sensor_scene is not None:

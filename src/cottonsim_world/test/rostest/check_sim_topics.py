@@ -18,6 +18,7 @@ EXPECTED = {
     "/passthrough/output": (PointCloud2, 10.0),
     "/scan": (LaserScan, 10.0),
     "/vlp/scan": (LaserScan, 10.0),
+    "/scan_360": (LaserScan, 10.0),
     "/imu/data": (Imu, 50.0),
     "/navsat/fix": (NavSatFix, 40.0),
     "/husky_velocity_controller/odom": (Odometry, 50.0),

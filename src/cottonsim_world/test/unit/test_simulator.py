@@ -107,3 +107,11 @@ def test_config_errors_name_the_key():
         SimulatorConfig(gps_rate_hz=0.0)
     with pytest.raises(ValueError, match="cameras"):
         simulator_config_from_dict({"cameras": [1, 2]})
+
+
+def test_shipped_config_files_parse():
+    import yaml
+    root = pathlib.Path(__file__).resolve().parents[2]
+    for path in [root / "config" / "sim.yaml", root / "test" / "rostest" / "sim_ci.yaml"]:
+        config = simulator_config_from_dict(yaml.safe_load(path.read_text()) or {})
+        assert isinstance(config, SimulatorConfig), path

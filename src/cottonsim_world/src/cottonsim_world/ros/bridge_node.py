@@ -14,6 +14,8 @@ Publications
   /points                                  sensor_msgs/PointCloud2  VLP-16: x y z intensity ring, frame velodyne
   /passthrough/output                      sensor_msgs/PointCloud2  the paper's PassThrough filter of /points
   /scan, /vlp/scan                         sensor_msgs/LaserScan    pointcloud_to_laserscan of /points
+                                                                    (the original's +/-45 deg forward sector)
+  /scan_360                                sensor_msgs/LaserScan    the same height slice, full circle (SLAM, AMCL)
   /imu/data                                sensor_msgs/Imu          frame imu_link
   /navsat/fix                              sensor_msgs/NavSatFix    hector-style GPS
   /husky_velocity_controller/odom          nav_msgs/Odometry        wheel odometry, odom -> base_link
@@ -108,6 +110,7 @@ class SimBridgeNode:
             "passthrough": rospy.Publisher("/passthrough/output", PointCloud2, queue_size=5),
             "scan": rospy.Publisher("/scan", LaserScan, queue_size=2),
             "vlp_scan": rospy.Publisher("/vlp/scan", LaserScan, queue_size=2),
+            "scan_360": rospy.Publisher("/scan_360", LaserScan, queue_size=2),
         }
         self.imu_pub = rospy.Publisher("/imu/data", Imu, queue_size=10)
         self.gps_pub = rospy.Publisher("/navsat/fix", NavSatFix, queue_size=10)
@@ -256,6 +259,10 @@ class SimBridgeNode:
                                       stamp, r.frame_id)
         self.lidar_pubs["scan"].publish(scan_msg)
         self.lidar_pubs["vlp_scan"].publish(scan_msg)
+        c = r.scan_360_config
+        self.lidar_pubs["scan_360"].publish(conv.laserscan_msg(
+            r.scan_360_ranges, c.angle_min_rad, c.angle_max_rad, c.angle_increment_rad, c.range_min_m,
+            c.range_max_m, 1.0 / self.sim.config.lidar.rate_hz, stamp, r.frame_id))
 
     def _publish_odometry(self, r: OdometryReading, stamp):
         w = r.wheel

@@ -1,0 +1,73 @@
+#!/usr/bin/env python3
+"""rostest node: a 3-waypoint GPS route completes (navigator state, ground truth, recorder report)."""
+import json
+import math
+import os
+import time
+import unittest
+
+import numpy as np
+import rospy
+import rostest
+from nav_msgs.msg import Odometry
+from std_msgs.msg import String
+
+from cottonsim_navigation.waypoints.files import load_gps_waypoints
+from cottonsim_world.geodesy import HectorGeodesy
+
+
+class GpsNavigatorTest(unittest.TestCase):
+    def setUp(self):
+        self.state = None
+        self.truth = []
+        rospy.Subscriber("/gps_waypoint_navigator/state", String, self._on_state)
+        rospy.Subscriber("/ground_truth/odom", Odometry,
+                         lambda m: self.truth.append((m.pose.pose.position.x, m.pose.pose.position.y)))
+
+    def _on_state(self, msg):
+        self.state = json.loads(msg.data)
+
+    def wait_for(self, cond, wall_timeout_s, what):
+
+        end = time.monotonic() + wall_timeout_s
+        while not cond() and not rospy.is_shutdown() and time.monotonic() < end:
+            rospy.rostime.wallsleep(0.2)
+        self.assertTrue(cond(), f"timed out waiting for {what} (last navigator state {self.state})")
+
+    def test_route_completes(self):
+        path = rospy.get_param("~waypoints_file")
+        report_file = rospy.get_param("~report_file")
+        if os.path.exists(report_file):
+            os.remove(report_file)           # a report of an earlier run must not pass this one
+        self.wait_for(lambda: self.state is not None and self.state["state"] == "finished", 240, "the route")
+        s = self.state
+        self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")
+        self.assertFalse(s["returned_home"])
+        # ground truth: the robot stands on the last waypoint (its world position from the sim's geodesy,
+        # independent of the navigator's UTM conversion), within move_base's goal tolerance + margin
+        wps = load_gps_waypoints(path)
+        gx, gy, _ = HectorGeodesy().geodetic_to_world(wps[-1].lat, wps[-1].lon, 0.0)
+        x, y = self.truth[-1]
+        self.assertLess(math.hypot(x - gx, y - gy), 0.25, f"ends at ({x:.2f}, {y:.2f}), goal ({gx:.2f}, {gy:.2f})")
+        # every waypoint was passed within 0.25 m
+        traj = np.array(self.truth)
+        for w in wps:
+            wx, wy, _ = HectorGeodesy().geodetic_to_world(w.lat, w.lon, 0.0)
+            self.assertLess(np.hypot(traj[:, 0] - wx, traj[:, 1] - wy).min(), 0.25)
+        # the recorder's report
+        self.wait_for(lambda: os.path.exists(report_file), 60, report_file)
+        rospy.rostime.wallsleep(0.5)
+        with open(report_file) as fh:
+            report = json.load(fh)
+        self.assertEqual(report["mode"], "gps")
+        self.assertTrue(report["complete"])
+        self.assertEqual(report["waypoints"], 3)
+        self.assertEqual(report["cr_percent"], 100.0)
+        self.assertLess(report["ae_m"], 0.25)
+        self.assertEqual(report["plant_contacts"], 0)
+        self.assertGreater(report["sim_duration_s"], 5.0)      # 6.5 m at <= 0.5 m/s takes > 13 s
+
+
+if __name__ == "__main__":
+    rospy.init_node("check_gps_navigator")
+    rostest.rosrun("cottonsim_navigation", "gps_navigator", GpsNavigatorTest)
