@@ -92,8 +92,12 @@ class SimulatorConfig:
     lidar_enabled: bool = True
     laserscan: LaserScanConfig = LaserScanConfig()
     # A full-circle scan from the same cloud, for SLAM and AMCL (the original's +/-45 deg
-    # forward sector leaves the particle filters ill-conditioned along crop rows).
-    laserscan_360: LaserScanConfig = LaserScanConfig(angle_min_rad=-math.pi, angle_max_rad=math.pi - 0.0087)
+    # forward sector leaves the particle filters ill-conditioned along crop rows). Its slice
+    # reaches 0.25 m below the sensor (still 0.13 m above the ground at the VLP-16's 0.38 m
+    # height): the original's 0.0-0.1 m slice holds only the +1 deg ring, which leaves it
+    # beyond 5.7 m; the -1 and -3 deg rings add plant returns out to ~14 m.
+    laserscan_360: LaserScanConfig = LaserScanConfig(min_height_m=-0.25, angle_min_rad=-math.pi,
+                                                     angle_max_rad=math.pi - 0.0087)
     passthrough: PassThroughConfig = PassThroughConfig()
     imu: ImuConfig = ImuConfig()
     gps_noise: GpsNoiseConfig = GpsNoiseConfig()

@@ -190,7 +190,7 @@ def write_experiment(out_dir: str, mode: str, planned_world_xy, trajectory, sim_
                      geodesy=None, planned_latlon=None, complete: bool = True, incomplete_reason: str = "",
                      run_name: str = "", waypoints_file: str = "", navigator: Optional[dict] = None,
                      plot: bool = True) -> Dict[str, object]:
-    """Write report.json, trajectory.csv and (plot=True) trajectory.png into ``out_dir``; return the report.
+    """Write trajectory.csv, (plot=True) trajectory.png and then report.json into ``out_dir``; return the report.
 
     An incomplete run (``complete=False``: shut down early, navigator never
     finished) still gets every file, with ``complete: false`` and the reason.
@@ -214,8 +214,6 @@ def write_experiment(out_dir: str, mode: str, planned_world_xy, trajectory, sim_
             if gps:
                 row += [f"{lat[k]:.10f}", f"{lon[k]:.10f}"]
             w.writerow(row)
-    with open(os.path.join(out_dir, REPORT_NAME), "w") as fh:
-        json.dump(report, fh, indent=1)
     if plot:
         from cottonsim_navigation.evaluation.plots import plot_trajectory
         title = f"{run_name or 'run'} ({mode}): CR {_fmt(report['cr_percent'])} %, contacts {report['plant_contacts']}"
@@ -223,6 +221,11 @@ def write_experiment(out_dir: str, mode: str, planned_world_xy, trajectory, sim_
             title += " [incomplete]"
         plot_trajectory(os.path.join(out_dir, TRAJECTORY_PNG), planned_world_xy, traj[:, 1:3], plant_xy,
                         title=title)
+    # the report comes last and appears at once (rename), so a reader that sees it sees every file
+    tmp = os.path.join(out_dir, REPORT_NAME + ".tmp")
+    with open(tmp, "w") as fh:
+        json.dump(report, fh, indent=1)
+    os.replace(tmp, os.path.join(out_dir, REPORT_NAME))
     return report
 
 

@@ -114,6 +114,10 @@ class ExperimentRecorderNode:
         rospy.Subscriber("/ground_truth/plant_contacts", PlantContacts, self._on_contacts, queue_size=10)
         rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=10)
         rospy.on_shutdown(self._on_shutdown)
+        if self.plot:
+            # import matplotlib now, in the background: at the end (possibly during a shutdown, when
+            # roslaunch allows only seconds) the figure then takes well under a second
+            threading.Thread(target=_warm_up_matplotlib, daemon=True).start()
         rospy.loginfo("experiment_recorder: %s route of %d waypoints from %s -> %s", self.mode, len(self.route),
                       self.waypoints_file, self.out_dir)
 
@@ -194,6 +198,15 @@ class ExperimentRecorderNode:
                     rospy.signal_shutdown("experiment recorded")
                     return
                 self._done.clear()
+
+
+def _warm_up_matplotlib():
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot  # noqa: F401
+    except ImportError:
+        pass                      # plot_trajectory reports it when the figure is due
 
 
 def main():

@@ -65,7 +65,6 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import cv2
 import numpy as np
-from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from cottonsim_perception.data import yolo_format as yf
@@ -128,8 +127,11 @@ class LabelConfig:
         polygon_epsilon_px: Douglas-Peucker tolerance of the region outlines
             [px]; small enough that the written polygons rasterise back to the
             class masks with IoU >= 0.98.
-        min_region_area_px: connected regions (and holes) smaller than this
-            [px^2] are not written.
+        min_region_area_px: connected regions whose traced polygon is smaller
+            than this [px^2] are not written (a polygon through the outer
+            pixels' quarter-pixel insets has about the pixel count minus half
+            the perimeter: 2 px^2 drops specks of up to ~4 pixels).
+        min_hole_area_px: the same for holes cut into a region [px^2].
     Boll detection (see ``boll_boxes``)
         boll_extent_factor: a boll's mesh reaches out to about this many boll
             radii (the lumpy locks, up to ~1.45 R); pixels farther from the
@@ -144,8 +146,9 @@ class LabelConfig:
             a boll peeking through a leaf with less is not labelled.
     """
 
-    polygon_epsilon_px: float = 0.7
-    min_region_area_px: float = 12.0
+    polygon_epsilon_px: float = 0.3
+    min_region_area_px: float = 4.0
+    min_hole_area_px: float = 1.0
     boll_extent_factor: float = 1.5
     boll_depth_tolerance_m: float = 0.03
     min_boll_box_px: float = 4.0
@@ -155,6 +158,7 @@ class LabelConfig:
     def __post_init__(self) -> None:
         _check_number("polygon_epsilon_px", self.polygon_epsilon_px, 0.0, 10.0)
         _check_number("min_region_area_px", self.min_region_area_px, 0.0, 1e6)
+        _check_number("min_hole_area_px", self.min_hole_area_px, 0.0, 1e6)
         _check_number("boll_extent_factor", self.boll_extent_factor, 1.0, 5.0)
         _check_number("boll_depth_tolerance_m", self.boll_depth_tolerance_m, 0.0, 1.0)
         _check_number("min_boll_box_px", self.min_boll_box_px, 0.0, 1e4)
@@ -287,6 +291,8 @@ class DatasetConfig:
         from the farm seeds).
     base_farm: the farm layout varied per farm (its seed is replaced).
     urdf_path: robot URDF giving base_link -> camera optical frames.
+    ground_margin_m: textured soil around the farm [m] (SceneConfig.ground_margin_m;
+        smaller = faster scene builds, for tests).
     """
 
     out_dir: str
@@ -309,6 +315,7 @@ class DatasetConfig:
     variation: VariationConfig = field(default_factory=VariationConfig)
     labels: LabelConfig = field(default_factory=LabelConfig)
     urdf_path: str = DEFAULT_URDF_PATH
+    ground_margin_m: float = 15.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.out_dir, (str, os.PathLike)) or not str(self.out_dir):
@@ -361,6 +368,7 @@ class DatasetConfig:
         for name, cls in (("base_farm", FarmConfig), ("variation", VariationConfig), ("labels", LabelConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+        _check_number("ground_margin_m", self.ground_margin_m, 0.0, 1000.0)
         if not os.path.isfile(self.urdf_path):
             raise ValueError(f"urdf_path {self.urdf_path!r} is not a file")
 
@@ -463,7 +471,8 @@ def sample_farm_config(base: FarmConfig, farm_seed: int, variation: VariationCon
                    bolls_per_plant=(lo, lo + span), growth_stage=stage)
 
 
-def sample_scene_config(rng: np.random.Generator, variation: VariationConfig, seed: int = 0):
+def sample_scene_config(rng: np.random.Generator, variation: VariationConfig, seed: int = 0,
+                        ground_margin_m: float = 15.0):
     """A SceneConfig with a random sun, light, soil and sky (see VariationConfig)."""
     from cottonsim_world.sensors.scene import SceneConfig
     v = variation
@@ -489,7 +498,7 @@ def sample_scene_config(rng: np.random.Generator, variation: VariationConfig, se
         light_rgb=rgb(light), ambient_coeff=float(rng.uniform(*v.ambient_range)),
         diffuse_coeff=float(rng.uniform(*v.diffuse_range)), specular_coeff=float(rng.uniform(*v.specular_range)),
         collision_source="primitives",       # the ray-cast world is not used here: build the cheap one
-        seed=int(seed))
+        ground_margin_m=float(ground_margin_m), seed=int(seed))
 
 
 def apply_photometric(rgb: np.ndarray, rng: np.random.Generator, variation: VariationConfig) -> np.ndarray:
@@ -645,31 +654,61 @@ def sample_robot_pose(farm: Farm, task: str, rng: np.random.Generator, variation
 def _bridge_holes(outer: np.ndarray, holes: Sequence[np.ndarray]) -> np.ndarray:
     """One polygon = ``outer`` with each hole joined in by a zero-width bridge.
 
-    Even-odd filling of the result is the outer region minus the holes: the
-    bridge's two coincident edges toggle the fill twice, i.e. not at all.
+    Each hole is cut open at its vertex nearest to the outline and spliced in
+    after that outline vertex (outline ... o_i, h_j, h_j+1, ..., h_j, o_i ...).
+    Even-odd filling of the result is the outer region minus the holes: a
+    bridge's two coincident edges toggle the fill twice, i.e. not at all,
+    also where a bridge passes over another hole.
     """
     poly = np.asarray(outer, dtype=np.float64)
-    for hole in holes:
-        h = np.asarray(hole, dtype=np.float64)
-        dist, idx = cKDTree(poly).query(h)
-        j = int(np.argmin(dist))
-        i = int(idx[j])
-        ring = np.roll(h, -j, axis=0)                 # starts at the bridge vertex h[j]
-        poly = np.concatenate([poly[:i + 1], ring, ring[:1], poly[i:]])
-    return poly
+    if not holes:
+        return poly
+    hs = [np.asarray(hole, dtype=np.float64) for hole in holes]
+    dist, idx = cKDTree(poly).query(np.concatenate(hs))      # one query for all hole vertices
+    splice: Dict[int, List[np.ndarray]] = {}
+    start = 0
+    for h in hs:
+        seg = slice(start, start + len(h))
+        start += len(h)
+        j = int(np.argmin(dist[seg]))
+        ring = np.concatenate([h[j:], h[:j + 1]])     # starts and ends at the bridge vertex h[j]
+        splice.setdefault(int(idx[seg][j]), []).append(ring)
+    parts, start = [], 0
+    for i in sorted(splice):
+        parts.append(poly[start:i + 1])
+        for ring in splice[i]:
+            parts.append(ring)
+            parts.append(poly[i:i + 1])               # back on the outline after each hole
+        start = i + 1
+    parts.append(poly[start:])
+    return np.concatenate(parts)
 
 
-def mask_to_label_polygons(mask: np.ndarray, epsilon_px: float = 0.7,
-                           min_area_px: float = 12.0) -> List[np.ndarray]:
+def _holes(mask: np.ndarray) -> np.ndarray:
+    """Background pixels not 4-connected to the image border (pockets enclosed by the mask)."""
+    h, w = mask.shape
+    bg = np.zeros((h + 2, w + 2), dtype=np.uint8)
+    bg[1:-1, 1:-1] = ~mask
+    bg[0, :] = bg[-1, :] = 1
+    bg[:, 0] = bg[:, -1] = 1
+    # flood the background from the frame; what stays 1 is enclosed
+    cv2.floodFill(bg, None, (0, 0), 0, flags=4)
+    return bg[1:-1, 1:-1].astype(bool)
+
+
+def mask_to_label_polygons(mask: np.ndarray, epsilon_px: float = 0.3, min_area_px: float = 4.0,
+                           min_hole_area_px: Optional[float] = None) -> List[np.ndarray]:
     """YOLO polygons [px, pixel edges] of a class mask: one per connected region, holes cut in.
 
-    Each 8-connected region (skipped below ``min_area_px`` pixels) is traced
-    with ``yolo_format.mask_to_polygons``; its holes (4-connected background
-    pockets, skipped below ``min_area_px``) are traced the same way and
-    joined to the outline by zero-width bridges (``_bridge_holes``), because a
-    YOLO label line cannot hold a hole. An island inside a hole is a region
-    of its own. ``polygon_to_mask`` of the polygons then reproduces the mask
-    up to the simplification tolerance and the skipped specks.
+    The 8-connected regions are traced with ``yolo_format.mask_to_polygons``
+    (Douglas-Peucker ``epsilon_px``; regions whose polygon area is below
+    ``min_area_px`` [px^2] are skipped). The holes (background pockets
+    enclosed by a region) are traced the same way (skipped below
+    ``min_hole_area_px``, default ``min_area_px``) and joined to the outline
+    of the region around them by zero-width bridges (``_bridge_holes``),
+    because a YOLO label line cannot hold a hole. An island inside a hole is
+    a region (and polygon) of its own. ``yolo_format.polygon_to_mask`` of the
+    polygons then reproduces the mask up to the tolerance and the skipped specks.
     """
     m = np.asarray(mask)
     if m.ndim != 2:
@@ -677,25 +716,37 @@ def mask_to_label_polygons(mask: np.ndarray, epsilon_px: float = 0.7,
     m = m.astype(bool)
     if not m.any():
         return []
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(m.astype(np.uint8), connectivity=8)
-    out = []
-    for i in range(1, n):
-        x0, y0, w, h, area = (int(s) for s in stats[i])
-        if area < min_area_px:
-            continue
-        crop = np.zeros((h + 2, w + 2), dtype=bool)              # 1 px frame: holes cannot touch the border
-        crop[1:-1, 1:-1] = lab[y0:y0 + h, x0:x0 + w] == i
-        outer = yf.mask_to_polygons(crop, epsilon_px, min_area_px)
-        if not outer:
-            continue
-        poly = max(outer, key=lambda p: p.shape[0])
-        holes_mask = ndimage.binary_fill_holes(crop) & ~crop
-        if holes_mask.any():
-            holes = yf.mask_to_polygons(holes_mask, epsilon_px, min_area_px)
-            if holes:
-                poly = _bridge_holes(poly, holes)
-        out.append(poly + np.array([x0 - 1.0, y0 - 1.0]))
-    return out
+    hole_area = min_area_px if min_hole_area_px is None else min_hole_area_px
+    holes_mask = _holes(m)
+    # regions inside a hole (islands) are not outer contours of ``m``: trace them recursively
+    islands = m & _holes(holes_mask) if holes_mask.any() else None
+    inner = (mask_to_label_polygons(islands, epsilon_px, min_area_px, min_hole_area_px)
+             if islands is not None and islands.any() else [])
+    outers = yf.mask_to_polygons(m, epsilon_px, min_area_px)
+    if not holes_mask.any():
+        return outers
+    h, w = m.shape
+    _, lab = cv2.connectedComponents(m.astype(np.uint8), connectivity=8)
+
+    def region_at(px: float, py: float) -> int:
+        return int(lab[min(max(int(py), 0), h - 1), min(max(int(px), 0), w - 1)])
+
+    # outline vertices lie a quarter pixel inside their region's boundary pixels
+    by_region = {region_at(*p[0]): k for k, p in enumerate(outers)}
+    hole_lists: Dict[int, List[np.ndarray]] = {}
+    for hole in yf.mask_to_polygons(holes_mask, epsilon_px, hole_area):
+        # the pixel above the hole's top-most vertex belongs to the region around it
+        top = hole[int(np.argmin(hole[:, 1]))]
+        col = min(max(int(top[0]), 0), w - 1)
+        row = int(top[1])
+        while row >= 0 and not m[row, col]:
+            row -= 1
+        if row < 0:
+            continue                                  # cannot happen for a true hole
+        k = by_region.get(int(lab[row, col]))
+        if k is not None:
+            hole_lists.setdefault(k, []).append(hole)
+    return [_bridge_holes(p, hole_lists[k]) if k in hole_lists else p for k, p in enumerate(outers)] + inner
 
 
 def segmentation_masks(semantic: np.ndarray) -> Dict[int, np.ndarray]:
@@ -715,7 +766,8 @@ def segmentation_instances(semantic: np.ndarray, config: LabelConfig = LabelConf
     scale = np.array([w, h], dtype=np.float64)
     out = []
     for cls, mask in segmentation_masks(sem).items():
-        for poly in mask_to_label_polygons(mask, config.polygon_epsilon_px, config.min_region_area_px):
+        for poly in mask_to_label_polygons(mask, config.polygon_epsilon_px, config.min_region_area_px,
+                                           config.min_hole_area_px):
             norm = np.clip(poly / scale, 0.0, 1.0)
             out.append(yf.LabelInstance(cls, yf.polygon_bbox_cxcywh(norm), norm))
     return out
@@ -723,7 +775,11 @@ def segmentation_instances(semantic: np.ndarray, config: LabelConfig = LabelConf
 
 def rasterise_instances(instances: Sequence[yf.LabelInstance], height: int, width: int,
                         num_classes: int = 3) -> np.ndarray:
-    """(num_classes, H, W) bool: per class, the union of its polygons (boxes for box labels)."""
+    """(num_classes, H, W) bool: per class, the union of its polygons (boxes for box labels).
+
+    Same pixel rule as ``yolo_format.polygon_to_mask`` (pixel centre inside,
+    even-odd), evaluated in each polygon's bounding box for speed.
+    """
     out = np.zeros((num_classes, height, width), dtype=bool)
     for inst in instances:
         if not 0 <= inst.class_id < num_classes:
@@ -732,7 +788,13 @@ def rasterise_instances(instances: Sequence[yf.LabelInstance], height: int, widt
         if poly is None:
             x1, y1, x2, y2 = inst.box_xyxy_px(width, height)
             poly = np.array([[x1, y1], [x2, y1], [x2, y2], [x1, y2]])
-        out[inst.class_id] |= yf.polygon_to_mask(poly, height, width)
+        c0 = max(0, int(math.floor(poly[:, 0].min())) - 1)
+        r0 = max(0, int(math.floor(poly[:, 1].min())) - 1)
+        c1 = min(width, int(math.ceil(poly[:, 0].max())) + 1)
+        r1 = min(height, int(math.ceil(poly[:, 1].max())) + 1)
+        if c1 <= c0 or r1 <= r0:
+            continue
+        out[inst.class_id, r0:r1, c0:c1] |= yf.polygon_to_mask(poly - [c0, r0], r1 - r0, c1 - c0)
     return out
 
 
@@ -975,8 +1037,8 @@ def render_farm_job(config: DatasetConfig, job: FarmJob,
         for s0 in range(0, count, config.images_per_scene):
             scene_idx = s0 // config.images_per_scene
             srng = _rng(config.dataset_seed, _SCENE_STREAM, job.farm_seed, _TASK_CODE[task], scene_idx)
-            scene_cfg = sample_scene_config(srng, config.variation,
-                                            seed=int(srng.integers(0, 2 ** 31 - 1)))
+            scene_cfg = sample_scene_config(srng, config.variation, seed=int(srng.integers(0, 2 ** 31 - 1)),
+                                            ground_margin_m=config.ground_margin_m)
             with SensorScene(farm, scene_cfg) as scene:
                 camera = CameraModel(scene, cam_cfg)
                 renderer = str(getattr(camera, "renderer", cam_cfg.renderer))   # after an EGL fallback

@@ -15,7 +15,7 @@ Publications
   /passthrough/output                      sensor_msgs/PointCloud2  the paper's PassThrough filter of /points
   /scan, /vlp/scan                         sensor_msgs/LaserScan    pointcloud_to_laserscan of /points
                                                                     (the original's +/-45 deg forward sector)
-  /scan_360                                sensor_msgs/LaserScan    the same height slice, full circle (SLAM, AMCL)
+  /scan_360                                sensor_msgs/LaserScan    full circle, slice -0.25..0.1 m (SLAM, AMCL)
   /imu/data                                sensor_msgs/Imu          frame imu_link
   /navsat/fix                              sensor_msgs/NavSatFix    hector-style GPS
   /husky_velocity_controller/odom          nav_msgs/Odometry        wheel odometry, odom -> base_link

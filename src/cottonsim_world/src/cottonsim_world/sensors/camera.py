@@ -1,18 +1,30 @@
-"""RGB-D camera (Intel RealSense D435-like) rendered with pybullet.
+"""RGB-D camera (Intel RealSense D435-like): numba rasteriser or pybullet.
 
 Why: the perception stack (segmentation, boll detection, row centring) and
 the depth point clouds need images of the farm from the robot's three
-RealSense cameras. ``CameraModel`` renders the plants with pybullet (in the
-camera's own culled render client, see ``scene.RenderClient``), paints the
-ground and sky analytically (``SensorScene.ground_and_sky``) and returns
-numpy data; the ROS bridge turns it into Image / CameraInfo / PointCloud2.
+RealSense cameras. ``CameraModel`` renders the plants, paints the ground and
+sky analytically (``SensorScene.ground_and_sky``) and returns numpy data;
+the ROS bridge turns it into Image / CameraInfo / PointCloud2.
+
+Renderers (``CameraConfig.renderer``):
+
+* 'numba' (default): ``sensors.fast.raster``, a compiled z-buffer
+  rasteriser over the farm's triangles, a few ms per frame; agrees with
+  'tiny' on semantics and depth (``test_fast_sensors.py``), colours are flat
+  Lambert shading close to TinyRenderer's;
+* 'tiny': pybullet's TinyRenderer in the camera's own culled render client
+  (``scene.RenderClient``), the reference, 100-900 ms per 640x480 frame;
+* 'egl': pybullet's EGL plugin (falls back to 'tiny' with a warning).
 
 Frames: the pose passed to ``render`` is ``world_T_optical``: the optical
 frame of REP-103 (z forward, x right, y down). Intrinsics: square pixels,
 fx = fy = (W / 2) / tan(h_fov / 2), principal point at the image centre
 cx = (W - 1) / 2, cy = (H - 1) / 2 in pixel-index coordinates (pixel (0, 0)
-is centred at (0, 0)), which is where pybullet's symmetric OpenGL frustum
-puts it. (Gazebo's plugin writes (W + 1) / 2, half a pixel to a pixel off.)
+is centred at (0, 0)). Both renderers honour it: the numba rasteriser
+samples pixel (col, row) at exactly u = col, v = row; TinyRenderer's own
+sampling is half a pixel off, which an off-centre projection matrix
+corrects (see ``CameraModel.__init__``). (Gazebo's plugin writes
+(W + 1) / 2, half a pixel to a pixel off.)
 """
 from __future__ import annotations
 
@@ -24,9 +36,10 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
+from cottonsim_world.sensors.fast.raster import _compose, _draw_plants
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
-_RENDERERS = ("tiny", "egl")
+_RENDERERS = ("numba", "tiny", "egl")
 
 
 @dataclass(frozen=True)
@@ -39,7 +52,8 @@ class CameraConfig:
     cloud_max_m: depth range kept in the point cloud [m]; cloud_stride: keep
     every n-th pixel in u and v for the cloud (decimation); depth_noise_std_m
     and rgb_noise_std (in 0-255 units): Gaussian noise (0 = none);
-    renderer: 'tiny' (pybullet TinyRenderer, CPU) or 'egl' (pybullet's EGL
+    renderer: 'numba' (compiled rasteriser, the fast default), 'tiny'
+    (pybullet TinyRenderer, CPU, the reference) or 'egl' (pybullet's EGL
     plugin; falls back to 'tiny' with a warning if it cannot load);
     cull_distance_m: plants whose bounding sphere is farther than this along
     the optical axis are not rendered (inf = only frustum culling);
@@ -57,7 +71,7 @@ class CameraConfig:
     cloud_stride: int = 1
     depth_noise_std_m: float = 0.0
     rgb_noise_std: float = 0.0
-    renderer: str = "tiny"
+    renderer: str = "numba"
     cull_distance_m: float = 25.0
     plant_id_image: bool = False
     seed: int = 0
@@ -125,13 +139,33 @@ class CameraFrame:
     world_T_optical: np.ndarray          # the pose it was rendered from
 
 
+# a level camera 1 m above the origin, looking along world +x
+_WARM_UP_POSE = np.array([[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
+
+
+class _FastBuffers:
+    """Per-camera state of the numba renderer: the scene's instanced plants and z-buffers per thread."""
+
+    def __init__(self, scene: SensorScene, width: int, height: int) -> None:
+        import numba
+        self.plants = scene.fast_plants
+        self.background = scene.background_layer()
+        threads = numba.get_num_threads()
+        self.zbuf = np.zeros((threads, height, width), np.float32)     # 1/z [1/m], 0 = empty
+        self.ibuf = np.zeros((threads, height, width), np.int32)       # global triangle id
+        self.scratch = np.zeros((threads, max(1, self.plants.max_model_verts), 6))
+
+
 class CameraModel:
     """Renders one camera of a ``SensorScene``.
 
     ``render(world_T_optical)`` -> ``CameraFrame``; ``point_cloud(frame)`` ->
     (xyz, rgb) in the optical frame; ``intrinsics()`` for CameraInfo.
-    Each camera owns a render client; ``last_render_stats`` tells how many
-    plants were drawn and how many bodies were added/removed.
+    With the pybullet renderers each camera owns a render client;
+    ``last_render_stats`` tells how many plants were drawn and how many
+    bodies were added/removed (always 0 for 'numba'). The numba renderer
+    renders one warm-up frame in the constructor (compiles the kernels on
+    the very first use, ~10-60 s; later processes load them from the cache).
     """
 
     def __init__(self, scene: SensorScene, config: CameraConfig = CameraConfig()) -> None:
@@ -141,8 +175,6 @@ class CameraModel:
             raise ValueError(f"config must be a CameraConfig, got {type(config).__name__}")
         self.scene = scene
         self.config = config
-        self._client = scene.new_render_client(config.renderer)
-        self.renderer = self._client.renderer
         self._intr = self._make_intrinsics()
         w, h = config.width, config.height
         u = (np.arange(w, dtype=np.float32) - self._intr.cx) / self._intr.fx
@@ -150,10 +182,28 @@ class CameraModel:
         self._ray_x = u                               # (W,) x/z per column
         self._ray_y = v                               # (H,) y/z per row
         self._ray_norm = np.sqrt(u[None, :] ** 2 + v[:, None] ** 2 + 1.0).astype(np.float32)
-        self._projection = pb.computeProjectionMatrixFOV(
-            fov=math.degrees(config.vertical_fov_rad), aspect=w / h, nearVal=config.near_m, farVal=config.far_m)
+        projection = list(pb.computeProjectionMatrixFOV(
+            fov=math.degrees(config.vertical_fov_rad), aspect=w / h, nearVal=config.near_m, farVal=config.far_m))
+        # TinyRenderer samples pixel i at screen x = i of the viewport (NDC -1 .. 1 -> 0 .. W), which puts
+        # the optical axis at column W / 2 and row H / 2 - 1 of the returned image (measured), half a pixel
+        # off the principal point (W - 1) / 2, (H - 1) / 2 published in CameraInfo. An off-centre frustum
+        # (constant NDC offsets of -1/W in x and -1/H in y, entries (0, 2) and (1, 2) of the column-major
+        # GL matrix) moves the image onto the published intrinsics.
+        projection[8] += 1.0 / w
+        projection[9] += 1.0 / h
+        self._projection = projection
         self._rng = np.random.default_rng(config.seed)
         self.last_render_stats = {"plants": 0, "added": 0, "removed": 0}
+        self._client = None
+        self._fast = None
+        if config.renderer == "numba":
+            self.renderer = "numba"
+            self._fast = _FastBuffers(scene, w, h)
+            self.render(_WARM_UP_POSE)          # compile or load the kernels now, not at the first reading
+            self.last_render_stats = {"plants": 0, "added": 0, "removed": 0}
+        else:
+            self._client = scene.new_render_client(config.renderer)
+            self.renderer = self._client.renderer
 
     def _make_intrinsics(self) -> CameraIntrinsics:
         c = self.config
@@ -177,6 +227,8 @@ class CameraModel:
         tan_h = math.tan(cfg.horizontal_fov_rad / 2.0)
         tan_v = math.tan(cfg.vertical_fov_rad / 2.0)
         wanted = scene.plants_in_view(pose, tan_h, tan_v, min(cfg.cull_distance_m, cfg.far_m))
+        if self._fast is not None:
+            return self._render_numba(pose, wanted)
         added, removed = self._client.sync(wanted)
         self.last_render_stats = {"plants": len(wanted), "added": added, "removed": removed}
         sc = scene.config
@@ -212,6 +264,37 @@ class CameraModel:
         depth = np.where((depth >= n) & (depth <= f), depth, np.nan).astype(np.float32)
         return CameraFrame(rgb=np.ascontiguousarray(rgb), depth_m=depth, semantic=semantic,
                            plant_id=plant_id, world_T_optical=pose)
+
+    def _render_numba(self, pose: np.ndarray, wanted) -> CameraFrame:
+        cfg, fb = self.config, self._fast
+        self.last_render_stats = {"plants": len(wanted), "added": 0, "removed": 0}
+        inst = fb.plants
+        visible = np.fromiter(sorted(wanted), dtype=np.int64, count=len(wanted))
+        rot = pose[:3, :3].T                                  # optical_R_world
+        trans = -rot @ pose[:3, 3]
+        intr = self._intr
+        _draw_plants(visible, inst.plant_model, inst.plant_pose, inst.plant_gbase, inst.model_vbase,
+                     inst.model_vcount, inst.model_fbase, inst.model_fcount, inst.model_verts, inst.model_faces,
+                     rot, trans, intr.fx, intr.fy, intr.cx, intr.cy, cfg.near_m, cfg.far_m, True,
+                     fb.zbuf, fb.ibuf, fb.scratch)
+        rgb = np.empty((cfg.height, cfg.width, 3), np.uint8)
+        depth = np.empty((cfg.height, cfg.width), np.float32)
+        semantic = np.empty((cfg.height, cfg.width), np.uint8)
+        plant_id = np.empty((cfg.height, cfg.width), np.int32)
+        tex, x0, y0, rx, ry, sky = fb.background
+        _compose(fb.zbuf, fb.ibuf, inst.g_rgb, inst.g_semantic, inst.g_plant, np.ascontiguousarray(pose[:3, :3]),
+                 np.ascontiguousarray(pose[:3, 3]), intr.fx, intr.fy, intr.cx, intr.cy, cfg.near_m, cfg.far_m,
+                 tex, x0, y0, rx, ry, sky, int(SemanticClass.GROUND), int(SemanticClass.SKY),
+                 rgb, depth, semantic, plant_id)
+        if cfg.depth_noise_std_m > 0.0:
+            depth = depth + self._rng.normal(0.0, cfg.depth_noise_std_m, depth.shape).astype(np.float32)
+            with np.errstate(invalid="ignore"):
+                depth = np.where((depth >= cfg.near_m) & (depth <= cfg.far_m), depth, np.nan).astype(np.float32)
+        if cfg.rgb_noise_std > 0.0:
+            noisy = rgb.astype(np.float32) + self._rng.normal(0.0, cfg.rgb_noise_std, rgb.shape)
+            rgb = np.clip(noisy, 0, 255).astype(np.uint8)
+        return CameraFrame(rgb=rgb, depth_m=depth, semantic=semantic,
+                           plant_id=plant_id if cfg.plant_id_image else None, world_T_optical=pose)
 
     def point_cloud(self, frame: CameraFrame) -> Tuple[np.ndarray, np.ndarray]:
         """Back-project a frame: xyz (N, 3) float32 in the optical frame [m], rgb (N, 3) uint8.

@@ -2,10 +2,17 @@
 
 Why: navigation (PassThrough -> costmap, pointcloud_to_laserscan -> AMCL /
 gmapping) needs the /points cloud of the robot's VLP-16. ``Vlp16Model``
-casts one ray per (ring, azimuth) sample against ``SensorScene.ray_client``
-(ground plane + plant collision shapes) with pybullet's multi-threaded
-``rayTestBatch`` (at most 16,384 rays per call, pybullet's limit), adds
-Gaussian range noise and returns the returns as numpy arrays.
+casts one ray per (ring, azimuth) sample, adds Gaussian range noise and
+returns the returns as numpy arrays. Two backends (``LidarConfig.backend``):
+
+* 'numba' (default): ``sensors.fast.raycast`` walks a uniform grid of the
+  plants' mesh triangles (``SensorScene.fast_grid``) with the ground as the
+  analytic plane z = 0; casts against the meshes only (needs
+  ``SceneConfig.collision_source == 'meshes'``);
+* 'pybullet': the reference, ``rayTestBatch`` against
+  ``SensorScene.ray_client`` (ground plane + plant collision shapes, meshes
+  or primitives; at most 16,384 rays per call, pybullet's limit). Its
+  collision world takes seconds to build and is built only when used.
 
 Frame: the sensor frame ``velodyne`` (x forward, y left, z up). Rings are
 numbered from the lowest beam (ring 0 at -15 deg) up, as the velodyne
@@ -22,8 +29,10 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
+from cottonsim_world.sensors.fast.raycast import HIT_GROUND, cast_rays
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
+LIDAR_BACKENDS = ("numba", "pybullet")
 _MAX_RAYS_PER_BATCH = 16000   # pybullet documents 16384 but returns only 16383 results for 16384 rays
 
 
@@ -37,8 +46,10 @@ class LidarConfig:
     puts at least one sample in every 0.5 deg LaserScan bin at a quarter of
     the cost of 1800); rate_hz: revolutions per second (used by the bridge);
     min_range_m / max_range_m: returns outside are dropped [m];
-    noise_std_m: Gaussian range noise [m]; num_threads: rayTestBatch
-    threads (0 = pybullet picks); reflectivity per SemanticClass (plant,
+    noise_std_m: Gaussian range noise [m]; backend: 'numba' (compiled grid
+    ray caster, fast, the default) or 'pybullet' (rayTestBatch, the
+    reference); num_threads: rayTestBatch threads (0 = pybullet picks) or,
+    for 'numba', the most worker threads (0 = numba's default); reflectivity per SemanticClass (plant,
     ground, sky (unused), boll) gives the intensity, scaled by 100 like the
     velodyne driver's 0-255 range; seed: noise.
     """
@@ -51,6 +62,7 @@ class LidarConfig:
     min_range_m: float = 0.9
     max_range_m: float = 130.0
     noise_std_m: float = 0.008
+    backend: str = "numba"
     num_threads: int = 2
     reflectivity: Tuple[float, float, float, float] = (0.45, 0.25, 0.0, 0.85)
     seed: int = 0
@@ -73,6 +85,8 @@ class LidarConfig:
                              f"{self.min_range_m}, {self.max_range_m}")
         if not (self.noise_std_m >= 0.0 and math.isfinite(self.noise_std_m)):
             raise ValueError(f"noise_std_m must be >= 0, got {self.noise_std_m}")
+        if self.backend not in LIDAR_BACKENDS:
+            raise ValueError(f"backend must be one of {LIDAR_BACKENDS}, got {self.backend!r}")
         if not isinstance(self.num_threads, (int, np.integer)) or self.num_threads < 0:
             raise ValueError(f"num_threads must be an integer >= 0, got {self.num_threads!r}")
         if len(self.reflectivity) != 4 or not all(0.0 <= r <= 2.55 for r in self.reflectivity):
@@ -104,7 +118,11 @@ class LidarScan:
 
 
 class Vlp16Model:
-    """Casts VLP-16 scans in a ``SensorScene``: ``scan(world_T_sensor) -> LidarScan``."""
+    """Casts VLP-16 scans in a ``SensorScene``: ``scan(world_T_sensor) -> LidarScan``.
+
+    The numba backend casts one warm-up scan in the constructor (compiles
+    the kernel on the very first use; later processes load it from cache).
+    """
 
     def __init__(self, scene: SensorScene, config: LidarConfig = LidarConfig()) -> None:
         if not isinstance(scene, SensorScene):
@@ -124,14 +142,43 @@ class Vlp16Model:
         self._dirs = np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=1)   # sensor frame
         self._rng = np.random.default_rng(config.seed)
         self._reflect = np.array(config.reflectivity, dtype=np.float32) * 100.0
+        if config.backend == "numba":
+            if scene.config.collision_source != "meshes":
+                raise ValueError("LidarConfig.backend 'numba' casts against the plant meshes; "
+                                 "SceneConfig.collision_source='primitives' needs backend='pybullet'")
+            self._grid = scene.fast_grid
+            self._plants = scene.fast_plants
+            self._range = np.empty(len(self._dirs))
+            self._hit = np.empty(len(self._dirs), np.int32)
+            self._cast_numba(np.eye(4))          # compile or load the kernel now, not at the first scan
 
     @property
     def ray_count(self) -> int:
         return len(self._dirs)
 
-    def scan(self, world_T_sensor: np.ndarray) -> LidarScan:
-        """One revolution from the given pose of the 'velodyne' frame."""
-        pose = check_pose("world_T_sensor", world_T_sensor)
+    def _cast_numba(self, pose: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ranges [m] (inf = no hit), semantic and plant id per ray with the numba caster."""
+        import numba
+        g, cfg = self._grid, self.config
+        before = numba.get_num_threads()
+        if cfg.num_threads > 0:
+            numba.set_num_threads(min(cfg.num_threads, numba.config.NUMBA_NUM_THREADS))
+        try:
+            cast_rays(np.ascontiguousarray(pose[:3, 3]), np.ascontiguousarray(pose[:3, :3]), self._dirs,
+                      float(cfg.max_range_m), g.tri, g.tri_id, g.lo, g.hi, g.cell_m, g.dims, g.bdims, g.brick_of,
+                      g.offsets, g.items, g.empty_radius, self._range, self._hit)
+        finally:
+            numba.set_num_threads(before)
+        hit = self._hit
+        on_plant = hit >= 0
+        safe = np.where(on_plant, hit, 0)
+        sem = np.where(on_plant, self._plants.g_semantic[safe] if len(self._plants.g_semantic) else 0,
+                       np.where(hit == HIT_GROUND, int(SemanticClass.GROUND), int(SemanticClass.SKY))).astype(np.uint8)
+        pid = np.where(on_plant, self._plants.g_plant[safe] if len(self._plants.g_plant) else -1, -1).astype(np.int32)
+        return self._range.copy(), sem, pid
+
+    def _cast_pybullet(self, pose: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ranges [m] (inf = no hit), semantic and plant id per ray with rayTestBatch."""
         cfg = self.config
         origin = pose[:3, 3]
         dirs_w = self._dirs @ pose[:3, :3].T
@@ -149,14 +196,36 @@ class Vlp16Model:
                 raise RuntimeError(f"rayTestBatch returned {len(res)} results for {e - s} rays")
             body[s:e] = np.fromiter((r[0] for r in res), dtype=np.int64, count=e - s)
             fraction[s:e] = np.fromiter((r[2] for r in res), dtype=float, count=e - s)
-        rng_m = fraction * cfg.max_range_m
+        rng_m = np.where(body >= 0, fraction * cfg.max_range_m, np.inf)
+        b = np.clip(body, 0, len(self.scene.semantic_of_ray_body) - 1)
+        sem = np.where(body >= 0, self.scene.semantic_of_ray_body[b], int(SemanticClass.SKY)).astype(np.uint8)
+        pid = np.where(body >= 0, self.scene.plant_of_ray_body[b], -1).astype(np.int32)
+        return rng_m, sem, pid
+
+    def ranges(self, world_T_sensor: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Noise-free range per ray [m] (inf = no return), semantic and plant id, in ray order.
+
+        Ray i is ring ``i // samples_per_ring``, azimuth sample
+        ``i % samples_per_ring``. For comparing backends and for tests.
+        """
+        pose = check_pose("world_T_sensor", world_T_sensor)
+        if self.config.backend == "numba":
+            return self._cast_numba(pose)
+        return self._cast_pybullet(pose)
+
+    def scan(self, world_T_sensor: np.ndarray) -> LidarScan:
+        """One revolution from the given pose of the 'velodyne' frame."""
+        cfg = self.config
+        rng_m, sem_all, pid_all = self.ranges(world_T_sensor)
+        hit = np.isfinite(rng_m)
+        n = len(rng_m)
         if cfg.noise_std_m > 0.0:
             rng_m = rng_m + self._rng.normal(0.0, cfg.noise_std_m, n)
-        keep = (body >= 0) & (rng_m >= cfg.min_range_m) & (rng_m <= cfg.max_range_m)
+        with np.errstate(invalid="ignore"):
+            keep = hit & (rng_m >= cfg.min_range_m) & (rng_m <= cfg.max_range_m)
         idx = np.nonzero(keep)[0]
         pts = (self._dirs[idx] * rng_m[idx, None]).astype(np.float32)
-        b = np.clip(body[idx], 0, len(self.scene.semantic_of_ray_body) - 1)
-        sem = self.scene.semantic_of_ray_body[b]
+        sem = sem_all[idx]
         return LidarScan(points=pts, ring=self._ring[idx], intensity=self._reflect[sem].astype(np.float32),
                          azimuth_rad=self._azimuth[idx], semantic=sem.astype(np.uint8),
-                         plant_id=self.scene.plant_of_ray_body[b].astype(np.int32))
+                         plant_id=pid_all[idx].astype(np.int32))

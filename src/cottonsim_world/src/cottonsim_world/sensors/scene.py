@@ -54,7 +54,10 @@ class SceneConfig:
     Colours are RGB in [0, 1]. The sun direction is given as azimuth
     (counter-clockwise from world +x) and elevation above the horizon [rad];
     it drives pybullet's light for the plants and the flat shading of the
-    ground, so datasets can vary the time of day.
+    ground, so datasets can vary the time of day. ``collision_source``
+    applies to the pybullet LiDAR backend (the numba backend casts against
+    the meshes); ``fast_grid_cell_m`` is the cell size of the numba LiDAR's
+    triangle grid (smaller: fewer triangle tests per ray, more memory).
     """
 
     ground_rgb: Tuple[float, float, float] = (0.47, 0.36, 0.25)   # dry soil brown
@@ -72,6 +75,7 @@ class SceneConfig:
     specular_coeff: float = 0.05         # pybullet lightSpecularCoeff
     shadows: bool = False                # TinyRenderer shadow map (costs time)
     collision_source: str = "meshes"     # 'meshes' | 'primitives' for ray casting
+    fast_grid_cell_m: float = 0.035      # cell of the numba LiDAR's triangle grid [m]
     seed: int = 0                        # soil texture noise
 
     def __post_init__(self) -> None:
@@ -91,6 +95,8 @@ class SceneConfig:
             v = getattr(self, name)
             if not (0.0 <= v <= 2.0):
                 raise ValueError(f"{name} must be in [0, 2], got {v}")
+        if not (0.005 <= self.fast_grid_cell_m <= 5.0):
+            raise ValueError(f"fast_grid_cell_m must be in [0.005, 5] m, got {self.fast_grid_cell_m}")
         if self.collision_source not in _COLLISION_SOURCES:
             raise ValueError(f"collision_source must be one of {_COLLISION_SOURCES}, "
                              f"got {self.collision_source!r}")
@@ -270,9 +276,74 @@ class SensorScene:
         self._bounding_spheres = self._plant_bounds()
         self._render_clients: List[RenderClient] = []
         self._build_soil_texture()
-        self.ray_client = pb.connect(pb.DIRECT)
-        self.body_info: Dict[int, Tuple[SemanticClass, int]] = {}
-        self._build_ray_world()
+        # built on first use: only the backends in use pay for their structures
+        self._ray_client: Optional[int] = None
+        self._body_info: Dict[int, Tuple[SemanticClass, int]] = {}
+        self._fast_plants = None
+        self._fast_grid = None
+        self._closed = False
+
+    # ------------------------------------------------------ lazily built worlds
+    def _require_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("SensorScene is closed")
+
+    @property
+    def ray_client(self) -> int:
+        """pybullet client with the ground plane and plant collision shapes (built on first use, 4-6 s)."""
+        self._require_open()
+        if self._ray_client is None:
+            self._ray_client = pb.connect(pb.DIRECT)
+            self._build_ray_world()
+        return self._ray_client
+
+    @property
+    def body_info(self) -> Dict[int, Tuple[SemanticClass, int]]:
+        """Ray-cast body id -> (SemanticClass, plant id) of ``ray_client``."""
+        _ = self.ray_client
+        return self._body_info
+
+    @property
+    def semantic_of_ray_body(self) -> np.ndarray:
+        _ = self.ray_client
+        return self._semantic_of_ray_body
+
+    @property
+    def plant_of_ray_body(self) -> np.ndarray:
+        _ = self.ray_client
+        return self._plant_of_ray_body
+
+    @property
+    def fast_plants(self):
+        """``fast.geometry.InstancedPlants`` of the farm (numba camera; built on first use)."""
+        self._require_open()
+        if self._fast_plants is None:
+            from cottonsim_world.sensors.fast.geometry import InstancedPlants
+            cfg = self.config
+            self._fast_plants = InstancedPlants(self.farm.plants, cfg.sun_direction, cfg.ambient_coeff,
+                                                cfg.diffuse_coeff, cfg.light_rgb)
+        return self._fast_plants
+
+    @property
+    def fast_grid(self):
+        """``fast.geometry.TriangleGrid`` of the farm's meshes (numba LiDAR; built on first use)."""
+        self._require_open()
+        if self._fast_grid is None:
+            from cottonsim_world.sensors.fast.geometry import TriangleGrid
+            triangles, ids = self.fast_plants.world_triangles(one_sided_duplicates=True)
+            self._fast_grid = TriangleGrid(triangles, ids, self.config.fast_grid_cell_m)
+        return self._fast_grid
+
+    def background_layer(self) -> Tuple[np.ndarray, float, float, float, float, np.ndarray]:
+        """What ``ground_and_sky`` paints, for the numba camera.
+
+        Returns (soil texture (h, w, 3) uint8 RGB, world x and y [m] of the
+        centre of texture pixel (0, 0), texture resolution along x and y
+        [m/px], sky colour lookup table (256, 3) uint8 indexed by
+        255 * sin(ray elevation)).
+        """
+        m = self._world_from_tex
+        return self.soil_texture, float(m[0, 2]), float(m[1, 2]), float(m[0, 0]), float(m[1, 1]), self._sky_lut
 
     # ------------------------------------------------------------------ geometry
     def _plant_bounds(self) -> np.ndarray:
@@ -318,15 +389,16 @@ class SensorScene:
 
     def new_render_client(self, renderer: str = "tiny") -> RenderClient:
         """A fresh, empty render client (one per camera)."""
+        self._require_open()
         rc = RenderClient(self, renderer)
         self._render_clients.append(rc)
         return rc
 
     def _build_ray_world(self) -> None:
-        cid = self.ray_client
+        cid = self._ray_client
         plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=cid)
         ground = pb.createMultiBody(0.0, plane, -1, [0.0, 0.0, 0.0], physicsClientId=cid)
-        self.body_info[ground] = (SemanticClass.GROUND, -1)
+        self._body_info[ground] = (SemanticClass.GROUND, -1)
         for plant in self.farm.plants:
             pos, orn = [plant.x_m, plant.y_m, 0.0], _yaw_quat(plant.yaw_rad)
             for sem in (SemanticClass.PLANT, SemanticClass.BOLL):
@@ -334,16 +406,16 @@ class SensorScene:
                 if shape < 0:
                     continue
                 body = pb.createMultiBody(0.0, shape, -1, pos, orn, physicsClientId=cid)
-                self.body_info[body] = (sem, plant.plant_id)
-        n = max(self.body_info) + 1
-        self.semantic_of_ray_body = np.full(n + 1, int(SemanticClass.SKY), dtype=np.uint8)
-        self.plant_of_ray_body = np.full(n + 1, -1, dtype=np.int32)
-        for body, (sem, pid) in self.body_info.items():
-            self.semantic_of_ray_body[body] = int(sem)
-            self.plant_of_ray_body[body] = pid
+                self._body_info[body] = (sem, plant.plant_id)
+        n = max(self._body_info) + 1
+        self._semantic_of_ray_body = np.full(n + 1, int(SemanticClass.SKY), dtype=np.uint8)
+        self._plant_of_ray_body = np.full(n + 1, -1, dtype=np.int32)
+        for body, (sem, pid) in self._body_info.items():
+            self._semantic_of_ray_body[body] = int(sem)
+            self._plant_of_ray_body[body] = pid
 
     def _collision_shape(self, plant: Plant, sem: SemanticClass) -> int:
-        cid = self.ray_client
+        cid = self._ray_client
         model = plant.model
         use_meshes = self.config.collision_source == "meshes" or (
             sem == SemanticClass.PLANT and not model.collision)
@@ -459,9 +531,12 @@ class SensorScene:
         for rc in self._render_clients:
             rc.close()
         self._render_clients = []
-        if self.ray_client is not None and pb.isConnected(self.ray_client):
-            pb.disconnect(self.ray_client)
-        self.ray_client = None
+        if self._ray_client is not None and pb.isConnected(self._ray_client):
+            pb.disconnect(self._ray_client)
+        self._ray_client = None
+        self._fast_plants = None
+        self._fast_grid = None
+        self._closed = True
 
     def __enter__(self) -> "SensorScene":
         return self

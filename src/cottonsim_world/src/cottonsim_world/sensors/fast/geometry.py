@@ -11,8 +11,8 @@ needs it:
     x, y, yaw). The rasteriser transforms a visible plant's vertices into
     the camera frame once per frame. Every (plant, face) pair has a *global
     triangle id* ``plant_gbase[p] + face``; per global id we keep the shaded
-    colour (flat Lambert shading under the scene's sun, fixed because the
-    farm is static), the SemanticClass and the plant id, so the rasteriser
+    colour (flat half-Lambert shading under the scene's sun, fixed because
+    the farm is static), the SemanticClass and the plant id, so the rasteriser
     only stores triangle ids per pixel and colours at the end.
 
 ``TriangleGrid`` (LiDAR)
@@ -126,7 +126,9 @@ class InstancedPlants:
             # n_world . sun with n_world = Rz(yaw) n_local
             lambert = nrm[None, :, 0] * (c * sun[0] + s * sun[1]) + nrm[None, :, 1] * (c * sun[1] - s * sun[0]) \
                 + nrm[None, :, 2] * sun[2]
-            intensity = ambient + diffuse * np.maximum(lambert, 0.0)                   # (Pm, Fm)
+            # half-Lambert (0.5 + 0.5 n.l): soft light that also reaches faces turned from the sun,
+            # closer to TinyRenderer's brightness than a hard max(0, n.l) cut-off
+            intensity = ambient + diffuse * (0.5 + 0.5 * lambert)                       # (Pm, Fm)
             colour = np.clip(255.0 * rgb[None] * light[None, None] * intensity[..., None], 0.0, 255.0)
             nf = len(sem)
             for row, p in enumerate(members):

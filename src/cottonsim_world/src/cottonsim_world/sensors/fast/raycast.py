@@ -109,6 +109,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, b
             tdz = cell_m / abs(dz) if dz != 0.0 else math.inf
             t_at = t0
             walking = True
+            budget = 4 * (nx + ny + nz) + 64      # a walk never needs more steps; guards against a stuck loop
             while walking:
                 # (re)start the cell walk at distance t_at
                 ix = min(max(int(math.floor((ox + t_at * dx - lo[0]) / cell_m)), 0), nx - 1)
@@ -118,6 +119,10 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, b
                 tmy = ((lo[1] + (iy + (1 if dy > 0.0 else 0)) * cell_m - oy) / dy) if dy != 0.0 else math.inf
                 tmz = ((lo[2] + (iz + (1 if dz > 0.0 else 0)) * cell_m - oz) / dz) if dz != 0.0 else math.inf
                 while True:
+                    budget -= 1
+                    if budget < 0:
+                        walking = False
+                        break
                     bx, by, bz = ix // BRICK, iy // BRICK, iz // BRICK
                     cb = (bz * nby + by) * nbx + bx
                     brick = brick_of[cb]
@@ -132,10 +137,9 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, b
                         t_jump = min((ex - ox) / dx if dx != 0.0 else math.inf,
                                      (ey - oy) / dy if dy != 0.0 else math.inf,
                                      (ez - oz) / dz if dz != 0.0 else math.inf)
-                        if t_jump > t1:
+                        t_at = t_jump + 1e-9
+                        if t_at >= t1:
                             walking = False
-                        else:
-                            t_at = t_jump + 1e-9
                         break
                     c = brick * BRICK3 + ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
                     for k in range(offsets[c], offsets[c + 1]):

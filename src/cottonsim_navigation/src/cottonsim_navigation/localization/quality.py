@@ -1,0 +1,179 @@
+"""Is AMCL localised? A yes/no signal from the particle spread and the scan fit.
+
+Why: a waypoint navigator must not drive on a pose estimate that is wrong
+(after a kidnap, a bad initial pose, or while the filter is still spread out
+after global localisation). Neither of AMCL's own outputs says so alone: the
+covariance of the heaviest cluster can be small around a wrong pose (a tight
+wrong /initialpose), and a good scan fit can come from a pose one crop row off
+while the particles are still spread over several rows. So the signal asks
+for both:
+
+* spread: the whole particle set (not only the best cluster) has a position
+  standard deviation (square root of the largest eigenvalue of the x-y
+  covariance) <= ``max_std_xy_m`` and a heading standard deviation
+  <= ``max_std_yaw_rad``;
+* fit: of the beams the laser model uses, at least ``min_hit_fraction`` end
+  within ``hit_distance_m`` of an occupied map cell when the robot stands at
+  the estimate (beams ending beyond the map count as misses).
+
+To avoid flicker, the state changes only after ``switch_after`` consecutive
+filter updates that agree on the new state (hysteresis); a re-initialisation
+(:meth:`LocalizationMonitor.reset`) makes it "not localised" at once.
+
+Kidnap detection: a tight particle set whose scan fit stays poor for
+``relocalize_after`` consecutive updates is confidently wrong (the robot was
+moved, or a wrong initial pose was given). :attr:`LocalizationMonitor.kidnapped`
+then turns true and the caller should spread the particles again
+(``relocalize_std_xy_m`` / ``relocalize_std_yaw_rad`` around the estimate, or
+globally). This complements AMCL's random-particle recovery (alpha_slow /
+alpha_fast), which on a 1.8 m-periodic farm needs many updates to hit the true
+pose by chance.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .sensor_models import LikelihoodField, Scan
+
+
+@dataclass(frozen=True)
+class LocalizationQualityConfig:
+    """Thresholds of the localised signal.
+
+    max_std_xy_m [m]: largest position std dev of the particle set (default 0.15);
+    max_std_yaw_rad [rad]: largest heading std dev (default 0.1, ~6 deg);
+    hit_distance_m [m]: a beam "hits" when its end point is this close to an obstacle (default 0.2,
+        one sigma_hit of the laser model);
+    min_hit_fraction: share of used beams that must hit (0..1, default 0.6);
+    switch_after: consecutive filter updates that must agree before the state changes (>= 1, default 2);
+    relocalize_after: consecutive tight-but-poor-fit updates that count as a kidnap (>= 0, 0 = never; default 3);
+    relocalize_std_xy_m [m], relocalize_std_yaw_rad [rad]: spread of the particles re-drawn around the
+        estimate after a kidnap (defaults 2.0 m, 0.3 rad).
+    """
+
+    max_std_xy_m: float = 0.15
+    max_std_yaw_rad: float = 0.1
+    hit_distance_m: float = 0.2
+    min_hit_fraction: float = 0.6
+    switch_after: int = 2
+    relocalize_after: int = 3
+    relocalize_std_xy_m: float = 2.0
+    relocalize_std_yaw_rad: float = 0.3
+
+    def __post_init__(self) -> None:
+        for name in ("max_std_xy_m", "max_std_yaw_rad", "hit_distance_m", "relocalize_std_xy_m",
+                     "relocalize_std_yaw_rad"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        v = self.min_hit_fraction
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= 1.0):
+            raise ValueError(f"min_hit_fraction must lie in [0, 1], got {v!r}")
+        if isinstance(self.switch_after, bool) or not isinstance(self.switch_after, int) or self.switch_after < 1:
+            raise ValueError(f"switch_after must be an integer >= 1, got {self.switch_after!r}")
+        if isinstance(self.relocalize_after, bool) or not isinstance(self.relocalize_after, int) \
+                or self.relocalize_after < 0:
+            raise ValueError(f"relocalize_after must be an integer >= 0, got {self.relocalize_after!r}")
+
+    def relocalize_covariance(self) -> np.ndarray:
+        """3x3 covariance (x, y, yaw) of the re-spread after a kidnap [m^2, rad^2]."""
+        return np.diag([self.relocalize_std_xy_m ** 2, self.relocalize_std_xy_m ** 2,
+                        self.relocalize_std_yaw_rad ** 2])
+
+
+def particle_spread(particles: np.ndarray, weights: Optional[np.ndarray] = None):
+    """(std_xy_m, std_yaw_rad) of a weighted particle set (N, 3).
+
+    std_xy_m is the square root of the largest eigenvalue of the weighted x-y
+    covariance; std_yaw_rad is the circular standard deviation sqrt(-2 ln R).
+    """
+    p = np.asarray(particles, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] == 0:
+        raise ValueError(f"particles must be a non-empty (N, 3) array, got shape {p.shape}")
+    if weights is None:
+        w = np.full(p.shape[0], 1.0 / p.shape[0])
+    else:
+        w = np.asarray(weights, dtype=float).reshape(-1)
+        if w.shape[0] != p.shape[0] or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+            raise ValueError("weights must be N finite values >= 0 with a positive sum")
+        w = w / w.sum()
+    mx, my = float(w @ p[:, 0]), float(w @ p[:, 1])
+    dx, dy = p[:, 0] - mx, p[:, 1] - my
+    cxx, cyy, cxy = float(w @ (dx * dx)), float(w @ (dy * dy)), float(w @ (dx * dy))
+    # largest eigenvalue of [[cxx, cxy], [cxy, cyy]]
+    lam = 0.5 * (cxx + cyy) + math.sqrt(max(0.25 * (cxx - cyy) ** 2 + cxy * cxy, 0.0))
+    r = math.hypot(float(w @ np.cos(p[:, 2])), float(w @ np.sin(p[:, 2])))
+    std_yaw = math.sqrt(-2.0 * math.log(r)) if r > 1e-12 else math.pi
+    return math.sqrt(max(lam, 0.0)), std_yaw
+
+
+def scan_hit_fraction(field: LikelihoodField, pose, scan: Scan, hit_distance_m: float) -> float:
+    """Share of the model's beams whose end point, with the robot at ``pose`` (x, y, yaw), lies
+    within ``hit_distance_m`` of an obstacle of ``field``'s map; 0.0 when no beam is usable."""
+    pts = field.select_beams(scan)
+    if pts.shape[0] == 0:
+        return 0.0
+    x, y, yaw = (float(v) for v in np.asarray(pose, dtype=float).reshape(3))
+    c, s = math.cos(yaw), math.sin(yaw)
+    wx = x + c * pts[:, 0] - s * pts[:, 1]
+    wy = y + s * pts[:, 0] + c * pts[:, 1]
+    spec = field.spec
+    mx = np.floor((wx - spec.origin_x_m) / spec.resolution_m).astype(np.int64)
+    my = np.floor((wy - spec.origin_y_m) / spec.resolution_m).astype(np.int64)
+    inside = (mx >= 0) & (mx < spec.width) & (my >= 0) & (my < spec.height)
+    d = np.full(pts.shape[0], np.inf)
+    d[inside] = field.distance_m[my[inside], mx[inside]]
+    return float(np.mean(d <= hit_distance_m))
+
+
+class LocalizationMonitor:
+    """Hysteresis over (spread, fit) checks; :attr:`localized` is the current verdict."""
+
+    def __init__(self, config: LocalizationQualityConfig = LocalizationQualityConfig()) -> None:
+        if not isinstance(config, LocalizationQualityConfig):
+            raise ValueError(f"config must be a LocalizationQualityConfig, got {type(config).__name__}")
+        self.config = config
+        self.localized = False
+        self._streak = 0
+        self.last_std_xy_m = math.inf
+        self.last_std_yaw_rad = math.inf
+        self.last_hit_fraction = 0.0
+        self._poor_fit_streak = 0
+
+    def reset(self) -> None:
+        """The filter was re-initialised: not localised until the checks pass again."""
+        self.localized = False
+        self._streak = 0
+        self._poor_fit_streak = 0
+
+    @property
+    def kidnapped(self) -> bool:
+        """The set has been tight with a poor scan fit for ``relocalize_after`` updates (see module doc)."""
+        n = self.config.relocalize_after
+        return n > 0 and self._poor_fit_streak >= n
+
+    def check(self, std_xy_m: float, std_yaw_rad: float, hit_fraction: float) -> bool:
+        """One-update verdict without hysteresis."""
+        c = self.config
+        return bool(std_xy_m <= c.max_std_xy_m and std_yaw_rad <= c.max_std_yaw_rad
+                    and hit_fraction >= c.min_hit_fraction)
+
+    def update(self, std_xy_m: float, std_yaw_rad: float, hit_fraction: float) -> bool:
+        """Feed one filter update's numbers; returns the (possibly switched) state."""
+        self.last_std_xy_m, self.last_std_yaw_rad, self.last_hit_fraction = std_xy_m, std_yaw_rad, hit_fraction
+        ok = self.check(std_xy_m, std_yaw_rad, hit_fraction)
+        c = self.config
+        tight = std_xy_m <= c.max_std_xy_m and std_yaw_rad <= c.max_std_yaw_rad
+        self._poor_fit_streak = self._poor_fit_streak + 1 if (tight and hit_fraction < c.min_hit_fraction) else 0
+        if ok == self.localized:
+            self._streak = 0
+        else:
+            self._streak += 1
+            if self._streak >= self.config.switch_after:
+                self.localized = ok
+                self._streak = 0
+        return self.localized

@@ -1,0 +1,156 @@
+#!/usr/bin/env python3
+"""rostest node for amcl: convergence from a 0.5 m initial error, the ~localized signal, kidnap recovery.
+
+The node plays map_server: it publishes the farm generator's ground-truth
+occupancy rasterised in the Home frame (the map route's convention: map origin =
+spawn pose) on /map, latched. Errors are AMCL's map -> base_link (TF) against
+/ground_truth/odom converted into the Home frame, taken while the robot stands.
+"""
+import math
+import time
+import unittest
+
+import rospy
+import rostest
+import tf2_ros
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
+from nav_msgs.msg import OccupancyGrid, Odometry
+from std_msgs.msg import Bool
+
+from cottonsim_world.farm.config import FarmConfig
+from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy, world_to_frame
+from cottonsim_world.farm.generator import generate_farm
+
+# the spawn of amcl_sim.yaml: in front of lane 2, 4.6 m before the row ends
+FARM = generate_farm(FarmConfig(spawn_x_m=-5.03, spawn_y_m=4.0, spawn_yaw_rad=math.pi / 2))
+HOME = FARM.spawn
+
+
+def yaw_of(q):
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def wrap(a):
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def wait_until(predicate, timeout_s):
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end and not rospy.is_shutdown():
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return predicate()
+
+
+class AmclTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        grid, res, origin = rasterize_occupancy(FARM, OccupancyMapConfig(), frame=HOME)
+        m = OccupancyGrid()
+        m.header.frame_id = "map"
+        m.info.resolution = res
+        m.info.height, m.info.width = grid.shape
+        m.info.origin.position.x, m.info.origin.position.y = origin[0], origin[1]
+        m.info.origin.orientation.w = 1.0
+        m.data = grid.ravel().tolist()
+        cls.map_pub = rospy.Publisher("/map", OccupancyGrid, queue_size=1, latch=True)
+        cls.map_pub.publish(m)
+        cls.truth = None
+        cls.localized = None
+        cls.localized_history = []
+        rospy.Subscriber("/ground_truth/odom", Odometry, lambda msg: setattr(cls, "truth", msg))
+        rospy.Subscriber("/amcl/localized", Bool, cls._on_localized)
+        cls.cmd = rospy.Publisher("/cmd_vel", Twist, queue_size=1)
+        cls.init_pub = rospy.Publisher("/initialpose", PoseWithCovarianceStamped, queue_size=1, latch=True)
+        cls.tf_buffer = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
+        assert wait_until(lambda: cls.truth is not None and cls.localized is not None, 90.0), \
+            "no /ground_truth/odom or /amcl/localized"
+
+    @classmethod
+    def _on_localized(cls, msg):
+        cls.localized = msg.data
+        cls.localized_history.append(msg.data)
+
+    def truth_home(self):
+        p = self.truth.pose.pose
+        x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_of(p.orientation))
+        return float(x), float(y), float(yaw)
+
+    def amcl_pose(self):
+        t = self.tf_buffer.lookup_transform("map", "base_link", rospy.Time(0), rospy.Duration(5.0))
+        tr = t.transform
+        return tr.translation.x, tr.translation.y, yaw_of(tr.rotation)
+
+    def error(self):
+        """(position error [m], heading error [rad]) of AMCL against the truth, robot standing."""
+        rospy.sleep(1.5)                          # let odometry / TF settle (sim time)
+        a, t = self.amcl_pose(), self.truth_home()
+        rospy.loginfo("amcl test: AMCL (%.3f, %.3f, %.3f), truth (%.3f, %.3f, %.3f)", *a, *t)
+        return math.hypot(a[0] - t[0], a[1] - t[1]), abs(wrap(a[2] - t[2]))
+
+    def drive(self, v, w, distance_m=None, angle_rad=None, timeout_s=120.0):
+        """Command (v, w) until the truth moved distance_m or turned angle_rad; then stop."""
+        p0 = self.truth.pose.pose
+        yaw_prev, turned = yaw_of(p0.orientation), 0.0
+        msg = Twist()
+        msg.linear.x, msg.angular.z = v, w
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end and not rospy.is_shutdown():
+            p = self.truth.pose.pose
+            yaw = yaw_of(p.orientation)
+            turned += abs(wrap(yaw - yaw_prev))
+            yaw_prev = yaw
+            if distance_m is not None and math.hypot(p.position.x - p0.position.x,
+                                                     p.position.y - p0.position.y) >= distance_m:
+                break
+            if angle_rad is not None and turned >= angle_rad:
+                break
+            self.cmd.publish(msg)
+            rospy.sleep(0.05)
+        self.cmd.publish(Twist())
+
+    def test_converges_and_recovers_from_a_kidnap(self):
+        # started at (-0.3, 0.4, 0.05) with the default 0.5 m spread while the robot stands at (0, 0, 0)
+        e0, _ = self.error()
+        self.assertGreater(e0, 0.3, "the initial error should be ~0.5 m")
+        self.assertFalse(self.localized, "localized before any motion")
+        self.drive(0.5, 0.0, distance_m=6.0)   # 1.4 m into lane 2: the hedges fix the lateral error
+        self.drive(0.0, 0.6, angle_rad=1.2)
+        self.drive(0.0, -0.6, angle_rad=1.2)
+        e_pos, e_yaw = self.error()
+        rospy.loginfo("amcl test: after 6 m error %.3f m, %.3f rad", e_pos, e_yaw)
+        self.assertLess(e_pos, 0.1)
+        self.assertLess(e_yaw, 0.05)
+        self.assertTrue(wait_until(lambda: self.localized is True, 10.0), "~localized did not turn true")
+
+        # kidnap as AMCL sees it: a confident wrong pose 3 m behind the robot
+        tx, ty, tyaw = self.truth_home()
+        kid = PoseWithCovarianceStamped()
+        kid.header.frame_id = "map"
+        kid.header.stamp = rospy.Time.now()
+        kid.pose.pose.position.x = tx - 3.0 * math.cos(tyaw)
+        kid.pose.pose.position.y = ty - 3.0 * math.sin(tyaw)
+        kid.pose.pose.orientation.z, kid.pose.pose.orientation.w = math.sin(tyaw / 2), math.cos(tyaw / 2)
+        kid.pose.covariance[0] = kid.pose.covariance[7] = 0.01
+        kid.pose.covariance[35] = 0.003
+        n_before = len(self.localized_history)
+        self.init_pub.publish(kid)
+        self.assertTrue(wait_until(lambda: self.localized is False, 10.0), "~localized stayed true after a kidnap")
+        e_kid, _ = self.error()
+        self.assertGreater(e_kid, 2.0, "the wrong initial pose was not applied")
+        # turning in place gives AMCL updates (every 0.2 rad) without leaving the open field
+        self.drive(0.0, 0.6, angle_rad=2.0 * math.pi)
+        self.drive(0.0, -0.6, angle_rad=math.pi)
+        e_pos, e_yaw = self.error()
+        rospy.loginfo("amcl test: after the kidnap error %.3f m, %.3f rad", e_pos, e_yaw)
+        self.assertLess(e_pos, 0.15)
+        self.assertLess(e_yaw, 0.08)
+        self.assertTrue(wait_until(lambda: self.localized is True, 10.0), "~localized did not return to true")
+        self.assertIn(False, self.localized_history[n_before:])
+
+
+if __name__ == "__main__":
+    rospy.init_node("check_amcl")
+    rostest.rosrun("cottonsim_navigation", "amcl_check", AmclTest)

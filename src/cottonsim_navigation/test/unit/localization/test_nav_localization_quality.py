@@ -1,0 +1,62 @@
+"""Unit tests of the AMCL localised signal (localization/quality.py) against hand-computed values."""
+import math
+
+import numpy as np
+import pytest
+
+from cottonsim_navigation.core.grid import GridSpec
+from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
+                                                       particle_spread, scan_hit_fraction)
+from cottonsim_navigation.localization.sensor_models import LikelihoodField, Scan
+
+
+def test_spread_of_two_points_and_a_known_heading_spread():
+    # two equal particles 2 m apart on x: variance 1 m^2 -> std 1 m; same heading -> 0 rad
+    std_xy, std_yaw = particle_spread(np.array([[0.0, 0.0, 0.3], [2.0, 0.0, 0.3]]))
+    assert std_xy == pytest.approx(1.0)
+    assert std_yaw == pytest.approx(0.0, abs=1e-6)
+    # headings +/-0.2 rad: mean resultant R = cos 0.2 -> sqrt(-2 ln cos 0.2)
+    _, std_yaw = particle_spread(np.array([[0.0, 0.0, 0.2], [0.0, 0.0, -0.2]]))
+    assert std_yaw == pytest.approx(math.sqrt(-2.0 * math.log(math.cos(0.2))))
+    # weights: all mass on one particle -> no spread
+    std_xy, _ = particle_spread(np.array([[0.0, 0.0, 0.0], [5.0, 5.0, 0.0]]), np.array([1.0, 0.0]))
+    assert std_xy == pytest.approx(0.0)
+
+
+def test_hit_fraction_wall_in_front():
+    # a wall (column of occupied cells) at x = 2.0 .. 2.1 m; beams straight ahead at 2.0 m hit it
+    spec = GridSpec(0.1, 40, 40, -2.0, -2.0)
+    occ = np.zeros(spec.shape, dtype=np.int8)
+    occ[:, 39] = 100                                   # cells x in [1.9, 2.0)
+    field = LikelihoodField(occ, spec)
+    scan = Scan(np.array([1.95, 1.95, 1.95, 0.5]), np.array([0.0, 0.01, -0.01, math.pi]))
+    # at the origin: 3 of 4 beams end on the wall, the backwards 0.5 m beam ends in free space
+    assert scan_hit_fraction(field, (0.0, 0.0, 0.0), scan, 0.1) == pytest.approx(0.75)
+    # shifted back by 1 m all beams end far from the wall
+    assert scan_hit_fraction(field, (-1.0, 0.0, 0.0), scan, 0.1) == pytest.approx(0.0)
+
+
+def test_monitor_hysteresis_and_kidnap():
+    cfg = LocalizationQualityConfig(switch_after=2, relocalize_after=3)
+    mon = LocalizationMonitor(cfg)
+    assert mon.update(0.05, 0.02, 0.9) is False          # one good update is not enough
+    assert mon.update(0.05, 0.02, 0.9) is True
+    assert mon.update(0.05, 0.02, 0.1) is True           # one poor fit: still localised
+    assert not mon.kidnapped
+    assert mon.update(0.05, 0.02, 0.1) is False          # two: not localised
+    assert not mon.kidnapped
+    mon.update(0.05, 0.02, 0.1)
+    assert mon.kidnapped                                  # tight but wrong three times
+    mon.reset()
+    assert not mon.kidnapped and mon.localized is False
+    mon.update(2.0, 0.5, 0.1)                             # wide spread: not a kidnap
+    mon.update(2.0, 0.5, 0.1)
+    mon.update(2.0, 0.5, 0.1)
+    assert not mon.kidnapped
+
+
+@pytest.mark.parametrize("field,value", [("max_std_xy_m", 0.0), ("min_hit_fraction", 1.5), ("switch_after", 0),
+                                         ("relocalize_after", -1), ("hit_distance_m", float("nan"))])
+def test_bad_config_names_the_parameter(field, value):
+    with pytest.raises(ValueError, match=field):
+        LocalizationQualityConfig(**{field: value})

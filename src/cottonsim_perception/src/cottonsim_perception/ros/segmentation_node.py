@@ -1,0 +1,179 @@
+"""Scene segmentation node of Cotton-Eye: plants / ground / sky masks of the front camera.
+
+Node ``segmentation`` (executable nodes/segmentation). Turns each frame of
+the front camera into per-class masks and one label image, which the row
+centring node (and rviz) consume. Two mask sources, chosen by ~mask_source:
+
+* ``network``: the trained scene segmentation network
+  (:class:`cottonsim_perception.inference.Predictor` with ~weights). Missing
+  or unreadable weights are logged as an error naming the path; the node
+  then stays up and publishes nothing (it never crashes).
+* ``ground_truth``: the simulator's semantic image: an oracle that lets
+  navigation and tests run before the network is trained and measures what
+  perfect segmentation gives.
+
+Only the newest frame is processed (queue_size 1, large buff_size): a
+slow network skips frames instead of falling behind.
+
+Subscriptions
+  /<camera>/color/image_raw            sensor_msgs/Image  rgb8 / bgr8 (network source; also the overlay's background)
+  /<camera>/ground_truth/semantic      sensor_msgs/Image  mono8 SemanticClass ids (ground_truth source)
+Publications
+  ~labels          sensor_msgs/Image  mono8: 0 plant, 1 ground, 2 sky, 3 boll, 255 unlabelled (frame and stamp of the input)
+  ~mask/plants     sensor_msgs/Image  mono8 0/255 (plant and boll pixels)
+  ~mask/ground     sensor_msgs/Image  mono8 0/255
+  ~mask/sky        sensor_msgs/Image  mono8 0/255
+  ~overlay         sensor_msgs/Image  rgb8, label colours over the camera image (only built while subscribed)
+  ~latency_ms      std_msgs/Float32   wall time from receiving a frame to publishing its masks [ms]
+Parameters (private; config/segmentation.yaml documents each)
+  ~camera (str, realsense_p), ~mask_source (str, network), ~weights (str, ''), ~device (str, cpu),
+  ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7), ~threads (int, 1), ~overlay_alpha (float, 0.5)
+TF: none.
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from typing import Optional
+
+import numpy as np
+import rospy
+from sensor_msgs.msg import Image
+from std_msgs.msg import Float32
+
+from cottonsim_world.ros import conversions as conv
+
+from cottonsim_perception.localisation import (BOLL, GROUND, PLANT, SKY, colourise_labels,
+                                               label_image_from_detections)
+
+MASK_SOURCES = ("network", "ground_truth")
+BUFF_SIZE = 1 << 24          # bytes: larger than one 640x480 rgb8 frame, so rospy keeps only the newest
+
+
+class SegmentationNode:
+    """Per-class masks and a label image of one camera (see the module docstring for the ROS API)."""
+
+    def __init__(self):
+        self.camera = str(rospy.get_param("~camera", "realsense_p"))
+        self.mask_source = str(rospy.get_param("~mask_source", "network"))
+        if self.mask_source not in MASK_SOURCES:
+            raise ValueError(f"~mask_source must be one of {MASK_SOURCES}, got '{self.mask_source}'")
+        self.overlay_alpha = float(rospy.get_param("~overlay_alpha", 0.5))
+        if not 0.0 <= self.overlay_alpha <= 1.0:
+            raise ValueError(f"~overlay_alpha must be in [0, 1], got {self.overlay_alpha}")
+        self.predictor = None
+        self.weights = str(rospy.get_param("~weights", ""))
+        if self.mask_source == "network":
+            self.predictor = self._load_predictor()
+
+        self.labels_pub = rospy.Publisher("~labels", Image, queue_size=1)
+        self.mask_pubs = {name: rospy.Publisher(f"~mask/{name}", Image, queue_size=1)
+                          for name in ("plants", "ground", "sky")}
+        self.overlay_pub = rospy.Publisher("~overlay", Image, queue_size=1)
+        self.latency_pub = rospy.Publisher("~latency_ms", Float32, queue_size=1)
+
+        self._lock = threading.Lock()
+        self._last_rgb: Optional[Image] = None
+        image_topic = f"/{self.camera}/color/image_raw"
+        if self.mask_source == "network":
+            rospy.Subscriber(image_topic, Image, self._on_image, queue_size=1, buff_size=BUFF_SIZE)
+        else:
+            rospy.Subscriber(f"/{self.camera}/ground_truth/semantic", Image, self._on_semantic,
+                             queue_size=1, buff_size=BUFF_SIZE)
+            # the camera image is only the overlay's background here
+            rospy.Subscriber(image_topic, Image, self._keep_rgb, queue_size=1, buff_size=BUFF_SIZE)
+        rospy.loginfo("segmentation: camera %s, mask source %s", self.camera, self.mask_source)
+
+    def _load_predictor(self):
+        """The network, or None (with an error naming the path) when it cannot be loaded."""
+        if not self.weights:
+            rospy.logerr("segmentation: ~mask_source is 'network' but ~weights is empty; publishing nothing")
+            return None
+        if not os.path.isfile(self.weights):
+            rospy.logerr("segmentation: weights file '%s' does not exist; publishing nothing", self.weights)
+            return None
+        try:
+            from cottonsim_perception.inference import Predictor
+            predictor = Predictor(self.weights, device=str(rospy.get_param("~device", "cpu")),
+                                  conf_threshold=float(rospy.get_param("~conf_threshold", 0.25)),
+                                  iou_threshold=float(rospy.get_param("~iou_threshold", 0.7)),
+                                  threads=int(rospy.get_param("~threads", 1)))
+        except Exception as exc:  # a bad checkpoint must not take the node down
+            rospy.logerr("segmentation: cannot load weights '%s': %s; publishing nothing", self.weights, exc)
+            return None
+        if predictor.task != "seg":
+            rospy.logerr("segmentation: weights '%s' are a '%s' model, not a segmentation model; "
+                         "publishing nothing", self.weights, predictor.task)
+            return None
+        return predictor
+
+    # ------------------------------------------------------------------ callbacks
+    def _keep_rgb(self, msg: Image):
+        with self._lock:
+            self._last_rgb = msg
+
+    def _on_image(self, msg: Image):
+        t0 = time.perf_counter()
+        self._keep_rgb(msg)
+        if self.predictor is None:
+            return
+        try:
+            rgb = conv.image_to_array(msg)
+            if rgb.ndim != 3:
+                raise ValueError(f"expected a colour image, got encoding '{msg.encoding}'")
+            dets = self.predictor.predict(rgb)
+            labels = label_image_from_detections(dets, rgb.shape[:2])
+        except ValueError as exc:
+            rospy.logwarn_throttle(5.0, f"segmentation: frame skipped: {exc}")
+            return
+        self._publish(labels, msg, t0, rgb)
+
+    def _on_semantic(self, msg: Image):
+        t0 = time.perf_counter()
+        try:
+            semantic = conv.image_to_array(msg)
+            if semantic.ndim != 2:
+                raise ValueError(f"ground-truth semantic image must be mono8, got '{msg.encoding}'")
+        except ValueError as exc:
+            rospy.logwarn_throttle(5.0, f"segmentation: ground-truth frame skipped: {exc}")
+            return
+        labels = np.where(semantic <= BOLL, semantic, 255).astype(np.uint8)
+        self._publish(labels, msg, t0, None)
+
+    def _publish(self, labels: np.ndarray, src: Image, t0: float, rgb: Optional[np.ndarray]):
+        stamp, frame = src.header.stamp, src.header.frame_id
+        self.labels_pub.publish(conv.image_msg(labels, stamp, frame))
+        plants = (labels == PLANT) | (labels == BOLL)
+        for name, m in (("plants", plants), ("ground", labels == GROUND), ("sky", labels == SKY)):
+            if self.mask_pubs[name].get_num_connections():
+                self.mask_pubs[name].publish(conv.image_msg(m.astype(np.uint8) * 255, stamp, frame))
+        latency_ms = 1e3 * (time.perf_counter() - t0)
+        self.latency_pub.publish(Float32(data=latency_ms))
+        rospy.logdebug("segmentation: frame %.3f done in %.1f ms", stamp.to_sec(), latency_ms)
+        if self.overlay_pub.get_num_connections():
+            self._publish_overlay(labels, stamp, frame, rgb)
+
+    def _publish_overlay(self, labels, stamp, frame, rgb):
+        if rgb is None:
+            with self._lock:
+                last = self._last_rgb
+            if last is not None:
+                try:
+                    rgb = conv.image_to_array(last)
+                except ValueError:
+                    rgb = None
+        if rgb is not None and rgb.shape[:2] != labels.shape:
+            rgb = None
+        overlay = colourise_labels(labels, rgb, self.overlay_alpha) if rgb is not None else colourise_labels(labels)
+        self.overlay_pub.publish(conv.image_msg(overlay, stamp, frame))
+
+
+def main():
+    rospy.init_node("segmentation")
+    try:
+        SegmentationNode()
+    except ValueError as exc:
+        rospy.logfatal(f"segmentation: {exc}")
+        raise SystemExit(2)
+    rospy.spin()
