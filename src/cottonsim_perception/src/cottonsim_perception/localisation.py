@@ -147,12 +147,18 @@ class BollLocalisationConfig:
         not pulled by leaves or ground at the box's corners [-] (0 = whole box).
     min_depth_m / max_depth_m: cloud points outside this depth range (z in
         the optical frame) are ignored [m] (D435: 0.105 m minimum).
+    front_depth_m: only points at most this far behind the box's near
+        surface (its 10th-percentile depth) are used [m]; a boll is the
+        nearest thing in its box, and the points that fall into the box
+        through gaps (leaves, the next row, the ground behind) would pull a
+        plain median away from it (measured: bolls placed between two rows).
     """
 
     min_points: int = 3
     box_shrink_fraction: float = 0.15
     min_depth_m: float = 0.105
     max_depth_m: float = 4.0
+    front_depth_m: float = 0.15
 
     def __post_init__(self) -> None:
         if isinstance(self.min_points, bool) or not isinstance(self.min_points, (int, np.integer)) \
@@ -161,7 +167,7 @@ class BollLocalisationConfig:
         if not (isinstance(self.box_shrink_fraction, (int, float)) and 0.0 <= self.box_shrink_fraction < 0.5):
             raise ValueError("BollLocalisationConfig.box_shrink_fraction must be in [0, 0.5), "
                              f"got {self.box_shrink_fraction!r}")
-        for name in ("min_depth_m", "max_depth_m"):
+        for name in ("min_depth_m", "max_depth_m", "front_depth_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"BollLocalisationConfig.{name} must be a finite number >= 0, got {v!r}")
@@ -191,6 +197,7 @@ def localise_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[fl
     matched to boxes by projecting them with ``k``, so a decimated or
     unorganised cloud works as well as an organised one); k: the 3x3 camera
     matrix (9 numbers, row-major, CameraInfo.K).
+    Only the points near the box's front surface count (``front_depth_m``).
     Returns (positions (N, 3) float64 [m] in the optical frame, NaN where
     a box holds fewer than ``min_points`` points; valid (N,) bool).
     """
@@ -213,8 +220,12 @@ def localise_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[fl
     for i, (x0, y0, x1, y1) in enumerate(boxes):
         dx, dy = s * (x1 - x0), s * (y1 - y0)
         inside = (uv[:, 0] >= x0 + dx) & (uv[:, 0] < x1 - dx) & (uv[:, 1] >= y0 + dy) & (uv[:, 1] < y1 - dy)
-        if int(inside.sum()) >= config.min_points:
-            positions[i] = np.median(pts[inside], axis=0)
+        if int(inside.sum()) < config.min_points:
+            continue
+        box_pts = pts[inside]
+        near = box_pts[:, 2] <= np.percentile(box_pts[:, 2], 10.0) + config.front_depth_m
+        if int(near.sum()) >= config.min_points:
+            positions[i] = np.median(box_pts[near], axis=0)
             valid[i] = True
     return positions, valid
 

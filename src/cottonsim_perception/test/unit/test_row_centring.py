@@ -157,3 +157,34 @@ def test_overlay_draws_without_changing_the_input():
     assert ((ring[..., 0] > 200) & (ring[..., 1] < 60) & (ring[..., 2] > 200)).any()
     bad = compute_row_centring(None, None)
     assert draw_row_centring(img, bad).shape == img.shape
+
+
+def test_trace_strip_keeps_the_lane_strip_only():
+    from cottonsim_perception.row_centring import trace_strip
+    m = np.zeros((10, 20), bool)
+    m[5:, :] = True             # near ground: full width
+    m[2:5, 8:12] = True         # the lane's strip narrowing upwards
+    m[1:4, 16:19] = True        # ground seen in a gap of the next row: not connected to the strip
+    strip = trace_strip(m, from_bottom=True)
+    assert strip[2:5, 8:12].all() and strip[5:].all()
+    assert not strip[1:4, 16:19].any()
+    sky = np.zeros((10, 20), bool)
+    sky[0, :] = True
+    sky[1:3, 5:9] = True
+    sky[1:3, 12:14] = True      # a second, narrower gap: the one with more overlap wins
+    assert trace_strip(sky, from_bottom=False)[1:3, 5:9].all()
+    assert not trace_strip(sky, from_bottom=False)[1:3, 12:14].any()
+
+
+def test_tracing_removes_the_bias_of_gaps_in_neighbouring_rows():
+    # a centred V plus ground/sky seen in gaps far to the right (the open side of the field)
+    g, s = scene(320.0)
+    g2, s2 = g.copy(), s.copy()
+    g2[195:215, 560:600] = True                # above the ground's tip (y = 200)
+    s2[190:200, 560:600] = True                # below the sky's tip (y = 194)
+    traced = compute_row_centring(g2, s2)
+    plain = compute_row_centring(g2, s2, RowCentringConfig(trace_strips=False))
+    assert traced.intersection_px[0] == pytest.approx(320.0, abs=1.0)
+    assert abs(plain.intersection_px[0] - 320.0) > 5.0
+    with pytest.raises(ValueError, match="trace_strips"):
+        RowCentringConfig(trace_strips="yes")

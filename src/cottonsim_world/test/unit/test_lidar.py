@@ -1,4 +1,4 @@
-"""Tests of the VLP-16 ray caster and the PassThrough / LaserScan filters."""
+"""Tests of the VLP-16 ray caster (both backends) and the PassThrough / LaserScan filters."""
 import math
 
 import numpy as np
@@ -20,14 +20,20 @@ def wall_farm(distance_m):
     return Farm(None, [Plant(7, 0, 0, distance_m, 0.0, 0.0, model)], [], Pose2D(0.0, 0.0, 0.0))
 
 
+@pytest.fixture(params=("numba", "pybullet"))
+def backend(request):
+    """Each geometric check runs with the numba grid caster and with pybullet's rayTestBatch."""
+    return request.param
+
+
 def sensor_at(z):
     t = np.eye(4)
     t[2, 3] = z
     return t
 
 
-def test_wall_at_known_distance_on_every_ring():
-    cfg = LidarConfig(samples_per_ring=360, noise_std_m=0.0)
+def test_wall_at_known_distance_on_every_ring(backend):
+    cfg = LidarConfig(samples_per_ring=360, noise_std_m=0.0, backend=backend)
     with SensorScene(wall_farm(5.0)) as scene:
         scan = Vlp16Model(scene, cfg).scan(sensor_at(3.0))
     ahead = np.abs(scan.azimuth_rad) < 1e-6                  # the azimuth-0 sample of each ring
@@ -41,8 +47,8 @@ def test_wall_at_known_distance_on_every_ring():
     assert scan.intensity.dtype == np.float32 and len(scan.intensity) == len(scan.points)
 
 
-def test_ring_elevations_and_ground_ranges():
-    cfg = LidarConfig(samples_per_ring=90, noise_std_m=0.0)
+def test_ring_elevations_and_ground_ranges(backend):
+    cfg = LidarConfig(samples_per_ring=90, noise_std_m=0.0, backend=backend)
     np.testing.assert_allclose(np.degrees(cfg.ring_elevations_rad()), np.arange(-15, 16, 2), atol=1e-9)
     h = 1.0
     with SensorScene(wall_farm(1000.0)) as scene:          # the wall is out of range: ground only
@@ -57,14 +63,15 @@ def test_ring_elevations_and_ground_ranges():
     assert len(scan.points) == 8 * 90
 
 
-def test_range_limits_and_noise():
+def test_range_limits_and_noise(backend):
     with SensorScene(wall_farm(5.0)) as scene:
-        far_only = Vlp16Model(scene, LidarConfig(samples_per_ring=90, max_range_m=4.0)).scan(sensor_at(3.0))
-        assert len(far_only.points) == 0                      # wall at >= 5 m, ground at >= 11.6 m
-        near_cut = Vlp16Model(scene, LidarConfig(samples_per_ring=90, min_range_m=6.0, noise_std_m=0.0)
+        far_only = Vlp16Model(scene, LidarConfig(samples_per_ring=90, max_range_m=4.0, backend=backend)
                               ).scan(sensor_at(3.0))
-        assert np.all(np.linalg.norm(near_cut.points, axis=1) >= 6.0)
-        cfg = LidarConfig(samples_per_ring=720, noise_std_m=0.05, seed=3)
+        assert len(far_only.points) == 0                      # wall at >= 5 m, ground at >= 11.6 m
+        near_cut = Vlp16Model(scene, LidarConfig(samples_per_ring=90, min_range_m=6.0, noise_std_m=0.0,
+                                                 backend=backend)).scan(sensor_at(3.0))
+        assert len(near_cut.points) > 0 and np.all(np.linalg.norm(near_cut.points, axis=1) >= 6.0)
+        cfg = LidarConfig(samples_per_ring=720, noise_std_m=0.05, seed=3, backend=backend)
         a = Vlp16Model(scene, cfg).scan(sensor_at(3.0))
         b = Vlp16Model(scene, cfg).scan(sensor_at(3.0))
     np.testing.assert_array_equal(a.points, b.points)         # same seed, same scan
@@ -80,7 +87,10 @@ def test_primitive_collision_canopy_is_hit():
     model = standin_plant_model(seed=0, bolls=0)               # canopy cylinder radius 0.35 m, 0.25-1.0 m
     farm = Farm(None, [Plant(0, 0, 0, 3.0, 0.0, 0.0, model)], [], Pose2D(0.0, 0.0, 0.0))
     with SensorScene(farm, SceneConfig(collision_source="primitives")) as scene:
-        scan = Vlp16Model(scene, LidarConfig(samples_per_ring=360, noise_std_m=0.0)).scan(sensor_at(0.6))
+        scan = Vlp16Model(scene, LidarConfig(samples_per_ring=360, noise_std_m=0.0, backend="pybullet")
+                          ).scan(sensor_at(0.6))
+        with pytest.raises(ValueError, match="collision_source"):    # numba casts against meshes only
+            Vlp16Model(scene, LidarConfig(samples_per_ring=8, backend="numba"))
     ahead = (np.abs(scan.azimuth_rad) < 1e-6) & (scan.ring == 7)   # -1 deg ring, straight ahead
     assert ahead.sum() == 1
     assert scan.points[ahead, 0][0] == pytest.approx(3.0 - 0.35, abs=1e-3)
@@ -128,6 +138,10 @@ def test_lidar_config_validation():
         LidarConfig(samples_per_ring=0)
     with pytest.raises(ValueError, match="min_range_m"):
         LidarConfig(min_range_m=200.0)
+    with pytest.raises(ValueError, match="backend.*numba.*pybullet"):
+        LidarConfig(backend="optix")
     with SensorScene(wall_farm(5.0)) as scene:
         with pytest.raises(ValueError, match="world_T_sensor"):
             Vlp16Model(scene, LidarConfig(samples_per_ring=8)).scan(np.full((4, 4), np.nan))
+        with pytest.raises(ValueError, match="world_T_sensor"):
+            Vlp16Model(scene, LidarConfig(samples_per_ring=8, backend="pybullet")).scan(np.eye(3))

@@ -6,13 +6,27 @@ the distance driven and the angle turned. This is the ``diff`` model of ROS
 amcl, which is Probabilistic Robotics' ``sample_motion_model_odometry``
 (Table 5.6): the odometry increment between two odometry poses is split into
 a first rotation ``rot1`` (towards the direction of travel), a translation
-``trans`` and a second rotation ``rot2``; each part is perturbed with a
-zero-mean Gaussian whose variance is
+``trans`` and a second rotation ``rot2``; each part is perturbed with
+zero-mean Gaussian noise built from
 
-    rot1, rot2:  alpha1 * rot^2   + alpha2 * trans^2
-    trans:       alpha3 * trans^2 + alpha4 * (rot1^2 + rot2^2)
+    rot1, rot2:  q_rot   = alpha1 * rot^2   + alpha2 * trans^2
+    trans:       q_trans = alpha3 * trans^2 + alpha4 * (rot1^2 + rot2^2)
 
 and the perturbed increment is applied to every particle in its own frame.
+
+Two ways of turning q into noise exist in ROS amcl (``odom_model_type``):
+
+* ``"diff"`` (amcl's original model, the one the original CottonSim and the
+  Husky configuration use): q is passed to the Gaussian sampler as the
+  *standard deviation* [rad or m]. For the 0.25 m filter step of the original
+  (alpha 0.2) that is a heading noise of 0.0125 rad per step.
+* ``"diff-corrected"`` (Probabilistic Robotics, amcl's bug-fixed model): q is
+  the *variance*, the noise's standard deviation is sqrt(q). With alpha 0.2 the
+  same 0.25 m step gets 0.11 rad of heading noise, nine times more; the
+  original's alphas were tuned for ``"diff"``. Using them with the corrected
+  form spread AMCL's particles faster than a crop-row scan can pull them
+  together (the particle set never converged in the farm).
+
 As in ROS amcl, the rotation noise of a backwards step uses the rotation
 angle folded to the nearest of 0 and pi (driving backwards is not a 180 deg
 turn), and for steps below 1 cm ``rot1`` is 0 (the direction of a tiny step
@@ -35,6 +49,9 @@ from ..core.geometry import normalize_angle
 # Below this translation [m] the heading of the step is not meaningful (ROS amcl: 0.01 m).
 MIN_TRANSLATION_FOR_HEADING_M = 0.01
 
+# odom_model_type values (see the module docstring).
+MOTION_MODELS = ("diff", "diff-corrected")
+
 
 @dataclass(frozen=True)
 class OdometryMotionModelConfig:
@@ -44,7 +61,9 @@ class OdometryMotionModelConfig:
     alpha2: rotation noise from translation [rad^2 / m^2];
     alpha3: translation noise from translation [m^2 / m^2];
     alpha4: translation noise from rotation [m^2 / rad^2];
-    alpha5: translation noise of the omni model (unused by the diff model).
+    alpha5: translation noise of the omni model (unused by the diff model);
+    model: "diff" (ROS amcl's original sampling: the alpha expression is the noise's standard
+        deviation; the original's odom_model_type) or "diff-corrected" (it is the variance).
     """
 
     alpha1: float = 0.2
@@ -52,6 +71,7 @@ class OdometryMotionModelConfig:
     alpha3: float = 0.2
     alpha4: float = 0.2
     alpha5: float = 0.1
+    model: str = "diff"
 
     def __post_init__(self) -> None:
         for name in ("alpha1", "alpha2", "alpha3", "alpha4", "alpha5"):
@@ -59,6 +79,12 @@ class OdometryMotionModelConfig:
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or not math.isfinite(value) or value < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.model not in MOTION_MODELS:
+            raise ValueError(f"model must be one of {MOTION_MODELS}, got {self.model!r}")
+
+    def noise_sd(self, q: float) -> float:
+        """Standard deviation of the noise for the alpha expression ``q`` (see the module docstring)."""
+        return q if self.model == "diff" else math.sqrt(q)
 
 
 def _as_pose_array(pose, name: str) -> np.ndarray:
@@ -110,9 +136,9 @@ def sample_motion_model_odometry(particles: np.ndarray, odom_prev, odom_now,
     rot1_noise = min(abs(normalize_angle(rot1)), abs(normalize_angle(rot1 - math.pi)))
     rot2_noise = min(abs(normalize_angle(rot2)), abs(normalize_angle(rot2 - math.pi)))
     a = config
-    sd_rot1 = math.sqrt(a.alpha1 * rot1_noise ** 2 + a.alpha2 * trans ** 2)
-    sd_trans = math.sqrt(a.alpha3 * trans ** 2 + a.alpha4 * (rot1_noise ** 2 + rot2_noise ** 2))
-    sd_rot2 = math.sqrt(a.alpha1 * rot2_noise ** 2 + a.alpha2 * trans ** 2)
+    sd_rot1 = a.noise_sd(a.alpha1 * rot1_noise ** 2 + a.alpha2 * trans ** 2)
+    sd_trans = a.noise_sd(a.alpha3 * trans ** 2 + a.alpha4 * (rot1_noise ** 2 + rot2_noise ** 2))
+    sd_rot2 = a.noise_sd(a.alpha1 * rot2_noise ** 2 + a.alpha2 * trans ** 2)
     n = parts.shape[0]
     r1 = rot1 - sd_rot1 * rng.standard_normal(n)
     tr = trans - sd_trans * rng.standard_normal(n)

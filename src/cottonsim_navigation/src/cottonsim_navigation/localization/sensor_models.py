@@ -133,6 +133,10 @@ def subsample_indices(n_beams: int, max_beams: int) -> np.ndarray:
     return np.unique(np.round(np.arange(max_beams) * step).astype(np.int64))
 
 
+# laser_model_type values (see LikelihoodFieldConfig).
+LASER_MODELS = ("likelihood_field", "likelihood_field_prob")
+
+
 @dataclass(frozen=True)
 class LikelihoodFieldConfig:
     """Likelihood-field laser model (ROS amcl names; defaults = the original's values).
@@ -142,7 +146,12 @@ class LikelihoodFieldConfig:
     likelihood_max_dist_m: distance-map clip [m] (laser_likelihood_max_dist);
     max_beams: beams used per update (laser_max_beams);
     max_range_m: maximum usable range [m] (laser_max_range); also the uniform's width;
-    min_range_m: beams shorter than this are ignored [m] (laser_min_range; amcl's -1 = sensor's min -> 0).
+    min_range_m: beams shorter than this are ignored [m] (laser_min_range; amcl's -1 = sensor's min -> 0);
+    model: how beams combine into a particle's weight (laser_model_type):
+        "likelihood_field" (the original's): 1 + sum(pz^3), amcl's ad-hoc, very flat sum;
+        "likelihood_field_prob": prod(pz), the textbook likelihood field (amcl's likelihood_field_prob
+        without beam skipping). Much sharper: in the farm the flat sum leaves the along-row position
+        wandering by 0.1-0.3 m (a 0.1 m shift changes the sum by ~3 %), the product pins it to a few cm.
     """
 
     z_hit: float = 0.5
@@ -152,8 +161,11 @@ class LikelihoodFieldConfig:
     max_beams: int = 60
     max_range_m: float = 12.0
     min_range_m: float = 0.0
+    model: str = "likelihood_field"
 
     def __post_init__(self) -> None:
+        if self.model not in LASER_MODELS:
+            raise ValueError(f"model must be one of {LASER_MODELS}, got {self.model!r}")
         for name in ("z_hit", "z_rand"):
             value = _finite_number(getattr(self, name), name)
             if value < 0:
@@ -184,8 +196,8 @@ def validate_occupancy(occupancy, spec: GridSpec) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _likelihood_weights(particles, bx, by, pz_map, ox, oy, res, pz_outside):
-    """ROS amcl likelihood field: 1 + sum(pz^3) for each particle (numba kernel)."""
+def _likelihood_weights(particles, bx, by, pz_map, ox, oy, res, pz_outside, product):
+    """Per-particle weight: 1 + sum(pz^3) (amcl likelihood_field) or prod(pz) (likelihood_field_prob)."""
     n = particles.shape[0]
     h, w = pz_map.shape
     out = np.empty(n)
@@ -196,6 +208,7 @@ def _likelihood_weights(particles, bx, by, pz_map, ox, oy, res, pz_outside):
         c = math.cos(particles[i, 2])
         s = math.sin(particles[i, 2])
         p = 1.0
+        log_p = 0.0
         for j in range(bx.shape[0]):
             wx = x + c * bx[j] - s * by[j]
             wy = y + s * bx[j] + c * by[j]
@@ -205,8 +218,11 @@ def _likelihood_weights(particles, bx, by, pz_map, ox, oy, res, pz_outside):
                 pz = pz_map[my, mx]
             else:
                 pz = pz_outside
-            p += pz * pz * pz
-        out[i] = p
+            if product:
+                log_p = log_p + math.log(pz) if pz > 0.0 else -math.inf
+            else:
+                p += pz * pz * pz
+        out[i] = math.exp(log_p) if product else p
     return out
 
 
@@ -263,7 +279,8 @@ class LikelihoodField:
         pts = self.select_beams(scan)
         return _likelihood_weights(parts, np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
                                    self.pz_map, self.spec.origin_x_m, self.spec.origin_y_m,
-                                   self.spec.resolution_m, self.pz_outside)
+                                   self.spec.resolution_m, self.pz_outside,
+                                   self.config.model == "likelihood_field_prob")
 
 
 @njit(cache=True, nogil=True)

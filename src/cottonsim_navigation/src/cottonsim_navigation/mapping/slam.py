@@ -146,7 +146,9 @@ class SlamConfig:
 
     def motion_config(self) -> OdometryMotionModelConfig:
         """gmapping's noise as the alpha model: rot<-rot stt^2, rot<-trans str^2, trans<-trans srr^2, trans<-rot srt^2."""
-        return OdometryMotionModelConfig(self.stt ** 2, self.str_ ** 2, self.srr ** 2, self.srt ** 2)
+        # gmapping's s* are standard deviations per unit: the variance form ("diff-corrected") with alpha = s^2
+        return OdometryMotionModelConfig(self.stt ** 2, self.str_ ** 2, self.srr ** 2, self.srt ** 2,
+                                         model="diff-corrected")
 
     def map_spec(self) -> GridSpec:
         """The whole map extent as a grid (cells are allocated lazily in tiles)."""

@@ -19,7 +19,7 @@ def test_motion_model_straight_line_statistics():
     # 1 m straight ahead: rot1 = rot2 = 0, trans = 1.
     # yaw = rot1' + rot2', each with variance alpha2 * 1  -> var(yaw) = 2 alpha2
     # trans' variance alpha3 * 1; x ~ trans', y ~ trans' * rot1' -> var(y) ~ alpha2
-    cfg = OdometryMotionModelConfig(alpha1=0.5, alpha2=0.01, alpha3=0.04, alpha4=0.3)
+    cfg = OdometryMotionModelConfig(alpha1=0.5, alpha2=0.01, alpha3=0.04, alpha4=0.3, model="diff-corrected")
     rng = np.random.default_rng(0)
     parts = np.zeros((200000, 3))
     out = sample_motion_model_odometry(parts, (0, 0, 0), (1.0, 0, 0), cfg, rng)
@@ -33,7 +33,7 @@ def test_motion_model_straight_line_statistics():
 def test_motion_model_pure_rotation_and_frames():
     # pi/2 turn on the spot: trans < 1 cm -> rot1 = 0, rot2 = pi/2;
     # var(yaw) = alpha1 (pi/2)^2, var(trans) = alpha4 (pi/2)^2
-    cfg = OdometryMotionModelConfig(alpha1=0.04, alpha2=0.5, alpha3=0.5, alpha4=0.01)
+    cfg = OdometryMotionModelConfig(alpha1=0.04, alpha2=0.5, alpha3=0.5, alpha4=0.01, model="diff-corrected")
     rng = np.random.default_rng(1)
     out = sample_motion_model_odometry(np.tile([2.0, 3.0, 1.0], (100000, 1)), (5, 5, 0), (5, 5, math.pi / 2),
                                        cfg, rng)
@@ -54,6 +54,24 @@ def test_motion_model_pure_rotation_and_frames():
         OdometryMotionModelConfig(alpha3=-1)
     with pytest.raises(ValueError, match="odom_now"):
         sample_motion_model_odometry(np.zeros((2, 3)), (0, 0, 0), (float("nan"), 0, 0))
+
+
+def test_motion_model_diff_uses_the_alpha_expression_as_sd():
+    # ROS amcl's "diff" model (the original's): q = alpha1 rot^2 + alpha2 trans^2 is the standard deviation.
+    # A 0.25 m step with alpha 0.2: sd(rot1) = sd(rot2) = 0.2 * 0.0625 = 0.0125 rad -> sd(yaw) = 0.0125 sqrt(2);
+    # sd(trans) = 0.2 * 0.0625 = 0.0125 m. The corrected form would give sqrt(0.0125) = 0.112 rad.
+    cfg = OdometryMotionModelConfig(0.2, 0.2, 0.2, 0.2)
+    assert cfg.model == "diff"
+    out = sample_motion_model_odometry(np.zeros((200000, 3)), (0, 0, 0), (0.25, 0, 0), cfg,
+                                       np.random.default_rng(4))
+    assert out[:, 2].std() == pytest.approx(0.0125 * math.sqrt(2), rel=0.03)
+    assert out[:, 0].std() == pytest.approx(0.0125, rel=0.03)
+    corrected = sample_motion_model_odometry(np.zeros((200000, 3)), (0, 0, 0), (0.25, 0, 0),
+                                             OdometryMotionModelConfig(0.2, 0.2, 0.2, 0.2, model="diff-corrected"),
+                                             np.random.default_rng(4))
+    assert corrected[:, 2].std() == pytest.approx(math.sqrt(0.2 * 0.0625 * 2), rel=0.03)
+    with pytest.raises(ValueError, match="model"):
+        OdometryMotionModelConfig(model="omni")
 
 
 def test_likelihood_field_values_at_known_distances():

@@ -147,8 +147,8 @@ class LabelConfig:
     """
 
     polygon_epsilon_px: float = 0.3
-    min_region_area_px: float = 4.0
-    min_hole_area_px: float = 1.0
+    min_region_area_px: float = 0.1
+    min_hole_area_px: float = 0.1
     boll_extent_factor: float = 1.5
     boll_depth_tolerance_m: float = 0.03
     min_boll_box_px: float = 4.0
@@ -696,7 +696,7 @@ def _holes(mask: np.ndarray) -> np.ndarray:
     return bg[1:-1, 1:-1].astype(bool)
 
 
-def mask_to_label_polygons(mask: np.ndarray, epsilon_px: float = 0.3, min_area_px: float = 4.0,
+def mask_to_label_polygons(mask: np.ndarray, epsilon_px: float = 0.3, min_area_px: float = 0.1,
                            min_hole_area_px: Optional[float] = None) -> List[np.ndarray]:
     """YOLO polygons [px, pixel edges] of a class mask: one per connected region, holes cut in.
 
@@ -1074,7 +1074,7 @@ def render_farm_job(config: DatasetConfig, job: FarmJob,
     return records
 
 
-# -- worker processes (spawned: pybullet / numba state is not fork-safe)
+# -- worker processes
 _COUNTER = None
 
 
@@ -1170,7 +1170,9 @@ def generate_dataset(config: DatasetConfig, progress: bool = True) -> DatasetSum
         for job in jobs:
             records.extend(render_farm_job(config, job, tick))
     else:
-        ctx = mp.get_context("spawn")
+        # fork: no re-import of __main__ (a script without a main guard would respawn workers forever);
+        # the parent has made no pybullet client or numba thread pool yet
+        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         counter = ctx.Value("i", 0)
         with ctx.Pool(min(config.workers, len(jobs)), initializer=_init_worker, initargs=(counter,)) as pool:
             pending = [pool.apply_async(_worker, ((config, job),)) for job in jobs]

@@ -274,9 +274,9 @@ class CameraModel:
         trans = -rot @ pose[:3, 3]
         intr = self._intr
         _draw_plants(visible, inst.plant_model, inst.plant_pose, inst.plant_gbase, inst.model_vbase,
-                     inst.model_vcount, inst.model_fbase, inst.model_fcount, inst.model_verts, inst.model_faces,
-                     rot, trans, intr.fx, intr.fy, intr.cx, intr.cy, cfg.near_m, cfg.far_m, True,
-                     fb.zbuf, fb.ibuf, fb.scratch)
+                     inst.model_vcount, inst.draw_base, inst.draw_count, inst.model_verts, inst.draw_faces,
+                     inst.draw_local, inst.draw_twin, rot, trans, intr.fx, intr.fy, intr.cx, intr.cy,
+                     cfg.near_m, cfg.far_m, fb.zbuf, fb.ibuf, fb.scratch)
         rgb = np.empty((cfg.height, cfg.width, 3), np.uint8)
         depth = np.empty((cfg.height, cfg.width), np.float32)
         semantic = np.empty((cfg.height, cfg.width), np.uint8)

@@ -1,11 +1,18 @@
-"""The static world as the exteroceptive sensors see it (pybullet, DIRECT mode).
+"""The static world as the exteroceptive sensors see it.
 
 Why this module exists
 ----------------------
-Cameras and the LiDAR need the farm in a form pybullet can render and ray
-cast, separate from the ODE dynamics. ``SensorScene`` builds that form once:
+Cameras and the LiDAR need the farm in a form they can render and ray cast,
+separate from the ODE dynamics. ``SensorScene`` holds the farm and builds,
+each on first use (so that only the backends in use pay for them):
 
-* a **ray-cast client**: an infinite ground plane plus, per plant, one body
+* ``fast_plants`` / ``fast_grid``: the flat arrays of the numba backends
+  (``sensors.fast.geometry``: instanced plant meshes for the rasteriser,
+  a bricked triangle grid for the ray caster);
+* the pybullet structures below (the ray-cast world takes 4-6 s to build
+  on the default farm).
+
+* a **ray-cast client** (``ray_client``): an infinite ground plane plus, per plant, one body
   for the plant parts (stem, leaves, ...) and one for its bolls, made of
   collision shapes (the models' triangle meshes, or their collision
   primitives). ``body_info`` maps each body id to (SemanticClass, plant_id).
@@ -249,7 +256,8 @@ class SensorScene:
 
     Build once per farm: ``scene = SensorScene(farm, SceneConfig())``, then
     hand it to ``CameraModel`` and ``Vlp16Model``. ``close()`` frees the
-    pybullet clients (also done by the context manager).
+    pybullet clients and the numba arrays (also done by the context
+    manager); a closed scene raises RuntimeError when a sensor needs it.
     """
 
     def __init__(self, farm: Farm, config: SceneConfig = SceneConfig()) -> None:

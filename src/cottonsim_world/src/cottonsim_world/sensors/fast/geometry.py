@@ -73,7 +73,10 @@ class InstancedPlants:
     plant_model (P,) int64; plant_pose (P, 4) float64 = x [m], y [m],
     cos(yaw), sin(yaw); plant_gbase (P,) int64 first global triangle id;
     g_rgb (G, 3) uint8 shaded colour; g_semantic (G,) uint8; g_plant (G,)
-    int32 plant id.
+    int32 plant id. Draw list (what the rasteriser loops over):
+    draw_base/draw_count (M,) int64; draw_faces (sum, 3) int32 like
+    model_faces; draw_local (sum,) int32 the face's index in its model;
+    draw_twin (sum,) int32 the index of its reverse-wound twin or -1.
     """
 
     def __init__(self, plants: Sequence[Plant], sun_direction: np.ndarray, ambient: float, diffuse: float,
@@ -102,6 +105,22 @@ class InstancedPlants:
             self.model_verts = np.zeros((0, 3))
             self.model_faces = np.zeros((0, 3), np.int32)
         self.max_model_verts = int(self.model_vcount.max()) if m else 0
+        # draw list: a face and its reverse-wound twin (two-sided leaves) are drawn as one triangle
+        # that takes the twin's id when seen from behind; faces without a twin are culled from behind
+        draw_faces, draw_local, draw_twin, draw_count = [], [], [], []
+        for k, a in enumerate(per_model):
+            first, twin = _pair_reversed_faces(a[1])
+            draw_faces.append(a[1][first] + self.model_vbase[k])
+            draw_local.append(first)
+            draw_twin.append(twin)
+            draw_count.append(len(first))
+        self.draw_count = np.array(draw_count, dtype=np.int64)
+        self.draw_base = np.concatenate([[0], np.cumsum(self.draw_count)[:-1]]).astype(np.int64) if m else \
+            np.zeros(0, np.int64)
+        self.draw_faces = np.ascontiguousarray(np.concatenate(draw_faces), dtype=np.int32) if m else \
+            np.zeros((0, 3), np.int32)
+        self.draw_local = np.concatenate(draw_local).astype(np.int32) if m else np.zeros(0, np.int32)
+        self.draw_twin = np.concatenate(draw_twin).astype(np.int32) if m else np.zeros(0, np.int32)
         self.plant_model = plant_model
         self.plant_ids = np.array([p.plant_id for p in plants], dtype=np.int32)
         yaw = np.array([p.yaw_rad for p in plants], dtype=np.float64)
@@ -163,6 +182,31 @@ class InstancedPlants:
         if not tris:
             return np.zeros((0, 3, 3)), np.zeros(0, np.int32)
         return np.concatenate(tris), np.concatenate(ids).astype(np.int32)
+
+
+def _pair_reversed_faces(faces: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Faces to draw and, per drawn face, the index of its reverse-wound twin (-1 if none)."""
+    if len(faces) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    # a cyclic rotation that starts at the smallest index identifies a winding; its reverse is the twin
+    rot = np.argmin(faces, axis=1)
+    idx = np.arange(len(faces))
+    fwd = np.stack([faces[idx, rot], faces[idx, (rot + 1) % 3], faces[idx, (rot + 2) % 3]], axis=1)
+    rev = fwd[:, [0, 2, 1]]
+    lookup = {tuple(f): i for i, f in enumerate(fwd.tolist())}
+    first, twin, used = [], [], np.zeros(len(faces), bool)
+    for i in range(len(faces)):
+        if used[i]:
+            continue
+        j = lookup.get(tuple(rev[i].tolist()), -1)
+        if j >= 0 and (used[j] or j == i):
+            j = -1
+        used[i] = True
+        if j >= 0:
+            used[j] = True
+        first.append(i)
+        twin.append(j)
+    return np.array(first, np.int64), np.array(twin, np.int64)
 
 
 def _first_of_each_face(faces: np.ndarray) -> np.ndarray:

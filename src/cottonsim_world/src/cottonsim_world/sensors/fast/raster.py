@@ -11,8 +11,8 @@ How a frame is made (``FastRasterCamera.render``):
 2. ``_draw_plants`` (parallel): each worker thread takes every n-th visible
    plant, moves the plant's model vertices into the optical frame (one 3x4
    transform per plant), drops back faces (counter-clockwise faces seen
-   from behind, the culling TinyRenderer does; the farm's leaves are
-   two-sided meshes), clips faces that cross the near plane (a face with
+   from behind, the culling TinyRenderer does; a two-sided leaf's pair of
+   faces is drawn once, with the id of the side that faces the camera), clips faces that cross the near plane (a face with
    corners on both sides becomes one or two triangles) and rasterises them
    into its *own* buffers of inverse depth 1/z and global triangle id. Own
    buffers per thread mean no write races; 1/z is affine in the pixel
@@ -135,10 +135,13 @@ def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max
 
 
 @njit(parallel=True, cache=True)
-def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, model_vcount, model_fbase,
-                 model_fcount, model_verts, model_faces, rot, trans, fx, fy, cx, cy, near, far, cull_back,
+def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, model_vcount, draw_base,
+                 draw_count, model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
                  zbuf, ibuf, scratch):  # pragma: no cover
     """Rasterise the visible plants into per-thread buffers zbuf/ibuf (T, H, W).
+
+    A face seen from behind is skipped unless it has a reverse-wound twin
+    (two-sided leaf), whose id it then takes (see ``InstancedPlants``).
 
     rot (3, 3), trans (3,): optical_T_world. scratch (T, max verts, 6) holds
     each thread's transformed vertices (x, y, z, u, v, 1/z).
@@ -177,26 +180,29 @@ def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, mod
                     sc[i, 3] = fx * x * iz + cx
                     sc[i, 4] = fy * y * iz + cy
                     sc[i, 5] = iz
-            fb = model_fbase[m]
+            fb = draw_base[m]
             gb = plant_gbase[p]
-            for f in range(model_fcount[m]):
-                ia = model_faces[fb + f, 0] - vb
-                ib_ = model_faces[fb + f, 1] - vb
-                ic = model_faces[fb + f, 2] - vb
+            for f in range(draw_count[m]):
+                ia = draw_faces[fb + f, 0] - vb
+                ib_ = draw_faces[fb + f, 1] - vb
+                ic = draw_faces[fb + f, 2] - vb
                 za, zb_, zc = sc[ia, 2], sc[ib_, 2], sc[ic, 2]
                 if za < near and zb_ < near and zc < near:
                     continue
                 if za > far and zb_ > far and zc > far:
                     continue
-                if cull_back:
-                    e1x, e1y, e1z = sc[ib_, 0] - sc[ia, 0], sc[ib_, 1] - sc[ia, 1], zb_ - za
-                    e2x, e2y, e2z = sc[ic, 0] - sc[ia, 0], sc[ic, 1] - sc[ia, 1], zc - za
-                    nx = e1y * e2z - e1z * e2y
-                    ny = e1z * e2x - e1x * e2z
-                    nz = e1x * e2y - e1y * e2x
-                    if nx * sc[ia, 0] + ny * sc[ia, 1] + nz * za >= 0.0:     # seen from behind
+                e1x, e1y, e1z = sc[ib_, 0] - sc[ia, 0], sc[ib_, 1] - sc[ia, 1], zb_ - za
+                e2x, e2y, e2z = sc[ic, 0] - sc[ia, 0], sc[ic, 1] - sc[ia, 1], zc - za
+                nx = e1y * e2z - e1z * e2y
+                ny = e1z * e2x - e1x * e2z
+                nz = e1x * e2y - e1y * e2x
+                if nx * sc[ia, 0] + ny * sc[ia, 1] + nz * za >= 0.0:     # seen from behind
+                    twin = draw_twin[fb + f]
+                    if twin < 0:
                         continue
-                gid = gb + f
+                    gid = gb + twin
+                else:
+                    gid = gb + draw_local[fb + f]
                 if za >= near and zb_ >= near and zc >= near:
                     _raster_triangle(sc[ia, 3], sc[ia, 4], sc[ia, 5], sc[ib_, 3], sc[ib_, 4], sc[ib_, 5],
                                      sc[ic, 3], sc[ic, 4], sc[ic, 5], gid, zb, ib, w_min, w_max)

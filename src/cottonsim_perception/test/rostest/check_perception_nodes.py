@@ -1,0 +1,175 @@
+#!/usr/bin/env python3
+"""rostest node: the ROS contract of the segmentation, row-centring and boll-detection nodes.
+
+The robot stands still in lane 1 (centre x = -3.23 m, facing north), between
+row 0 (x = -2.33 m, on its right) and row 1 (x = -4.13 m, on its left).
+"""
+import math
+import threading
+import time
+import unittest
+
+import numpy as np
+import rosnode
+import rospy
+import rostest
+import tf2_ros
+from cottonsim_msgs.msg import BollDetections
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Image
+from std_msgs.msg import Bool, Float32, Float64MultiArray, Int16, String
+
+from cottonsim_world.ros import conversions as conv
+
+ROW_X = {"realsense_secondary": -4.13, "realsense_tertiary": -2.33}    # the near rows, left and right [m]
+ROW_SPACING_M = 1.8
+REACH_M = 0.85
+
+
+class Collector:
+    """Keeps the messages of one topic (the last 50)."""
+
+    def __init__(self, topic, msg_type):
+        self.msgs = []
+        self.lock = threading.Lock()
+        rospy.Subscriber(topic, msg_type, self._cb, queue_size=20, buff_size=1 << 24)
+
+    def _cb(self, msg):
+        with self.lock:
+            self.msgs = (self.msgs + [msg])[-50:]
+
+    def wait(self, count=1, timeout_s=60.0):
+        """The messages so far, once there are ``count`` of them or after timeout_s of wall time."""
+        wall_end = time.monotonic() + timeout_s
+        while time.monotonic() < wall_end and not rospy.is_shutdown():
+            with self.lock:
+                if len(self.msgs) >= count:
+                    return list(self.msgs)
+            time.sleep(0.05)
+        with self.lock:
+            return list(self.msgs)
+
+
+class PerceptionNodesTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.semantic = Collector("/realsense_p/ground_truth/semantic", Image)
+        cls.labels = Collector("/segmentation/labels", Image)
+        cls.ground = Collector("/segmentation/mask/ground", Image)
+        cls.latency = Collector("/segmentation/latency_ms", Float32)
+        cls.nw_labels = Collector("/segmentation_nw/labels", Image)
+        cls.coords = Collector("/husky/cv/coords", Float64MultiArray)
+        cls.intersection = Collector("/mask/intersection/centerskyground", Int16)
+        cls.status = Collector("/row_centring/status", String)
+        cls.probe_status = Collector("/row_centring_probe/status", String)
+        cls.probe_coords = Collector("/probe/coords", Float64MultiArray)
+        cls.left = Collector("/boll_detection_left/detections", BollDetections)
+        cls.right = Collector("/boll_detection_right/detections", BollDetections)
+        cls.in_reach = Collector("/cotton_eye/bolls_in_reach", Bool)
+        cls.truth = Collector("/ground_truth/odom", Odometry)
+        cls.probe_pub = rospy.Publisher("/probe/labels", Image, queue_size=5)
+        cls.tf_buffer = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
+
+    def test_labels_and_masks_follow_the_ground_truth(self):
+        labels = self.labels.wait(3)
+        self.assertGreaterEqual(len(labels), 3, "no /segmentation/labels")
+        semantic = {m.header.stamp: m for m in self.semantic.wait(3)}
+        pairs = [(semantic[m.header.stamp], m) for m in labels if m.header.stamp in semantic]
+        self.assertTrue(pairs, "no label image shares a stamp with a semantic image")
+        sem, lab = pairs[-1]
+        self.assertEqual(lab.encoding, "mono8")
+        self.assertEqual(lab.header.frame_id, "realsense_p_color_optical_frame")
+        s, l = conv.image_to_array(sem), conv.image_to_array(lab)
+        np.testing.assert_array_equal(l, s)          # the oracle passes the classes through
+        self.assertTrue({1, 2} <= set(np.unique(l).tolist()), "front view without ground and sky")
+        grounds = {m.header.stamp: m for m in self.ground.wait(1)}
+        common = [st for st in grounds if st in {m.header.stamp for m in labels}]
+        self.assertTrue(common, "no ground mask with a label image's stamp")
+        lab_by_stamp = {m.header.stamp: m for m in labels}
+        g = conv.image_to_array(grounds[common[-1]])
+        np.testing.assert_array_equal(g, (conv.image_to_array(lab_by_stamp[common[-1]]) == 1) * 255)
+        lat = self.latency.wait(1)
+        self.assertTrue(lat and all(0.0 < m.data < 5000.0 for m in lat))
+
+    def test_row_centring_outputs_when_centred(self):
+        coords = self.coords.wait(3)
+        self.assertGreaterEqual(len(coords), 3, "no /husky/cv/coords")
+        for m in coords:
+            self.assertEqual(len(m.data), 2)
+            self.assertAlmostEqual(m.data[0], 0.5)                         # forward speed
+            self.assertLessEqual(abs(m.data[1]), math.radians(5.0) + 1e-9)  # the paper's cap x gain 1
+        xs = [m.data for m in self.intersection.wait(3)]
+        self.assertTrue(xs)
+        # centred and aligned in the lane: the vanishing point is (nearly) the image centre, 160 px
+        self.assertLess(abs(np.median(xs) - 160.0), 8.0, f"intersections {xs[-5:]}")
+        self.assertTrue(all(m.data.startswith("ok") for m in self.status.wait(3)[-3:]))
+
+    def test_row_centring_bad_frames_give_no_estimate(self):
+        def send(img):
+            self.probe_pub.publish(img)
+            rospy.rostime.wallsleep(0.4)
+        while self.probe_pub.get_num_connections() == 0 and not rospy.is_shutdown():
+            rospy.rostime.wallsleep(0.05)
+        stamp = rospy.Time.now()
+        send(conv.image_msg(np.zeros((60, 80, 3), np.uint8), stamp, "x"))                 # rgb8, not labels
+        send(Image(height=0, width=0, encoding="mono8"))                                  # empty frame
+        sky_only = np.zeros((60, 80), np.uint8)                                            # sky and plants only
+        sky_only[:30] = 2
+        send(conv.image_msg(sky_only, stamp, "x"))
+        ok = np.full((120, 160), 0, np.uint8)                                              # a valid V: estimate
+        ok[60:, :] = 1
+        ok[:50, 40:120] = 2
+        send(conv.image_msg(ok, stamp, "x"))
+        texts = [m.data for m in self.probe_status.wait(4, timeout_s=10.0)]
+        self.assertEqual(len(texts), 4, texts)
+        self.assertTrue(texts[0].startswith("no_estimate") and "mono8" in texts[0], texts[0])
+        self.assertTrue(texts[1].startswith("no_estimate") and "empty" in texts[1], texts[1])
+        self.assertEqual(texts[2], "no_estimate: no ground mask")
+        self.assertTrue(texts[3].startswith("ok"), texts[3])
+        self.assertEqual(len(self.probe_coords.wait(1, timeout_s=2.0)), 1, "coords only for the valid frame")
+
+    def test_network_source_without_weights_stays_up_and_silent(self):
+        self.labels.wait(3)                          # the simulator is producing frames
+        self.assertEqual(self.nw_labels.msgs, [], "published labels without weights")
+        self.assertTrue(rosnode.rosnode_ping("/segmentation_nw", max_count=1), "node died")
+
+    def test_boll_detections_in_base_link_on_the_right_side(self):
+        truth = self.truth.wait(1)[-1].pose.pose
+        yaw = conv.yaw_from_quaternion_msg(truth.orientation)
+        arm = self.tf_buffer.lookup_transform("base_link", "ur5e_base_link", rospy.Time(0), rospy.Duration(10.0))
+        arm_xyz = np.array([arm.transform.translation.x, arm.transform.translation.y, arm.transform.translation.z])
+        for collector, camera, side in ((self.left, "realsense_secondary", +1), (self.right, "realsense_tertiary", -1)):
+            msgs = collector.wait(2)
+            self.assertTrue(msgs, f"no detections of {camera}")
+            msg = msgs[-1]
+            self.assertEqual(msg.header.frame_id, "base_link")
+            self.assertEqual(msg.camera, camera)
+            located = [d for d in msg.detections if d.has_position]
+            self.assertGreaterEqual(len(located), 3, f"{camera}: {len(msg.detections)} boxes, {len(located)} located")
+            near, rows = [], []
+            for d in located:
+                self.assertLess(d.x_min, d.x_max)
+                self.assertEqual(d.score, 1.0)
+                p = d.position
+                self.assertGreater(side * p.y, 0.2, f"{camera}: boll at y = {p.y:.2f} m is on the wrong side")
+                # into the world with the true pose: near the row's stems, between ground and plant top
+                wx = truth.position.x + math.cos(yaw) * p.x - math.sin(yaw) * p.y
+                wz = truth.position.z + p.z
+                # the camera sees the near row and, through its gaps, the rows beyond it (same side)
+                k = round((wx - ROW_X[camera]) / (side * -ROW_SPACING_M))
+                self.assertGreaterEqual(k, 0, f"{camera}: boll at world x {wx:.2f} m is behind the camera")
+                self.assertLess(abs(wx - (ROW_X[camera] - side * k * ROW_SPACING_M)), 0.45,
+                                f"{camera}: boll at world x {wx:.2f} m is not on a row")
+                rows.append(k)
+                self.assertTrue(0.0 < wz < 1.3, f"{camera}: boll at height {wz:.2f} m")
+                near.append(np.linalg.norm(np.array([p.x, p.y, p.z]) - arm_xyz) <= REACH_M)
+            self.assertIn(0, rows, f"{camera}: no boll on the near row")
+            self.assertEqual(msg.in_reach, any(near))
+        flags = [m.data for m in self.in_reach.wait(2)]
+        self.assertTrue(flags)
+
+
+if __name__ == "__main__":
+    rospy.init_node("check_perception_nodes")
+    rostest.rosrun("cottonsim_perception", "perception_nodes", PerceptionNodesTest)
