@@ -13,7 +13,8 @@ A beam then contributes
 and, exactly like ROS amcl's ``LikelihoodFieldModel``, a particle's weight is
 multiplied by ``1 + sum(pz^3)`` (amcl's ad-hoc cube instead of a product of
 probabilities, which keeps the filter from becoming over-confident with
-correlated beams). Beams at or beyond the maximum range (no return) and
+correlated beams). ``model="likelihood_field_prob"`` (amcl's laser_model_type of
+that name, without beam skipping) uses the product of the pz instead. Beams at or beyond the maximum range (no return) and
 non-finite beams are skipped; at most ``max_beams`` evenly spaced beams of the
 valid ones are used (ROS amcl subsamples first, see :meth:`LikelihoodField.select_beams`). End points off the map count as ``d = likelihood_max_dist_m``.
 
