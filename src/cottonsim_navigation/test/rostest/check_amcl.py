@@ -127,6 +127,13 @@ class AmclTest(unittest.TestCase):
         self.assertLess(e_yaw, 0.05)
         self.assertTrue(wait_until(lambda: self.localized is True, 10.0), "~localized did not turn true")
 
+        # back out of the lane into the open field before the kidnap: inside a lane the neighbouring lanes
+        # (1.8 m apart) look the same, in front of the rows the row ends and the farm's east edge do not
+        self.drive(-0.5, 0.0, distance_m=4.0)
+        e_pos, _ = self.error()
+        rospy.loginfo("amcl test: back in the open field, error %.3f m", e_pos)
+        self.assertLess(e_pos, 0.1)
+
         # kidnap as AMCL sees it: a confident wrong pose 3 m behind the robot
         tx, ty, tyaw = self.truth_home()
         kid = PoseWithCovarianceStamped()
