@@ -1170,18 +1170,27 @@ def generate_dataset(config: DatasetConfig, progress: bool = True) -> DatasetSum
         for job in jobs:
             records.extend(render_farm_job(config, job, tick))
     else:
-        # fork: no re-import of __main__ (a script without a main guard would respawn workers forever);
-        # the parent has made no pybullet client or numba thread pool yet
-        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+        # spawn, not fork: a parent that already ran numba's OpenMP kernels cannot fork safely.
+        # ProcessPoolExecutor (unlike multiprocessing.Pool) fails instead of hanging when a
+        # worker dies, e.g. in a calling script without an ``if __name__ == "__main__"`` guard.
+        from concurrent.futures import ProcessPoolExecutor
+        from concurrent.futures.process import BrokenProcessPool
+        ctx = mp.get_context("spawn")
         counter = ctx.Value("i", 0)
-        with ctx.Pool(min(config.workers, len(jobs)), initializer=_init_worker, initargs=(counter,)) as pool:
-            pending = [pool.apply_async(_worker, ((config, job),)) for job in jobs]
-            while not all(p.ready() for p in pending):
+        try:
+            with ProcessPoolExecutor(min(config.workers, len(jobs)), mp_context=ctx,
+                                     initializer=_init_worker, initargs=(counter,)) as pool:
+                pending = [pool.submit(_worker, (config, job)) for job in jobs]
+                while not all(p.done() for p in pending):
+                    bar.update_to(counter.value)
+                    time.sleep(0.5)
+                for p in pending:
+                    records.extend(p.result())        # re-raises a worker's exception
                 bar.update_to(counter.value)
-                time.sleep(0.5)
-            for p in pending:
-                records.extend(p.get())           # re-raises a worker's exception
-            bar.update_to(counter.value)
+        except BrokenProcessPool as exc:
+            raise RuntimeError(
+                "a dataset worker process died (out of memory, killed, or the calling script lacks an "
+                "'if __name__ == \"__main__\":' guard, which spawned workers need)") from exc
     bar.close()
     seconds = time.monotonic() - t0
 

@@ -102,6 +102,8 @@ else:  # pragma: no cover - old libode
     MODE_FDIR1, MODE_SLIP1, MODE_SLIP2, MODE_APPROX1 = (ode.ContactFDir1, ode.ContactSlip1,
                                                         ode.ContactSlip2, ode.ContactApprox1)
 
+_TWO_PI = 2.0 * math.pi
+
 # Category bits of the three kinds of geoms.
 CAT_ROBOT = 0x1
 CAT_GROUND = 0x2
@@ -136,7 +138,15 @@ class PhysicsConfig:
     contact_surface_layer_m: ODE contact surface layer (allowed resting
         penetration) [m]; contact_max_correcting_vel_m_s: cap on the speed at
         which penetration is corrected [m/s].
-    max_contacts_per_pair: contact points per colliding geom pair.
+    max_contacts_per_pair: contact points per colliding robot-plant or
+        chassis-ground geom pair.
+    merge_wheel_contacts: give each wheel touching the ground one contact
+        joint instead of ODE's two rim points: at their mean position and
+        depth, with the pair's summed stiffness and damping (ERP unchanged,
+        CFM / n) and the slip of the two in parallel (wheel_slip / n), so
+        the wheel feels the same spring, damper and creep. It removes a
+        third of the solver's constraint rows (see docs/benchmarks.md);
+        False keeps one joint per rim point (as before).
     wheel_max_torque_n_m: motor torque limit per wheel (ParamFMax) [N m].
     accel_window_s: window of the finite difference that gives the body
         acceleration for the IMU [s].
@@ -163,6 +173,7 @@ class PhysicsConfig:
     contact_surface_layer_m: float = 0.0005
     contact_max_correcting_vel_m_s: float = 1.0
     max_contacts_per_pair: int = 4
+    merge_wheel_contacts: bool = True
     wheel_max_torque_n_m: float = 40.0
     accel_window_s: float = 0.02
     contact_rearm_s: float = 0.1
@@ -193,6 +204,8 @@ class PhysicsConfig:
             raise ValueError(f"PhysicsConfig.solver_iterations must be an int >= 1, got {self.solver_iterations!r}")
         if not isinstance(self.max_contacts_per_pair, int) or not 1 <= self.max_contacts_per_pair <= 64:
             raise ValueError(f"PhysicsConfig.max_contacts_per_pair must be an int in 1..64, got {self.max_contacts_per_pair!r}")
+        if not isinstance(self.merge_wheel_contacts, bool):
+            raise ValueError(f"PhysicsConfig.merge_wheel_contacts must be a bool, got {self.merge_wheel_contacts!r}")
         if len(self.broadphase_centre_m) != 2 or not all(math.isfinite(v) for v in self.broadphase_centre_m):
             raise ValueError(f"PhysicsConfig.broadphase_centre_m must be 2 finite numbers, got {self.broadphase_centre_m!r}")
         positive("broadphase_extent_m")
@@ -297,7 +310,10 @@ class OdeWorld:
         # (seed, step count) makes each world's run independent of any other
         # world stepped in the same process, so runs replay bit for bit.
         self._rand_set_seed = ctypes.CDLL("libode.so.8").dRandSetSeed
-        self._rand_set_seed(ctypes.c_ulong(config.seed))
+        self._rand_set_seed.argtypes = [ctypes.c_ulong]
+        self._rand_set_seed.restype = None
+        self._rand_set_seed(config.seed)
+        self._seed_base = config.seed * 1_000_003
         self._world = ode.World()
         self._world.setGravity((0.0, 0.0, config.gravity_m_s2))
         self._world.setQuickStepNumIterations(config.solver_iterations)
@@ -311,30 +327,47 @@ class OdeWorld:
         # ODE's HashSpace tests a foreign geom against *every* geom it holds
         # (dSpaceCollide2 is brute force there); a quadtree prunes by cell:
         # 0.005 ms instead of 0.06 ms per step for the 720-geom default farm.
+        # The quadtree holds the plants only: the ground plane is collided
+        # with each robot geom directly (``_collide_ground``), so the Python
+        # near-callback of collide2 runs only while the robot is near a plant.
         cx, cy = config.broadphase_centre_m
         ext = config.broadphase_extent_m
         self._static_space = ode.QuadTreeSpace((cx, cy, 0.0), (ext, ext, ext), config.broadphase_depth)
         self._robot_space = ode.SimpleSpace()
         self._contact_group = ode.JointGroup()
         self._ground = ode.GeomPlane(None, (0.0, 0.0, 1.0), 0.0)
-        self._static_space.add(self._ground)
         self._ground.setCategoryBits(CAT_GROUND)
         self._ground.setCollideBits(CAT_ROBOT)
-        self._geom_info: Dict[int, Tuple[str, object]] = {id(self._ground): ("ground", None)}
+        # id(geom) -> ("plant", plant_id) or ("robot", part name, body, is_wheel)
+        self._geom_info: Dict[int, Tuple] = {id(self._ground): ("ground", None)}
         self._static_geoms: List[object] = [self._ground]   # keep Python refs alive
         self._plant_ids: Set[int] = set()
+        # Contact surfaces, fixed per pair kind: (mode, mu, mu2, slip, soft_cfm).
+        soft = MODE_SOFT_ERP | MODE_SOFT_CFM
+        self._surface_wheel_ground = (MODE_APPROX1 | MODE_SLIP1 | MODE_SLIP2 | MODE_FDIR1 | soft,
+                                      config.wheel_mu, config.wheel_mu, config.wheel_slip, self._soft_cfm)
+        self._surface_chassis_ground = (MODE_APPROX1 | soft, config.chassis_mu, config.chassis_mu, 0.0,
+                                        self._soft_cfm)
+        self._surface_plant = (MODE_APPROX1 | MODE_MU2 | soft, config.plant_mu1, config.plant_mu2, 0.0,
+                               self._soft_cfm)
+        # (geom, body, is_wheel) of each robot geom, for the ground pass
+        self._ground_pairs: List[Tuple[object, object, bool]] = []
+        self._touching_now: Set[Tuple[int, str]] = set()
 
         self._controller = DiffDriveController(husky, limits)
         self._control_period_s = 1.0 / limits.control_rate_hz
         self._next_control_s = 0.0
+        self._wheel_targets: Tuple[float, float] = (0.0, 0.0)   # last (left, right) sent to the motors [rad/s]
         self._step_count = 0
         self._chassis = None
         self._wheels: List[object] = []
         self._hinges: List[object] = []
         self._robot_geoms: List[object] = []
-        self._wheel_angle = np.zeros(4)
-        self._wheel_raw_prev = np.zeros(4)
-        self._vel_history: Deque[Tuple[float, np.ndarray]] = deque()
+        # plain-float bookkeeping (numpy's per-call cost dominates for 3- and 4-vectors)
+        self._wheel_angle: List[float] = [0.0] * 4
+        self._wheel_raw_prev: List[float] = [0.0] * 4
+        self._base_offset: Tuple[float, float, float] = (0.0, 0.0, 0.0)   # base_link origin in the chassis body
+        self._vel_history: Deque[Tuple[float, Tuple[float, float, float]]] = deque()
 
         self._last_touch_s: Dict[Tuple[int, str], float] = {}
         self._pending_events: List[ContactEvent] = []
@@ -446,7 +479,7 @@ class OdeWorld:
             g = ode.GeomBox(self._robot_space, size)
             g.setBody(chassis)
             g.setOffsetPosition(tuple(np.asarray(centre) - com_offset))
-            geoms.append((g, part))
+            geoms.append((g, part, chassis))
 
         wheels, hinges = [], []
         # GeomCylinder's axis is its local z; turn it onto the wheel axle (y).
@@ -462,7 +495,7 @@ class OdeWorld:
             g = ode.GeomCylinder(self._robot_space, hp.wheel_radius_m, hp.wheel_width_m)
             g.setBody(body)
             g.setOffsetQuaternion(q_axle)
-            geoms.append((g, name))
+            geoms.append((g, name, body))
             hinge = ode.HingeJoint(self._world)
             hinge.attach(body, chassis)       # rate = wheel minus chassis: > 0 rolls forward
             hinge.setAnchor(tuple(centre))
@@ -471,19 +504,22 @@ class OdeWorld:
             hinge.setParam(PARAM_FMAX, self.config.wheel_max_torque_n_m)
             wheels.append(body)
             hinges.append(hinge)
-        for g, part in geoms:
+        for g, part, body in geoms:
             g.setCategoryBits(CAT_ROBOT)
             g.setCollideBits(CAT_GROUND | CAT_PLANT)
-            self._geom_info[id(g)] = ("robot", part)
+            self._geom_info[id(g)] = ("robot", part, body, part != "chassis")
         self._chassis = chassis
         self._wheels = wheels
         self._hinges = hinges
-        self._robot_geoms = [g for g, _ in geoms]
+        self._robot_geoms = [g for g, _, _ in geoms]
+        self._ground_pairs = [(g, body, part != "chassis") for g, part, body in geoms]
         self._com_offset = com_offset
-        self._wheel_angle = np.zeros(4)
-        self._wheel_raw_prev = np.array([h.getAngle() for h in hinges])
+        self._base_offset = (-float(com_offset[0]), -float(com_offset[1]), -float(com_offset[2]))
+        self._wheel_angle = [0.0] * 4
+        self._wheel_raw_prev = [h.getAngle() for h in hinges]
         self._vel_history.clear()
         self._controller.reset()
+        self._wheel_targets = (0.0, 0.0)
         self._next_control_s = self.sim_time_s
 
     def _remove_robot(self) -> None:
@@ -493,6 +529,7 @@ class OdeWorld:
         for h in self._hinges:
             h.attach(None, None)
         self._robot_geoms, self._hinges, self._wheels, self._chassis = [], [], [], None
+        self._ground_pairs = []
 
     def _require_robot(self) -> None:
         if self._chassis is None:
@@ -510,28 +547,38 @@ class OdeWorld:
     def step(self) -> None:
         """Advance the world by config.step_s."""
         self._require_robot()
-        now = self.sim_time_s
+        now = self._step_count * self.config.step_s
         if now >= self._next_control_s - 1e-9:
             targets = self._controller.update(now)
-            for i, hinge in enumerate(self._hinges):
-                hinge.setParam(PARAM_VEL, targets.left_rad_s if i % 2 == 0 else targets.right_rad_s)
+            left, right = targets.left_rad_s, targets.right_rad_s
+            if (left, right) != self._wheel_targets:     # the motors keep their last target
+                self._wheel_targets = (left, right)
+                for i, hinge in enumerate(self._hinges):
+                    hinge.setParam(PARAM_VEL, left if i % 2 == 0 else right)
             self._next_control_s += self._control_period_s
-        self._touching_now: Set[Tuple[int, str]] = set()
-        self._rand_set_seed(ctypes.c_ulong((self.config.seed * 1_000_003 + self._step_count) & 0xFFFFFFFF))
+        touching = self._touching_now
+        if touching:
+            touching.clear()
+        self._rand_set_seed((self._seed_base + self._step_count) & 0xFFFFFFFF)
+        self._collide_ground()
         ode.collide2(self._robot_space, self._static_space, None, self._near_callback)
         self._world.quickStep(self.config.step_s)
         self._contact_group.empty()
         self._step_count += 1
-        t = self.sim_time_s
-        for key in self._touching_now:
+        t = self._step_count * self.config.step_s
+        for key in touching:
             self._last_touch_s[key] = t
-        raw = np.array([h.getAngle() for h in self._hinges])
-        self._wheel_angle += (raw - self._wheel_raw_prev + math.pi) % (2.0 * math.pi) - math.pi
+        # unwrapped wheel angles: add each hinge's change, wrapped to (-pi, pi]
+        prev, acc = self._wheel_raw_prev, self._wheel_angle
+        raw = [h.getAngle() for h in self._hinges]
+        for i in range(4):
+            acc[i] += (raw[i] - prev[i] + math.pi) % _TWO_PI - math.pi
         self._wheel_raw_prev = raw
-        v = np.asarray(self._chassis.getRelPointVel(tuple(-self._com_offset)))
-        self._vel_history.append((t, v))
-        while len(self._vel_history) > 2 and t - self._vel_history[1][0] >= self.config.accel_window_s - 1e-12:
-            self._vel_history.popleft()
+        history = self._vel_history
+        history.append((t, self._chassis.getRelPointVel(self._base_offset)))
+        window = self.config.accel_window_s - 1e-12
+        while len(history) > 2 and t - history[1][0] >= window:
+            history.popleft()
 
     def step_for(self, duration_s: float) -> None:
         """Step until duration_s [s] of sim time have passed."""
@@ -540,60 +587,99 @@ class OdeWorld:
         for _ in range(int(round(duration_s / self.config.step_s))):
             self.step()
 
-    def _near_callback(self, _arg, g1, g2) -> None:
-        info1 = self._geom_info.get(id(g1))
-        info2 = self._geom_info.get(id(g2))
-        if info1 is None or info2 is None:
-            return
-        if info1[0] != "robot":
-            g1, g2, info1, info2 = g2, g1, info2, info1
-        if info1[0] != "robot" or info2[0] == "robot":
-            return
-        contacts = ode.collide(g1, g2)
-        if not contacts:
-            return
-        cfg = self.config
-        part = info1[1]
-        is_wheel = part != "chassis"
-        if info2[0] == "ground":
-            if is_wheel:
-                mode = MODE_APPROX1 | MODE_SLIP1 | MODE_SLIP2 | MODE_SOFT_ERP | MODE_SOFT_CFM
-                mu, mu2, slip = cfg.wheel_mu, cfg.wheel_mu, cfg.wheel_slip
+    # ------------------------------------------------------------- contacts
+    # These run several times per step, so they use plain floats and the
+    # surface tuples prepared in __init__ (numpy's per-call overhead on
+    # 3-vectors would cost more than ODE's collision test itself).
+    def _collide_ground(self) -> None:
+        """Contacts of every robot geom with the ground plane."""
+        ground = self._ground
+        max_n = self.config.max_contacts_per_pair
+        merge = self.config.merge_wheel_contacts
+        for geom, body, is_wheel in self._ground_pairs:
+            contacts = ode.collide(geom, ground)
+            if not contacts:
+                continue
+            if not is_wheel:
+                self._add_contacts(body, contacts[:max_n], self._surface_chassis_ground)
+            elif merge and len(contacts) > 1:
+                self._add_merged_wheel_contact(geom, body, contacts)
             else:
-                mode, mu, mu2, slip = MODE_APPROX1 | MODE_SOFT_ERP | MODE_SOFT_CFM, cfg.chassis_mu, cfg.chassis_mu, 0.0
-        else:
-            mode = MODE_APPROX1 | MODE_MU2 | MODE_SOFT_ERP | MODE_SOFT_CFM
-            mu, mu2, slip = cfg.plant_mu1, cfg.plant_mu2, 0.0
-            self._register_touch(int(info2[1]), part, contacts[0])
-        body1 = g1.getBody()
-        for c in contacts[:cfg.max_contacts_per_pair]:
-            if is_wheel and info2[0] == "ground":
-                c.setFDir1(self._sliding_direction(body1, c))
-                c.setMode(mode | MODE_FDIR1)
-            else:
-                c.setMode(mode)
+                for c in contacts[:max_n]:
+                    pos, normal, _depth, _g1, _g2 = c.getContactGeomParams()
+                    self._add_wheel_contact(body, c, pos, normal, 1)
+
+    def _add_merged_wheel_contact(self, geom, body, contacts) -> None:
+        """One joint for all of a wheel's ground contacts: mean point, mean depth, summed stiffness."""
+        n = len(contacts)
+        px = py = pz = nx = ny = nz = depth = 0.0
+        for c in contacts:
+            (x, y, z), (a, b, d), dep, _g1, _g2 = c.getContactGeomParams()
+            px += x
+            py += y
+            pz += z
+            nx += a
+            ny += b
+            nz += d
+            depth += dep
+        norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+        normal = (nx / norm, ny / norm, nz / norm)
+        pos = (px / n, py / n, pz / n)
+        merged = contacts[0]
+        merged.setContactGeomParams(pos, normal, depth / n, geom, self._ground)
+        self._add_wheel_contact(body, merged, pos, normal, n)
+
+    def _add_wheel_contact(self, body, contact, pos, normal, n: int) -> None:
+        """Wheel-ground joint standing for n parallel rim contacts (n = 1: a single point)."""
+        mode, mu, _mu2, slip, cfm = self._surface_wheel_ground
+        contact.setMode(mode)
+        contact.setFDir1(self._sliding_direction(body, pos, normal))
+        contact.setMu(mu)
+        contact.setSlip1(slip / n)
+        contact.setSlip2(slip / n)
+        contact.setSoftERP(self._soft_erp)
+        contact.setSoftCFM(cfm / n)
+        ode.ContactJoint(self._world, self._contact_group, contact).attach(body, None)
+
+    def _add_contacts(self, body, contacts, surface) -> None:
+        mode, mu, mu2, slip, cfm = surface
+        for c in contacts:
+            c.setMode(mode)
             c.setMu(mu)
             c.setMu2(mu2)
             if slip > 0.0:
                 c.setSlip1(slip)
                 c.setSlip2(slip)
             c.setSoftERP(self._soft_erp)
-            c.setSoftCFM(self._soft_cfm)
-            joint = ode.ContactJoint(self._world, self._contact_group, c)
-            joint.attach(body1, None)
+            c.setSoftCFM(cfm)
+            ode.ContactJoint(self._world, self._contact_group, c).attach(body, None)
+
+    def _near_callback(self, _arg, g1, g2) -> None:
+        """collide2 callback: a robot geom's box overlaps a plant geom's box."""
+        info1 = self._geom_info.get(id(g1))
+        info2 = self._geom_info.get(id(g2))
+        if info1 is None or info2 is None:
+            return
+        if info1[0] != "robot":
+            g1, g2, info1, info2 = g2, g1, info2, info1
+        if info1[0] != "robot" or info2[0] != "plant":
+            return
+        contacts = ode.collide(g1, g2)
+        if not contacts:
+            return
+        self._register_touch(int(info2[1]), info1[1], contacts[0])
+        self._add_contacts(info1[2], contacts[:self.config.max_contacts_per_pair], self._surface_plant)
 
     @staticmethod
-    def _sliding_direction(body, contact) -> Tuple[float, float, float]:
-        """Unit tangent along which the wheel surface slides over the ground.
+    def _sliding_direction(body, pos, normal) -> Tuple[float, float, float]:
+        """Unit tangent along which the wheel surface slides over the ground at pos.
 
         ODE bounds friction per direction (a pyramid); aligning the first
         direction with the sliding velocity makes the saturated friction
         force oppose the slip as isotropic Coulomb friction would. Without
         sliding, the wheel's rolling direction is used.
         """
-        # plain floats: this runs for every wheel contact every step, where
-        # numpy's per-call overhead would cost more than the ODE step itself
-        pos, (nx, ny, nz), _depth, _g1, _g2 = contact.getContactGeomParams()
+        nx, ny, nz = normal
         vx, vy, vz = body.getPointVel(pos)
         vn = vx * nx + vy * ny + vz * nz
         tx, ty, tz = vx - vn * nx, vy - vn * ny, vz - vn * nz
@@ -629,26 +715,38 @@ class OdeWorld:
         """Ground-truth state of the Husky now."""
         self._require_robot()
         ch = self._chassis
-        rot = _rot3(ch.getRotation())
-        base_pos = np.asarray(ch.getPosition()) - rot @ self._com_offset
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = ch.getRotation()    # row-major, body -> world
+        ox, oy, oz = self._base_offset
+        cx, cy, cz = ch.getPosition()
+        base_pos = (cx + r00 * ox + r01 * oy + r02 * oz,
+                    cy + r10 * ox + r11 * oy + r12 * oz,
+                    cz + r20 * ox + r21 * oy + r22 * oz)
         qw, qx, qy, qz = ch.getQuaternion()
-        v_world = np.asarray(ch.getRelPointVel(tuple(-self._com_offset)))
-        w_world = np.asarray(ch.getAngularVel())
-        if len(self._vel_history) >= 2:
-            (t0, v0), (t1, v1) = self._vel_history[0], self._vel_history[-1]
-            a_world = (v1 - v0) / (t1 - t0)
+        v_world = ch.getRelPointVel(self._base_offset)
+        w_world = ch.getAngularVel()
+        history = self._vel_history
+        if len(history) >= 2:
+            (t0, v0), (t1, v1) = history[0], history[-1]
+            inv_dt = 1.0 / (t1 - t0)
+            a_world = ((v1[0] - v0[0]) * inv_dt, (v1[1] - v0[1]) * inv_dt, (v1[2] - v0[2]) * inv_dt)
         else:
-            a_world = np.zeros(3)
-        specific_force = a_world - np.array([0.0, 0.0, self.config.gravity_m_s2])
+            a_world = (0.0, 0.0, 0.0)
+        specific_force = (a_world[0], a_world[1], a_world[2] - self.config.gravity_m_s2)
+
+        def to_body(v):   # R^T v
+            return np.array((r00 * v[0] + r10 * v[1] + r20 * v[2],
+                             r01 * v[0] + r11 * v[1] + r21 * v[2],
+                             r02 * v[0] + r12 * v[1] + r22 * v[2]))
+
         return RobotState(
             stamp_s=self.sim_time_s,
-            position_m=base_pos,
-            orientation_xyzw=np.array([qx, qy, qz, qw]),
-            linear_velocity_world_m_s=v_world,
-            linear_velocity_body_m_s=rot.T @ v_world,
-            angular_velocity_world_rad_s=w_world,
-            angular_velocity_body_rad_s=rot.T @ w_world,
-            linear_acceleration_body_m_s2=rot.T @ specific_force,
-            wheel_angles_rad=self._wheel_angle.copy(),
+            position_m=np.array(base_pos),
+            orientation_xyzw=np.array((qx, qy, qz, qw)),
+            linear_velocity_world_m_s=np.array(v_world),
+            linear_velocity_body_m_s=to_body(v_world),
+            angular_velocity_world_rad_s=np.array(w_world),
+            angular_velocity_body_rad_s=to_body(w_world),
+            linear_acceleration_body_m_s2=to_body(specific_force),
+            wheel_angles_rad=np.array(self._wheel_angle),
             wheel_velocities_rad_s=np.array([h.getAngleRate() for h in self._hinges]),
         )
