@@ -160,7 +160,7 @@ class PhysicsConfig:
         randomly), so runs with the same inputs are bit-identical.
     """
 
-    step_s: float = 0.002
+    step_s: float = 0.005
     gravity_m_s2: float = -9.8
     solver_iterations: int = 50
     wheel_mu: float = 1.0
@@ -352,6 +352,9 @@ class OdeWorld:
                                self._soft_cfm)
         # (geom, body, is_wheel) of each robot geom, for the ground pass
         self._ground_pairs: List[Tuple[object, object, bool]] = []
+        self._wheel_templates: Dict[int, object] = {}     # n merged points -> ode.Contact
+        self._wheel_radius_m = husky.wheel_radius_m
+        self._wheel_half_width_m = 0.5 * husky.wheel_width_m
         self._touching_now: Set[Tuple[int, str]] = set()
 
         self._controller = DiffDriveController(husky, limits)
@@ -589,28 +592,66 @@ class OdeWorld:
 
     # ------------------------------------------------------------- contacts
     # These run several times per step, so they use plain floats and the
-    # surface tuples prepared in __init__ (numpy's per-call overhead on
-    # 3-vectors would cost more than ODE's collision test itself).
+    # surfaces prepared in __init__ (numpy's per-call overhead on 3-vectors
+    # would cost more than ODE's collision test itself).
     def _collide_ground(self) -> None:
-        """Contacts of every robot geom with the ground plane."""
+        """Contacts of every robot geom with the ground plane (z = 0)."""
         ground = self._ground
         max_n = self.config.max_contacts_per_pair
         merge = self.config.merge_wheel_contacts
         for geom, body, is_wheel in self._ground_pairs:
+            if is_wheel and merge and self._merged_wheel_contact(geom, body):
+                continue
             contacts = ode.collide(geom, ground)
             if not contacts:
                 continue
             if not is_wheel:
                 self._add_contacts(body, contacts[:max_n], self._surface_chassis_ground)
-            elif merge and len(contacts) > 1:
-                self._add_merged_wheel_contact(geom, body, contacts)
+            elif merge:
+                self._add_merged_contacts(geom, body, contacts)
             else:
                 for c in contacts[:max_n]:
-                    pos, normal, _depth, _g1, _g2 = c.getContactGeomParams()
-                    self._add_wheel_contact(body, c, pos, normal, 1)
+                    pos, normal, depth, _g1, _g2 = c.getContactGeomParams()
+                    self._add_wheel_contact(geom, body, 1, pos, normal, depth, None)
 
-    def _add_merged_wheel_contact(self, geom, body, contacts) -> None:
-        """One joint for all of a wheel's ground contacts: mean point, mean depth, summed stiffness."""
+    def _merged_wheel_contact(self, geom, body) -> bool:
+        """Add the wheel's merged ground contact, computed here; False if ODE must do it.
+
+        ODE's cylinder-plane test reports, for a wheel whose axle is not
+        near vertical, the lowest point of each rim circle that lies below
+        the plane (depth = -z). With the wheel centre c, unit axle a and
+        u = (z - a_z a) / |z - a_z a| (the in-wheel direction closest to
+        up), those points are c +/- (w/2) a - r u. Computing them here costs
+        a fraction of ode.collide plus reading its contacts back; the mean
+        of the touching ones becomes one joint. A wheel lying flat
+        (|a_z| ~ 1) is left to ode.collide.
+        """
+        _r00, ax, _r02, _r10, ay, _r12, _r20, az, _r22 = body.getRotation()   # axle = body y = column 1
+        s2 = 1.0 - az * az
+        if s2 < 1e-4:
+            return False
+        cx, cy, cz = body.getPosition()
+        root = math.sqrt(s2)
+        radius, half_width = self._wheel_radius_m, self._wheel_half_width_m
+        # -r u = (k a_x, k a_y, -r root), with k = r a_z / root
+        k = radius * az / root
+        bottom_z = cz - radius * root
+        depth_plus = -(bottom_z + half_width * az)      # rim at c + (w/2) a
+        depth_minus = -(bottom_z - half_width * az)     # rim at c - (w/2) a
+        if depth_plus > 0.0 and depth_minus > 0.0:
+            n, depth, along = 2, 0.5 * (depth_plus + depth_minus), 0.0
+        elif depth_plus > 0.0:
+            n, depth, along = 1, depth_plus, half_width
+        elif depth_minus > 0.0:
+            n, depth, along = 1, depth_minus, -half_width
+        else:
+            return True                                 # in the air: no contact
+        pos = (cx + (along + k) * ax, cy + (along + k) * ay, bottom_z + along * az)
+        self._add_wheel_contact(geom, body, n, pos, (0.0, 0.0, 1.0), depth, (ax, ay, az))
+        return True
+
+    def _add_merged_contacts(self, geom, body, contacts) -> None:
+        """One joint for a wheel's ODE contacts: mean point and depth, summed stiffness."""
         n = len(contacts)
         px = py = pz = nx = ny = nz = depth = 0.0
         for c in contacts:
@@ -623,22 +664,34 @@ class OdeWorld:
             nz += d
             depth += dep
         norm = math.sqrt(nx * nx + ny * ny + nz * nz)
-        normal = (nx / norm, ny / norm, nz / norm)
-        pos = (px / n, py / n, pz / n)
-        merged = contacts[0]
-        merged.setContactGeomParams(pos, normal, depth / n, geom, self._ground)
-        self._add_wheel_contact(body, merged, pos, normal, n)
+        self._add_wheel_contact(geom, body, n, (px / n, py / n, pz / n), (nx / norm, ny / norm, nz / norm),
+                                depth / n, None)
 
-    def _add_wheel_contact(self, body, contact, pos, normal, n: int) -> None:
-        """Wheel-ground joint standing for n parallel rim contacts (n = 1: a single point)."""
-        mode, mu, _mu2, slip, cfm = self._surface_wheel_ground
-        contact.setMode(mode)
-        contact.setFDir1(self._sliding_direction(body, pos, normal))
-        contact.setMu(mu)
-        contact.setSlip1(slip / n)
-        contact.setSlip2(slip / n)
-        contact.setSoftERP(self._soft_erp)
-        contact.setSoftCFM(cfm / n)
+    def _wheel_contact_template(self, n: int):
+        """Wheel-ground contact surface standing for n parallel points: stiffness x n, slip / n.
+
+        ODE copies the contact into each joint, so one template per n
+        serves every wheel; only the point, depth and friction direction
+        change per step.
+        """
+        contact = self._wheel_templates.get(n)
+        if contact is None:
+            mode, mu, _mu2, slip, cfm = self._surface_wheel_ground
+            contact = ode.Contact()
+            contact.setMode(mode)
+            contact.setMu(mu)
+            contact.setSlip1(slip / n)
+            contact.setSlip2(slip / n)
+            contact.setSoftERP(self._soft_erp)
+            contact.setSoftCFM(cfm / n)
+            self._wheel_templates[n] = contact
+        return contact
+
+    def _add_wheel_contact(self, geom, body, n: int, pos, normal, depth: float, axle) -> None:
+        """Joint for a wheel-ground contact of n merged points at pos (axle: unit vector or None)."""
+        contact = self._wheel_templates.get(n) or self._wheel_contact_template(n)
+        contact.setContactGeomParams(pos, normal, depth, geom, self._ground)
+        contact.setFDir1(self._sliding_direction(body, pos, normal, axle))
         ode.ContactJoint(self._world, self._contact_group, contact).attach(body, None)
 
     def _add_contacts(self, body, contacts, surface) -> None:
@@ -671,13 +724,13 @@ class OdeWorld:
         self._add_contacts(info1[2], contacts[:self.config.max_contacts_per_pair], self._surface_plant)
 
     @staticmethod
-    def _sliding_direction(body, pos, normal) -> Tuple[float, float, float]:
+    def _sliding_direction(body, pos, normal, axle=None) -> Tuple[float, float, float]:
         """Unit tangent along which the wheel surface slides over the ground at pos.
 
         ODE bounds friction per direction (a pyramid); aligning the first
         direction with the sliding velocity makes the saturated friction
         force oppose the slip as isotropic Coulomb friction would. Without
-        sliding, the wheel's rolling direction is used.
+        sliding, the wheel's rolling direction (axle x normal) is used.
         """
         nx, ny, nz = normal
         vx, vy, vz = body.getPointVel(pos)
@@ -686,7 +739,7 @@ class OdeWorld:
         speed = math.sqrt(tx * tx + ty * ty + tz * tz)
         if speed > 1e-4:
             return (tx / speed, ty / speed, tz / speed)
-        ax, ay, az = body.vectorToWorld((0.0, 1.0, 0.0))
+        ax, ay, az = axle if axle is not None else body.vectorToWorld((0.0, 1.0, 0.0))
         fx, fy, fz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx   # axle x normal
         norm = math.sqrt(fx * fx + fy * fy + fz * fz)
         return (fx / norm, fy / norm, fz / norm) if norm > 1e-9 else (1.0, 0.0, 0.0)
