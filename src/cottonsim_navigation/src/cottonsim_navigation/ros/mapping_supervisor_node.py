@@ -1,0 +1,108 @@
+"""mapping_supervisor: end a mapping run by saving the SLAM map once the exploration route is done.
+
+mapping.launch drives the farm's route with the map waypoint navigator on the
+map that slam_gmapping is building; when the navigator reports "finished" this
+node fetches the map from the SLAM node's dynamic_map service, crops it to the
+observed area plus a margin (cottonsim_navigation.mapping.map_crop), writes it
+like map_saver (cottonsim_navigation.core.map_files.save_map) and shuts down
+(as a required node this ends the launch).
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import rospy
+from nav_msgs.srv import GetMap
+from std_msgs.msg import String
+
+from cottonsim_navigation.core.map_files import MapSaverConfig, save_map
+from cottonsim_navigation.mapping.map_crop import crop_to_known
+from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
+from cottonsim_navigation.ros.params import typed_param
+
+
+class MappingSupervisorNode:
+    """Saves the SLAM map when the exploration route is finished.
+
+    Subscriptions
+      ~state_topic (default /map_waypoint_navigator/state)  std_msgs/String  the navigator's JSON state;
+          {"state": "finished", ...} triggers the save (unparsable messages are warned about and ignored)
+    Service clients
+      ~map_service (default /dynamic_map)  nav_msgs/GetMap  the SLAM node's current map
+    Parameters (private)
+      ~map_file (str, required): output base name, writes <map_file>.pgm and <map_file>.yaml
+      ~crop_margin_m (float, 1.0): margin kept around the observed cells [m]
+      ~settle_s (float, 2.0): sim time waited after "finished" before the map is fetched (last scans) [s]
+      ~occupied_thresh (float, 65), ~free_thresh (float, 19.6): map_saver's thresholds on OccupancyGrid values
+      ~shutdown_when_done (bool, true): end the node after saving
+    """
+
+    def __init__(self):
+        self.map_file = typed_param("~map_file", "")
+        if not self.map_file:
+            raise ValueError("parameter ~map_file must be set (output base name)")
+        self.state_topic = typed_param("~state_topic", "/map_waypoint_navigator/state")
+        self.map_service = typed_param("~map_service", "/dynamic_map")
+        self.margin_m = typed_param("~crop_margin_m", 1.0, minimum=0.0)
+        self.settle_s = typed_param("~settle_s", 2.0, minimum=0.0)
+        self.shutdown_when_done = typed_param("~shutdown_when_done", True)
+        self.saver_config = MapSaverConfig(occupied_thresh=typed_param("~occupied_thresh", 65.0),
+                                           free_thresh=typed_param("~free_thresh", 19.6))
+        self.finished = False
+        self.saved = False
+        rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=5)
+        rospy.loginfo("mapping_supervisor: will save the map to %s when %s says finished", self.map_file,
+                      self.state_topic)
+
+    def _on_state(self, msg: String) -> None:
+        try:
+            state = json.loads(msg.data).get("state")
+        except (ValueError, AttributeError):
+            rospy.logwarn_throttle(10.0, f"mapping_supervisor: state is not a JSON object: {msg.data[:80]!r}")
+            return
+        if state == "finished":
+            self.finished = True
+
+    def save(self) -> bool:
+        """Fetch, crop and write the map; True on success."""
+        rospy.wait_for_service(self.map_service, 30.0)
+        msg = rospy.ServiceProxy(self.map_service, GetMap)().map
+        grid, res, origin = occupancy_grid_to_array(msg)
+        cropped, corigin = crop_to_known(grid, res, origin, self.margin_m)
+        pgm, yaml_path = save_map(self.map_file, cropped, res, corigin, self.saver_config)
+        rospy.loginfo("mapping_supervisor: %d x %d map (cropped from %d x %d) saved to %s, %s; %d occupied cells",
+                      cropped.shape[1], cropped.shape[0], grid.shape[1], grid.shape[0], pgm, yaml_path,
+                      int(np.count_nonzero(cropped >= 65)))
+        return True
+
+    def spin(self) -> int:
+        rate = rospy.Rate(5.0)
+        while not rospy.is_shutdown() and not self.finished:
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                return 1
+        if rospy.is_shutdown():
+            return 1
+        if self.settle_s > 0:
+            rospy.sleep(self.settle_s)
+        try:
+            ok = self.save()
+        except (rospy.ROSException, rospy.ServiceException, ValueError, OSError) as exc:
+            rospy.logerr(f"mapping_supervisor: cannot save the map: {exc}")
+            ok = False
+        if self.shutdown_when_done:
+            rospy.signal_shutdown("map saved" if ok else "map not saved")
+        return 0 if ok else 1
+
+
+def main():
+    rospy.init_node("mapping_supervisor")
+    try:
+        node = MappingSupervisorNode()
+    except ValueError as exc:
+        rospy.logfatal(f"mapping_supervisor: {exc}")
+        raise SystemExit(2)
+    raise SystemExit(node.spin())
