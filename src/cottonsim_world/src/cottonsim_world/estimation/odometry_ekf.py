@@ -90,29 +90,48 @@ class FilteredOdometry:
 
 
 class OdometryEkf:
-    """5-state planar EKF: predict(dt), update_wheel_odometry, update_imu."""
+    """5-state planar EKF: predict(dt), update_wheel_odometry, update_imu.
+
+    The simulator runs it at 50 Hz on 5-vectors and 5x5 matrices, where
+    numpy spends more time dispatching than computing; the filter therefore
+    keeps its state and covariance as plain Python floats and writes out
+    the products, using the structure of the model (the Jacobian differs
+    from the identity in five entries; every measurement picks state
+    entries). ``state`` and ``covariance`` return numpy copies.
+    """
 
     def __init__(self, config: OdometryEkfConfig = OdometryEkfConfig()):
         self.config = config
-        self._q = np.diag(np.asarray(config.process_noise_diag, dtype=float))
+        self._q_diag = [float(v) for v in config.process_noise_diag]
         self.rejections: List[str] = []
         self.reset()
 
     def reset(self, x_m: float = 0.0, y_m: float = 0.0, yaw_rad: float = 0.0) -> None:
-        self.state = np.array([x_m, y_m, _wrap(yaw_rad), 0.0, 0.0], dtype=float)
-        self.covariance = np.diag(np.asarray(self.config.initial_covariance_diag, dtype=float))
+        self._s = [float(x_m), float(y_m), _wrap(float(yaw_rad)), 0.0, 0.0]
+        diag = self.config.initial_covariance_diag
+        self._p = [[float(diag[i]) if i == j else 0.0 for j in range(5)] for i in range(5)]
+
+    @property
+    def state(self) -> np.ndarray:
+        """[x, y, yaw, vx, vyaw] (a copy)."""
+        return np.array(self._s)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """5x5 covariance of ``state`` (a copy)."""
+        return np.array(self._p)
 
     def _reject(self, reason: str) -> str:
         self.rejections.append(reason)
         return reason
 
     @staticmethod
-    def _bad_numbers(**values) -> Optional[str]:
-        for name, value in values.items():
-            arr = np.asarray(value, dtype=float)
-            if not np.all(np.isfinite(arr)):
-                return f"{name} contains NaN or inf ({np.asarray(value).tolist()})"
-        return None
+    def _bad_number(name: str, value) -> Optional[str]:
+        try:
+            ok = math.isfinite(float(value))
+        except (TypeError, ValueError):
+            return f"{name} is not a number ({value!r})"
+        return None if ok else f"{name} contains NaN or inf ({value!r})"
 
     # ------------------------------------------------------------- predict
     def predict(self, dt_s: float) -> Optional[str]:
@@ -123,37 +142,59 @@ class OdometryEkf:
             return self._reject(f"predict: dt_s is not a number ({dt_s!r})")
         if not math.isfinite(dt) or dt < 0 or dt > self.config.max_dt_s:
             return self._reject(f"predict: dt_s must be finite and in [0, {self.config.max_dt_s}] s, got {dt_s!r}")
-        s = self.state
+        s = self._s
         c, si = math.cos(s[YAW]), math.sin(s[YAW])
-        f = np.eye(5)
-        f[X, YAW] = -s[VX] * si * dt
-        f[X, VX] = c * dt
-        f[Y, YAW] = s[VX] * c * dt
-        f[Y, VX] = si * dt
-        f[YAW, VYAW] = dt
+        # Jacobian F = I except F[X,YAW], F[X,VX], F[Y,YAW], F[Y,VX], F[YAW,VYAW]
+        f_x_yaw, f_x_vx = -s[VX] * si * dt, c * dt
+        f_y_yaw, f_y_vx = s[VX] * c * dt, si * dt
         s[X] += s[VX] * c * dt
         s[Y] += s[VX] * si * dt
         s[YAW] = _wrap(s[YAW] + s[VYAW] * dt)
-        self.covariance = f @ self.covariance @ f.T + self._q * dt
+
+        def mix(v):   # F applied to a 5-vector (a row or column of P)
+            return [v[X] + f_x_yaw * v[YAW] + f_x_vx * v[VX],
+                    v[Y] + f_y_yaw * v[YAW] + f_y_vx * v[VX],
+                    v[YAW] + dt * v[VYAW],
+                    v[VX], v[VYAW]]
+
+        # P' = F P F^T + Q dt: F on each column of P (as rows of P^T = P), then on each row
+        fp_t = [mix(col) for col in zip(*self._p)]          # (F P)^T, row j = column j of F P
+        fpf = [mix(row) for row in zip(*fp_t)]              # rows of F P, each times F^T
+        q = self._q_diag
+        for i in range(5):
+            fpf[i][i] += q[i] * dt
+        self._p = fpf
         return None
 
     # ------------------------------------------------------------- updates
-    def _update(self, rows: Sequence[int], z: np.ndarray, r: np.ndarray) -> None:
-        h = np.zeros((len(rows), 5))
-        for i, row in enumerate(rows):
-            h[i, row] = 1.0
-        innovation = z - h @ self.state
+    def _update(self, rows: Sequence[int], z: Sequence[float], r_diag: Sequence[float]) -> None:
+        """Kalman update with H picking ``rows`` of the state, diagonal measurement noise r_diag."""
+        p, s = self._p, self._s
+        m = len(rows)
+        innovation = [z[i] - s[row] for i, row in enumerate(rows)]
         for i, row in enumerate(rows):
             if row == YAW:
                 innovation[i] = _wrap(innovation[i])
-        p = self.covariance
-        s_mat = h @ p @ h.T + r
-        k = np.linalg.solve(s_mat.T, (p @ h.T).T).T
-        self.state = self.state + k @ innovation
-        self.state[YAW] = _wrap(self.state[YAW])
-        # Joseph form keeps the covariance symmetric positive definite.
-        i_kh = np.eye(5) - k @ h
-        self.covariance = i_kh @ p @ i_kh.T + k @ r @ k.T
+        # S = H P H^T + R (m x m, m <= 2); K = P H^T S^-1 (5 x m)
+        ph = [[p[i][row] for row in rows] for i in range(5)]          # P H^T
+        if m == 1:
+            k = [[ph[i][0] / (ph[rows[0]][0] + r_diag[0])] for i in range(5)]
+        else:
+            a, b = ph[rows[0]][0] + r_diag[0], ph[rows[0]][1]
+            c, d = ph[rows[1]][0], ph[rows[1]][1] + r_diag[1]
+            det = a * d - b * c
+            ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det
+            k = [[ph[i][0] * ia + ph[i][1] * ic, ph[i][0] * ib + ph[i][1] * id_] for i in range(5)]
+        for i in range(5):
+            s[i] += sum(k[i][j] * innovation[j] for j in range(m))
+        s[YAW] = _wrap(s[YAW])
+        # Joseph form keeps the covariance symmetric positive definite:
+        # P' = (I - K H) P (I - K H)^T + K R K^T, with H P = rows of P and A H^T = columns of A.
+        hp = [p[row] for row in rows]
+        a_mat = [[p[i][j] - sum(k[i][t] * hp[t][j] for t in range(m)) for j in range(5)] for i in range(5)]
+        self._p = [[a_mat[i][j] - sum(a_mat[i][rows[t]] * k[j][t] for t in range(m))
+                    + sum(k[i][t] * r_diag[t] * k[j][t] for t in range(m))
+                    for j in range(5)] for i in range(5)]
 
     @staticmethod
     def _variance(cov, name: str) -> Tuple[Optional[float], Optional[str]]:
@@ -171,19 +212,24 @@ class OdometryEkf:
         cov: variances (var_v, var_w), or the 6x6 / 36-element twist
         covariance of nav_msgs/Odometry (entries [0,0] and [5,5] are used).
         """
-        bad = self._bad_numbers(v_m_s=v_m_s, w_rad_s=w_rad_s)
+        bad = self._bad_number("v_m_s", v_m_s) or self._bad_number("w_rad_s", w_rad_s)
         if bad:
             return self._reject(f"wheel odometry rejected: {bad}")
-        arr = np.asarray(cov, dtype=float).reshape(-1)
-        if arr.size == 36:
-            arr = np.array([arr[0], arr[35]])
-        if arr.size != 2:
-            return self._reject(f"wheel odometry rejected: cov must be (var_v, var_w) or 6x6, got {arr.size} values")
-        var_v, err_v = self._variance(arr[0], "wheel odometry var_v")
-        var_w, err_w = self._variance(arr[1], "wheel odometry var_w")
+        if isinstance(cov, (tuple, list)) and len(cov) == 2:
+            pair = cov
+        else:
+            try:
+                arr = np.asarray(cov, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                return self._reject(f"wheel odometry rejected: cov must be numbers, got {cov!r}")
+            pair = (arr[0], arr[35]) if arr.size == 36 else arr
+            if len(pair) != 2:
+                return self._reject(f"wheel odometry rejected: cov must be (var_v, var_w) or 6x6, got {arr.size} values")
+        var_v, err_v = self._variance(pair[0], "wheel odometry var_v")
+        var_w, err_w = self._variance(pair[1], "wheel odometry var_w")
         if err_v or err_w:
             return self._reject(f"wheel odometry rejected: {err_v or err_w}")
-        self._update([VX, VYAW], np.array([float(v_m_s), float(w_rad_s)]), np.diag([var_v, var_w]))
+        self._update((VX, VYAW), (float(v_m_s), float(w_rad_s)), (var_v, var_w))
         return None
 
     def update_imu(self, yaw_rate_rad_s: float, cov: float, yaw: Optional[float] = None,
@@ -192,31 +238,37 @@ class OdometryEkf:
 
         yaw_cov: variance of yaw [rad^2]; required when yaw is given.
         """
-        bad = self._bad_numbers(yaw_rate_rad_s=yaw_rate_rad_s) or (
-            self._bad_numbers(yaw=yaw) if yaw is not None else None)
+        bad = self._bad_number("yaw_rate_rad_s", yaw_rate_rad_s) or (
+            self._bad_number("yaw", yaw) if yaw is not None else None)
         if bad:
             return self._reject(f"IMU rejected: {bad}")
         var_r, err = self._variance(cov, "IMU yaw-rate cov")
         if err:
             return self._reject(f"IMU rejected: {err}")
         if yaw is None:
-            self._update([VYAW], np.array([float(yaw_rate_rad_s)]), np.array([[var_r]]))
+            self._update((VYAW,), (float(yaw_rate_rad_s),), (var_r,))
             return None
         var_y, err = self._variance(yaw_cov, "IMU yaw_cov")
         if err:
             return self._reject(f"IMU rejected: {err}")
-        self._update([YAW, VYAW], np.array([float(yaw), float(yaw_rate_rad_s)]), np.diag([var_y, var_r]))
+        self._update((YAW, VYAW), (float(yaw), float(yaw_rate_rad_s)), (var_y, var_r))
         return None
 
     # -------------------------------------------------------------- output
     def output(self) -> FilteredOdometry:
         """Current estimate as /odometry/filtered contents."""
-        p = self.covariance
+        p, s = self._p, self._s
         tiny = 1e-9
-        pose = np.diag([0.0, 0.0, tiny, tiny, tiny, 0.0])
-        pose[np.ix_([0, 1, 5], [0, 1, 5])] = p[np.ix_([X, Y, YAW], [X, Y, YAW])]
-        twist = np.diag([0.0, tiny, tiny, tiny, tiny, 0.0])
-        twist[np.ix_([0, 5], [0, 5])] = p[np.ix_([VX, VYAW], [VX, VYAW])]
-        s = self.state
-        return FilteredOdometry(float(s[X]), float(s[Y]), float(s[YAW]), float(s[VX]), float(s[VYAW]),
-                                pose, twist)
+        pose = [[0.0] * 6 for _ in range(6)]
+        twist = [[0.0] * 6 for _ in range(6)]
+        for i in (2, 3, 4):
+            pose[i][i] = tiny                       # z, roll, pitch: unobserved in 2-D mode
+        for i in (1, 2, 3, 4):
+            twist[i][i] = tiny                      # vy, vz, roll and pitch rates
+        for a, sa in zip((0, 1, 5), (X, Y, YAW)):
+            for b, sb in zip((0, 1, 5), (X, Y, YAW)):
+                pose[a][b] = p[sa][sb]
+        for a, sa in zip((0, 5), (VX, VYAW)):
+            for b, sb in zip((0, 5), (VX, VYAW)):
+                twist[a][b] = p[sa][sb]
+        return FilteredOdometry(s[X], s[Y], s[YAW], s[VX], s[VYAW], np.array(pose), np.array(twist))
