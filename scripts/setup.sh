@@ -51,7 +51,9 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "[setup] pip: installing requirements.txt"
   extra=()
   [ -d /opt/wheels ] && extra+=(--find-links /opt/wheels)
-  .venv/bin/pip install -q --disable-pip-version-check "${extra[@]}" -r requirements.txt
+  # (the grep drops pip's notes about extra index folders this machine's pip config names)
+  { .venv/bin/pip install -q --disable-pip-version-check "${extra[@]}" -r requirements.txt 2>&1; } \
+    | { grep -v "is ignored: it is neither a file nor a directory" || true; }
   echo "$want" > "$stamp"
 else
   echo "[setup] pip: requirements up to date"

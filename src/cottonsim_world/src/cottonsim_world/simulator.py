@@ -264,6 +264,13 @@ class Simulator:
             self.lidar = Vlp16Model(self.sensor_scene, cfg.lidar)
             self.base_T_sensor[LIDAR_FRAME] = urdf.fixed_transform(BASE_FRAME, LIDAR_FRAME)
         self.base_T_sensor[IMU_FRAME] = urdf.fixed_transform(BASE_FRAME, IMU_FRAME)
+        # imu_link mount, as plain floats for the 50 Hz IMU path (numpy per-call overhead)
+        r_base_imu = self.base_T_sensor[IMU_FRAME][:3, :3]
+        self._r_base_imu = r_base_imu
+        self._r_base_imu_rows = tuple(tuple(float(v) for v in row) for row in r_base_imu)
+        self._q_base_imu = tuple(float(v) for v in matrix_to_quaternion(r_base_imu))
+        self._imu_cov_cache: Dict[bytes, np.ndarray] = {}
+        self._joint_names = list(WHEEL_JOINTS) + list(ARM_JOINT_NAMES)
 
         self._schedules: Dict[str, _Schedule] = {}
         for name, cam_cfg in cfg.cameras:
@@ -283,6 +290,7 @@ class Simulator:
         self._contacts: List[ContactEvent] = []
         self._next_due_s = 0.0      # earliest next_s of all schedules: steps before it skip the scan
         self._arm_dt_s = 0.0
+        self._arm_idle = False      # at target and still: skip the 100 Hz arm update until command_arm
 
     # ------------------------------------------------------------------ inputs
     @property
@@ -295,7 +303,9 @@ class Simulator:
 
     def command_arm(self, positions_rad: Sequence[float]) -> np.ndarray:
         """UR5e joint position targets [rad]; clamped to the URDF limits (returned)."""
-        return self.arm.command(positions_rad)
+        clamped = self.arm.command(positions_rad)
+        self._arm_idle = False
+        return clamped
 
     def set_sensor_active(self, name: str, active: bool) -> None:
         """Switch a sensor's updates on/off (e.g. nobody subscribes). Names: see ``sensor_names``."""
@@ -333,8 +343,11 @@ class Simulator:
         self._physics_wall_s += time.perf_counter() - t0
         self._arm_dt_s += self.step_s
         if self._arm_dt_s >= ARM_PERIOD_S - 1e-12:
-            if not self.arm.at_target() or np.any(self.arm.velocities):
-                self.arm.step(self._arm_dt_s)
+            if not self._arm_idle:
+                if not self.arm.at_target() or np.any(self.arm.velocities):
+                    self.arm.step(self._arm_dt_s)
+                else:
+                    self._arm_idle = True     # stays so until the next command_arm
             self._arm_dt_s = 0.0
         self._contacts.extend(self.physics.contacts_since_last_call())
         now = self.time_s
@@ -393,7 +406,7 @@ class Simulator:
                                            (wheel.twist_covariance[0, 0], wheel.twist_covariance[5, 5]))
             return OdometryReading(now, wheel, self.ekf.output())
         if name == "joint_states":
-            names = list(WHEEL_JOINTS) + list(ARM_JOINT_NAMES)
+            names = list(self._joint_names)
             positions = np.concatenate([state.wheel_angles_rad, self.arm.positions])
             velocities = np.concatenate([state.wheel_velocities_rad_s, self.arm.velocities])
             return JointStatesReading(now, names, positions, velocities)
@@ -411,17 +424,41 @@ class Simulator:
         Rates and specific force rotate with R_base_imu^T, covariances with R^T C R, and the
         orientation becomes that of imu_link in the world (q_world_base * q_base_imu), as a
         real IMU mounted that way reports; consumers use TF base_link <- imu_link.
+        Runs at the IMU rate on 3-vectors: plain floats, and the (constant) covariances
+        are rotated once and cached.
         """
-        r = self.base_T_sensor[IMU_FRAME][:3, :3]
-        q_world_imu = matrix_to_quaternion(quaternion_to_matrix(m.orientation_xyzw) @ r)
+        (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = self._r_base_imu_rows
+
+        def rotate(v):   # R^T v
+            x, y, z = v.tolist() if isinstance(v, np.ndarray) else v
+            return np.array((a00 * x + a10 * y + a20 * z, a01 * x + a11 * y + a21 * z, a02 * x + a12 * y + a22 * z))
 
         def cov(c):
-            return (r.T @ np.asarray(c, dtype=float).reshape(3, 3) @ r).reshape(9)
+            c = np.asarray(c, dtype=float)
+            key = c.tobytes()
+            out = self._imu_cov_cache.get(key)
+            if out is None:
+                r = self._r_base_imu
+                out = (r.T @ c.reshape(3, 3) @ r).reshape(9)
+                if len(self._imu_cov_cache) < 64:
+                    self._imu_cov_cache[key] = out
+            return out.copy()
 
+        # Hamilton product q_world_base * q_base_imu, sign chosen with w >= 0
+        ax, ay, az, aw = m.orientation_xyzw.tolist() if isinstance(m.orientation_xyzw, np.ndarray) \
+            else m.orientation_xyzw
+        bx, by, bz, bw = self._q_base_imu
+        q = (aw * bx + ax * bw + ay * bz - az * by,
+             aw * by - ax * bz + ay * bw + az * bx,
+             aw * bz + ax * by - ay * bx + az * bw,
+             aw * bw - ax * bx - ay * by - az * bz)
+        n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+        if q[3] < 0.0:
+            n = -n
         return dataclasses.replace(
-            m, orientation_xyzw=np.asarray(q_world_imu),
-            angular_velocity_rad_s=r.T @ np.asarray(m.angular_velocity_rad_s),
-            linear_acceleration_m_s2=r.T @ np.asarray(m.linear_acceleration_m_s2),
+            m, orientation_xyzw=np.array((q[0] / n, q[1] / n, q[2] / n, q[3] / n)),
+            angular_velocity_rad_s=rotate(m.angular_velocity_rad_s),
+            linear_acceleration_m_s2=rotate(m.linear_acceleration_m_s2),
             orientation_covariance=cov(m.orientation_covariance),
             angular_velocity_covariance=cov(m.angular_velocity_covariance),
             linear_acceleration_covariance=cov(m.linear_acceleration_covariance))

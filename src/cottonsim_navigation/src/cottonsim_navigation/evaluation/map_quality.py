@@ -222,7 +222,8 @@ def evaluate_map(map_grid, map_resolution_m: float, map_origin: Sequence[float],
     coarse = search(config.coarse_step_deg * np.arange(-n, n + 1))
     a0 = coarse[1]
     k = int(math.ceil(config.coarse_step_deg / config.fine_step_deg))
-    fine = search(a0 + config.fine_step_deg * np.arange(-k, k + 1))
+    fine_angles = a0 + config.fine_step_deg * np.arange(-k, k + 1)
+    fine = search(fine_angles[np.abs(fine_angles) <= config.max_rotation_deg + 1e-9])
     if fine[0] < coarse[0]:
         fine = coarse
     _, theta_deg, sx, sy = fine

@@ -47,7 +47,10 @@ class SlamNode:
       ~angular_update_rad, ~temporal_update_s, ~resample_threshold, ~delta_m, ~xmin_m.., ~srr, ~srt,
       ~str_, ~stt, ~lsigma_m, ~ogain, ~lskip, ~match_max_beams, ~logodds_*, ~occupied_prob);
       ~scan_topic (/scan_360), ~map_update_interval (0.5 s), ~transform_publish_period (0.05 s),
-      ~map_frame (map), ~odom_frame (odom), ~base_frame (base_link), ~seed (-1 = random).
+      ~map_frame (map), ~odom_frame (odom), ~base_frame (base_link), ~seed (-1 = random),
+      ~publish_full_extent (false): publish the whole xmin_m..ymax_m extent (unknown where unobserved)
+      instead of only the observed tiles; with an extent around the farm this lets move_base accept
+      goals in areas not yet seen (mapping.launch).
     Scans with non-finite angles are ignored with a warning; NaN ranges are invalid beams.
     """
 
@@ -60,6 +63,7 @@ class SlamNode:
         self.odom_frame = typed_param("~odom_frame", "odom")
         self.base_frame = typed_param("~base_frame", "base_link")
         seed = typed_param("~seed", -1)
+        self.full_extent = typed_param("~publish_full_extent", False)
         self.slam = RbpfSlam(self.config, np.random.default_rng(None if seed < 0 else seed))
         self._lock = threading.Lock()
         self._map_dirty = False
@@ -111,7 +115,7 @@ class SlamNode:
         with self._lock:
             if not self._started:
                 return None
-            grid, spec = self.slam.occupancy()
+            grid, spec = self.slam.occupancy(crop=not self.full_extent)
         return occupancy_grid_msg(grid, spec.resolution_m, (spec.origin_x_m, spec.origin_y_m, 0.0), self.map_frame,
                                   rospy.Time.now())
 

@@ -168,33 +168,43 @@ class OdometryEkf:
 
     # ------------------------------------------------------------- updates
     def _update(self, rows: Sequence[int], z: Sequence[float], r_diag: Sequence[float]) -> None:
-        """Kalman update with H picking ``rows`` of the state, diagonal measurement noise r_diag."""
+        """Kalman update with H picking ``rows`` (one or two) of the state; R = diag(r_diag)."""
         p, s = self._p, self._s
-        m = len(rows)
         innovation = [z[i] - s[row] for i, row in enumerate(rows)]
         for i, row in enumerate(rows):
             if row == YAW:
                 innovation[i] = _wrap(innovation[i])
-        # S = H P H^T + R (m x m, m <= 2); K = P H^T S^-1 (5 x m)
-        ph = [[p[i][row] for row in rows] for i in range(5)]          # P H^T
-        if m == 1:
-            k = [[ph[i][0] / (ph[rows[0]][0] + r_diag[0])] for i in range(5)]
+        # S = H P H^T + R; K = P H^T S^-1, kept as its columns k0 (, k1)
+        r0 = rows[0]
+        col0 = [p[i][r0] for i in range(5)]                # P H^T, first column
+        if len(rows) == 1:
+            k0 = [v / (col0[r0] + r_diag[0]) for v in col0]
+            for i in range(5):
+                s[i] += k0[i] * innovation[0]
+            # Joseph form P' = (I - K H) P (I - K H)^T + K R K^T keeps P symmetric positive definite;
+            # with H P = row r0 of P: A = P - k0 p[r0], then P' = A - A[:, r0] k0^T + r k0 k0^T.
+            hp0 = p[r0]
+            a_mat = [[pij - ki * hj for pij, hj in zip(pi, hp0)] for pi, ki in zip(p, k0)]
+            r = r_diag[0]
+            self._p = [[aij - ai[r0] * kj + ki * r * kj for aij, kj in zip(ai, k0)] for ai, ki in zip(a_mat, k0)]
         else:
-            a, b = ph[rows[0]][0] + r_diag[0], ph[rows[0]][1]
-            c, d = ph[rows[1]][0], ph[rows[1]][1] + r_diag[1]
+            r1 = rows[1]
+            col1 = [p[i][r1] for i in range(5)]
+            a, b = col0[r0] + r_diag[0], col1[r0]
+            c, d = col0[r1], col1[r1] + r_diag[1]
             det = a * d - b * c
-            ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det
-            k = [[ph[i][0] * ia + ph[i][1] * ic, ph[i][0] * ib + ph[i][1] * id_] for i in range(5)]
-        for i in range(5):
-            s[i] += sum(k[i][j] * innovation[j] for j in range(m))
+            ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det      # S^-1
+            k0 = [x * ia + y * ic for x, y in zip(col0, col1)]
+            k1 = [x * ib + y * id_ for x, y in zip(col0, col1)]
+            for i in range(5):
+                s[i] += k0[i] * innovation[0] + k1[i] * innovation[1]
+            hp0, hp1 = p[r0], p[r1]
+            a_mat = [[pij - ki * h0 - li * h1 for pij, h0, h1 in zip(pi, hp0, hp1)]
+                     for pi, ki, li in zip(p, k0, k1)]
+            q0, q1 = r_diag
+            self._p = [[aij - ai[r0] * kj - ai[r1] * lj + ki * q0 * kj + li * q1 * lj
+                        for aij, kj, lj in zip(ai, k0, k1)] for ai, ki, li in zip(a_mat, k0, k1)]
         s[YAW] = _wrap(s[YAW])
-        # Joseph form keeps the covariance symmetric positive definite:
-        # P' = (I - K H) P (I - K H)^T + K R K^T, with H P = rows of P and A H^T = columns of A.
-        hp = [p[row] for row in rows]
-        a_mat = [[p[i][j] - sum(k[i][t] * hp[t][j] for t in range(m)) for j in range(5)] for i in range(5)]
-        self._p = [[a_mat[i][j] - sum(a_mat[i][rows[t]] * k[j][t] for t in range(m))
-                    + sum(k[i][t] * r_diag[t] * k[j][t] for t in range(m))
-                    for j in range(5)] for i in range(5)]
 
     @staticmethod
     def _variance(cov, name: str) -> Tuple[Optional[float], Optional[str]]:

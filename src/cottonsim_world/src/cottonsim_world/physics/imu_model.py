@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -82,13 +82,17 @@ class ImuMeasurement:
     linear_acceleration_covariance: np.ndarray
 
 
-def quat_to_rpy(q_xyzw: Sequence[float]) -> np.ndarray:
-    """Roll, pitch, yaw [rad] (ZYX convention) of a quaternion (x, y, z, w)."""
-    x, y, z, w = q_xyzw
+def _quat_to_rpy_floats(x: float, y: float, z: float, w: float) -> Tuple[float, float, float]:
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return np.array([roll, pitch, yaw])
+    return roll, pitch, yaw
+
+
+def quat_to_rpy(q_xyzw: Sequence[float]) -> np.ndarray:
+    """Roll, pitch, yaw [rad] (ZYX convention) of a quaternion (x, y, z, w)."""
+    x, y, z, w = q_xyzw
+    return np.array(_quat_to_rpy_floats(x, y, z, w))
 
 
 def rpy_to_quat(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -102,23 +106,38 @@ def rpy_to_quat(roll: float, pitch: float, yaw: float) -> np.ndarray:
                      cr * cp * cy + sr * sp * sy])
 
 
-def _finite_vector(value, n: int, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float).reshape(-1)
-    if arr.shape != (n,):
+def _finite_vector(value, n: int, name: str) -> List[float]:
+    """value as n finite Python floats, or a ValueError naming the input."""
+    if isinstance(value, np.ndarray) and value.dtype == np.float64:
+        values = value.reshape(-1).tolist()
+    else:
+        try:
+            values = [float(v) for v in value]
+        except (TypeError, ValueError):
+            try:
+                values = np.asarray(value, dtype=float).reshape(-1).tolist()
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"IMU input {name} must be {n} numbers, got {value!r}") from exc
+    if len(values) != n:
         raise ValueError(f"IMU input {name} must have {n} values, got shape {np.shape(value)}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"IMU input {name} contains NaN or inf: {arr.tolist()}")
-    return arr
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"IMU input {name} contains NaN or inf: {values}")
+    return values
 
 
 class ImuModel:
-    """Turns the true state into IMU samples with noise and bias drift."""
+    """Turns the true state into IMU samples with noise and bias drift.
+
+    It runs at 50 Hz on 3-vectors, so the arithmetic is on plain floats
+    (numpy's per-call overhead would dominate); the random numbers come
+    from one numpy Generator in the same order as element-wise draws.
+    """
 
     def __init__(self, config: ImuConfig = ImuConfig()):
         self.config = config
         self._rng = np.random.default_rng(config.seed)
-        self._gyro_bias = np.zeros(3)
-        self._accel_bias = np.zeros(3)
+        self._gyro_bias = [0.0, 0.0, 0.0]
+        self._accel_bias = [0.0, 0.0, 0.0]
         self._yaw_bias = 0.0
         self._last_stamp_s: Optional[float] = None
         c = config
@@ -134,21 +153,16 @@ class ImuModel:
     @property
     def biases(self) -> dict:
         """Current biases (for tests and diagnostics)."""
-        return {"gyro_rad_s": self._gyro_bias.copy(), "accel_m_s2": self._accel_bias.copy(),
+        return {"gyro_rad_s": np.array(self._gyro_bias), "accel_m_s2": np.array(self._accel_bias),
                 "yaw_rad": self._yaw_bias}
-
-    def _advance_bias(self, bias, std: float, dt: float):
-        phi = math.exp(-dt / self.config.drift_time_s)
-        size = None if np.isscalar(bias) else np.shape(bias)
-        return phi * bias + math.sqrt(max(0.0, 1.0 - phi * phi)) * std * self._rng.standard_normal(size)
 
     def measure(self, stamp_s: float, orientation_xyzw, angular_velocity_body_rad_s,
                 linear_acceleration_body_m_s2) -> ImuMeasurement:
         """One sample at stamp_s [s] from the true state (base_link axes)."""
         if not isinstance(stamp_s, (int, float)) or not math.isfinite(stamp_s):
             raise ValueError(f"IMU input stamp_s must be finite, got {stamp_s!r}")
-        q = _finite_vector(orientation_xyzw, 4, "orientation_xyzw")
-        norm = float(np.linalg.norm(q))
+        qx, qy, qz, qw = _finite_vector(orientation_xyzw, 4, "orientation_xyzw")
+        norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
         if norm < 1e-9:
             raise ValueError("IMU input orientation_xyzw is a zero quaternion")
         gyro = _finite_vector(angular_velocity_body_rad_s, 3, "angular_velocity_body_rad_s")
@@ -158,20 +172,32 @@ class ImuModel:
         dt = 0.0 if self._last_stamp_s is None else stamp_s - self._last_stamp_s
         self._last_stamp_s = float(stamp_s)
         c = self.config
+        # One draw per sample; the order is that of the former per-field draws:
+        # gyro bias (3), accel bias (3), yaw bias (1) when time advanced, then
+        # orientation (3), gyro (3) and accel (3) white noise.
         if dt > 0.0:
-            self._gyro_bias = self._advance_bias(self._gyro_bias, c.gyro_drift_rad_s, dt)
-            self._accel_bias = self._advance_bias(self._accel_bias, c.accel_drift_m_s2, dt)
-            self._yaw_bias = float(self._advance_bias(self._yaw_bias, c.yaw_drift_rad, dt))
-        rng = self._rng
-        rpy = quat_to_rpy(q / norm)
-        rpy += c.orientation_noise_rad * rng.standard_normal(3)
-        rpy[2] += self._yaw_bias
-        rpy[2] = (rpy[2] + math.pi) % (2.0 * math.pi) - math.pi
+            z = self._rng.standard_normal(16).tolist()
+            # first-order Gauss-Markov bias: b' = phi b + sqrt(1 - phi^2) std n
+            phi = math.exp(-dt / c.drift_time_s)
+            root = math.sqrt(max(0.0, 1.0 - phi * phi))
+            g, a = root * c.gyro_drift_rad_s, root * c.accel_drift_m_s2
+            self._gyro_bias = [phi * b + g * n for b, n in zip(self._gyro_bias, z[0:3])]
+            self._accel_bias = [phi * b + a * n for b, n in zip(self._accel_bias, z[3:6])]
+            self._yaw_bias = phi * self._yaw_bias + root * c.yaw_drift_rad * z[6]
+            z = z[7:]
+        else:
+            z = self._rng.standard_normal(9).tolist()
+        roll, pitch, yaw = _quat_to_rpy_floats(qx / norm, qy / norm, qz / norm, qw / norm)
+        sigma = c.orientation_noise_rad
+        roll += sigma * z[0]
+        pitch += sigma * z[1]
+        yaw = (yaw + sigma * z[2] + self._yaw_bias + math.pi) % (2.0 * math.pi) - math.pi
+        gn, an = c.gyro_noise_rad_s, c.accel_noise_m_s2
         return ImuMeasurement(
             stamp_s=float(stamp_s),
-            orientation_xyzw=rpy_to_quat(*rpy),
-            angular_velocity_rad_s=gyro + self._gyro_bias + c.gyro_noise_rad_s * rng.standard_normal(3),
-            linear_acceleration_m_s2=acc + self._accel_bias + c.accel_noise_m_s2 * rng.standard_normal(3),
+            orientation_xyzw=rpy_to_quat(roll, pitch, yaw),
+            angular_velocity_rad_s=np.array([v + b + gn * n for v, b, n in zip(gyro, self._gyro_bias, z[3:6])]),
+            linear_acceleration_m_s2=np.array([v + b + an * n for v, b, n in zip(acc, self._accel_bias, z[6:9])]),
             orientation_covariance=self._orientation_cov.copy(),
             angular_velocity_covariance=self._gyro_cov.copy(),
             linear_acceleration_covariance=self._accel_cov.copy(),

@@ -77,6 +77,20 @@ class OdometryEstimate:
     twist_covariance: np.ndarray
 
 
+def _four_floats(values) -> Tuple[float, float, float, float]:
+    """FL, FR, RL, RR as Python floats (50 Hz on 4 numbers: plain floats beat numpy here)."""
+    if isinstance(values, np.ndarray) and values.dtype == np.float64 and values.size == 4:
+        out = values.reshape(-1).tolist()
+    else:
+        try:
+            out = np.asarray(values, dtype=float).reshape(-1).tolist()
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"wheel velocities must be numbers, got {values!r}") from exc
+        if len(out) != 4:
+            raise ValueError(f"need 4 wheel velocities (FL, FR, RL, RR), got shape {np.shape(values)}")
+    return out[0], out[1], out[2], out[3]
+
+
 class WheelOdometry:
     """Integrates wheel speeds into an odometry pose and twist."""
 
@@ -93,28 +107,32 @@ class WheelOdometry:
 
     def twist_from_wheels(self, wheel_velocities_rad_s) -> Tuple[float, float]:
         """(linear x [m/s], angular z [rad/s]) of FL, FR, RL, RR wheel speeds [rad/s]."""
-        wv = np.asarray(wheel_velocities_rad_s, dtype=float).reshape(-1)
+        return self._twist(*_four_floats(wheel_velocities_rad_s))
+
+    def _twist(self, fl: float, fr: float, rl: float, rr: float) -> Tuple[float, float]:
         r = self.config.wheel_radius_m * self.config.wheel_radius_multiplier
-        left = 0.5 * (wv[0] + wv[2]) * r
-        right = 0.5 * (wv[1] + wv[3]) * r
+        left = 0.5 * (fl + rl) * r
+        right = 0.5 * (fr + rr) * r
         ws = self.config.track_m * self.config.wheel_separation_multiplier
         return 0.5 * (left + right), (right - left) / ws
 
     def update(self, wheel_velocities_rad_s, dt_s: float) -> Optional[str]:
         """Integrate over dt_s [s]; returns None, or the reason the sample was ignored."""
-        wv = np.asarray(wheel_velocities_rad_s, dtype=float).reshape(-1)
-        if wv.shape != (4,):
-            reason = f"wheel odometry: need 4 wheel velocities (FL, FR, RL, RR), got shape {wv.shape}"
-        elif not np.all(np.isfinite(wv)):
-            reason = f"wheel odometry: wheel velocities contain NaN or inf: {wv.tolist()}"
-        elif not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s) and dt_s >= 0):
-            reason = f"wheel odometry: dt_s must be finite and >= 0, got {dt_s!r}"
+        try:
+            wv = _four_floats(wheel_velocities_rad_s)
+        except ValueError as exc:
+            wv, reason = None, f"wheel odometry: {exc}"
         else:
-            reason = None
+            if not all(math.isfinite(v) for v in wv):
+                reason = f"wheel odometry: wheel velocities contain NaN or inf: {list(wv)}"
+            elif not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s) and dt_s >= 0):
+                reason = f"wheel odometry: dt_s must be finite and >= 0, got {dt_s!r}"
+            else:
+                reason = None
         if reason is not None:
             self.rejections.append(reason)
             return reason
-        v, w = self.twist_from_wheels(wv)
+        v, w = self._twist(*wv)
         self._v, self._w = v, w
         dyaw = w * dt_s
         if abs(dyaw) < 1e-6:
