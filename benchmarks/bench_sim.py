@@ -8,14 +8,22 @@ Profiles (the issue's two aims):
   none  - physics, IMU, GPS and odometry only
 
 The robot drives an arc through the farm's headland while the clock runs.
-Prints sim seconds, wall seconds, the real-time factor and ms per update of each sensor.
+Prints sim seconds, wall and CPU seconds, the real-time factor and ms per update of each sensor.
 
   OMP_NUM_THREADS=2 python benchmarks/bench_sim.py [--profiles all,nav,none] [--seconds 5]
+
+On a shared machine wall time is noisy; instruction counts are not. --callgrind
+switches callgrind's instrumentation on for the timed loop only (start-up and
+warm-up excluded), so the count per simulated second can be read off:
+
+  valgrind --tool=callgrind --instr-atstart=no python benchmarks/bench_sim.py \
+      --profiles none --seconds 1 --callgrind        # "Collected : N" = instructions
 """
 import argparse
 import os
 import pathlib
 import platform
+import subprocess
 import time
 
 from cottonsim_world.config_io import simulator_config_from_dict
@@ -35,20 +43,30 @@ PROFILES = {
 }
 
 
-def run(profile: str, seconds: float, clouds: bool):
+def _callgrind(switch: str) -> None:
+    """Turn callgrind's instrumentation of this process on or off (no-op outside valgrind)."""
+    subprocess.run(["callgrind_control", "-i", switch, str(os.getpid())], stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL, check=False)
+
+
+def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False):
     sim = Simulator(simulator_config_from_dict(PROFILES[profile]), UrdfModel.from_file(URDF))
     for cam in sim.cameras:
         sim.set_camera_cloud_wanted(cam, clouds and profile == "all")
     sim.step_for(0.2)                      # warm-up (first renders, JIT)
-    t0_sim, t0 = sim.time_s, time.perf_counter()
-    while sim.time_s - t0_sim < seconds:
+    if callgrind:
+        _callgrind("on")
+    t0_sim, t0, c0 = sim.time_s, time.perf_counter(), time.process_time()
+    while sim.time_s - t0_sim < seconds - 1e-9:
         sim.command_velocity(0.5, 0.15)
         sim.step()
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if callgrind:
+        _callgrind("off")
     sim_s = sim.time_s - t0_sim
     timing = {k: v for k, v in sim.sensor_timing_ms().items() if v > 0}
     sim.close()
-    return sim_s, wall, timing, sim.physics_step_ms()
+    return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s
 
 
 def main():
@@ -56,13 +74,17 @@ def main():
     parser.add_argument("--profiles", default="all,nav,none")
     parser.add_argument("--seconds", type=float, default=5.0, help="sim seconds per profile")
     parser.add_argument("--no-clouds", action="store_true", help="skip the cameras' point clouds")
+    parser.add_argument("--callgrind", action="store_true",
+                        help="under valgrind --tool=callgrind --instr-atstart=no: instrument the timed loop only")
     args = parser.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; "
           f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
     for profile in args.profiles.split(","):
-        sim_s, wall, timing, physics_ms = run(profile, args.seconds, not args.no_clouds)
-        print(f"\n[{profile}] {sim_s:.1f} sim s in {wall:.1f} wall s: real-time factor {sim_s / wall:.2f}")
-        print(f"  physics step {physics_ms:.3f} ms")
+        sim_s, wall, cpu, timing, physics_ms, step_s = run(profile, args.seconds, not args.no_clouds,
+                                                            args.callgrind)
+        print(f"\n[{profile}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s): "
+              f"real-time factor {sim_s / wall:.2f} (cpu {sim_s / cpu:.2f})")
+        print(f"  physics step {physics_ms:.3f} ms (step {step_s * 1e3:.1f} ms)")
         for name, ms in timing.items():
             print(f"  {name:22s} {ms:8.2f} ms per update")
 

@@ -355,18 +355,20 @@ class Simulator:
             return []
         readings: List[object] = []
         state: Optional[RobotState] = None
+        next_due = math.inf
         for sched in self._schedules.values():
-            if not sched.due(now):
-                continue
-            if state is None:
-                state = self.physics.robot_state()
-            t1 = time.perf_counter()
-            reading = self._produce(sched.name, now, state)
-            sched.wall_s += time.perf_counter() - t1
-            sched.count += 1
-            if reading is not None:
-                readings.append(reading)
-        self._next_due_s = min(sched.next_s for sched in self._schedules.values())
+            if now + 1e-9 >= sched.next_s and sched.due(now):
+                if state is None:
+                    state = self.physics.robot_state()
+                t1 = time.perf_counter()
+                reading = self._produce(sched.name, now, state)
+                sched.wall_s += time.perf_counter() - t1
+                sched.count += 1
+                if reading is not None:
+                    readings.append(reading)
+            if sched.next_s < next_due:
+                next_due = sched.next_s
+        self._next_due_s = next_due
         return readings
 
     def step_for(self, duration_s: float) -> List[object]:

@@ -103,7 +103,7 @@ class SlamConfig:
     lskip: int = 0
     match_max_beams: int = 90
     logodds_hit: float = 0.85
-    logodds_miss: float = -0.1
+    logodds_miss: float = -0.05
     logodds_clamp: float = 3.5
     occupied_prob: float = 0.65
     matcher: ScanMatcherConfig = field(default_factory=ScanMatcherConfig)

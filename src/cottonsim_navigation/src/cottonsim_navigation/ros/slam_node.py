@@ -101,11 +101,14 @@ class SlamNode:
         t0 = time.perf_counter()
         with self._lock:
             result = self.slam.update(odom, scan, msg.header.stamp.to_sec())
+            first = not self._started
             self._started = True
         if result.updated:
             self.updates += 1
             self.update_wall_s += time.perf_counter() - t0
             self._map_dirty = True
+            if first:      # the map goes out with the first TF: clients that wait for TF find a map too
+                self._on_map_timer(None)
             self.entropy_pub.publish(Float64(data=result.entropy))
             if self.updates % 50 == 0:
                 rospy.loginfo("slam_gmapping: %d updates, %.0f ms each on average, N_eff %.1f", self.updates,

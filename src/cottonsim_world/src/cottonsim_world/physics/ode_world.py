@@ -22,10 +22,23 @@ b^2 / (a^2 + b^2) of the ideal two-wheel rate (a = half wheelbase, b = half
 track): 0.554 for the Husky, i.e. the kinematic track looks 1.80 times
 wider -- close to the 1.875 ``wheel_separation_multiplier`` Clearpath uses.
 Measured: commanding 1.0 rad/s (wheel speeds for 1.875 rad/s on the URDF
-track) turns the robot at 1.015 rad/s, ratio 0.541 of the ideal. Driving
-straight at constant speed needs almost no force, hence almost no slip
-(a 10 s, 0.5 m/s command with the controller's ramps and time-out should
-give 5.120 m; the robot drives 5.130 m and stays within 1 mm sideways).
+track) turns the robot at 1.039 rad/s, ratio 0.554 of the ideal, as the
+closed form says. Driving straight at constant speed needs almost no force,
+hence almost no slip (a 10 s, 0.5 m/s command with the controller's ramps
+and time-out should give 5.125 m; the robot drives 5.130 m and stays within
+0.1 mm sideways).
+
+Each wheel touches the ground through one contact joint
+(``PhysicsConfig.merge_wheel_contacts``): ODE's cylinder-plane test gives
+one point per rim, and two joints 11 cm apart across the tyre add a small
+scrubbing torque that turned the robot 2.4 % slower in a spin (1.015 rad/s)
+and, more to the point, drifted with larger steps (13 mm in a 3 s spin at
+0.005 s). The merged joint sits at the rims' mean point with the pair's
+summed spring and damper, and its point is computed in Python directly
+(``_merged_wheel_contact``) rather than read back from ode.collide. With it
+the 0.005 s step turns and drives like the 0.001 s step (see
+``PhysicsConfig.step_s``), and a third fewer constraint rows make each
+quickStep about 20 % cheaper.
 
 Note on pyode: its constants predate ODE 0.16 (Debian's libode8). The
 joint parameter indices and contact mode flags used here are the ones of
@@ -115,13 +128,16 @@ class PhysicsConfig:
     """Parameters of the ODE world.
 
     step_s: physics step [s]. Gazebo's world used 0.001 s. Measured with
-        quickStep, 50 iterations (5 m straight / 3 s spin at 1 rad/s / rest):
-        0.001 s: spin 1.0146 rad/s, 0.1 mm drift, rest z jitter 2e-12 m;
-        0.002 s: spin 1.0144 rad/s, 2.4 mm drift, jitter 7e-9 m;
-        0.005 s: spin 1.0132 rad/s, 13 mm drift, jitter 1e-6 m;
-        0.010 s: the robot wanders 3 cm while spinning, jitter 6e-6 m. 0.002 s is the
-        default: as good as 0.001 s for driving at ~60 % of the cost per
-        simulated second (benchmarks/bench_physics.py).
+        quickStep, 50 iterations and merged wheel contacts (3 s spin at
+        1 rad/s; 10 s arc at 0.5 m/s, 0.15 rad/s; 8 s slalom at 1 m/s,
+        +/-1.5 rad/s with reversals; compared with 0.001 s):
+        0.002 s: spin drift 0.00 mm, arc end 0.2 mm off, slalom end 1.7 cm off;
+        0.004 s: 0.02 mm, 0.1 mm, 4.0 cm;
+        0.005 s: 0.04 mm, 1.0 mm, 4.7 cm, rest z jitter 8e-7 m.
+        (With one joint per rim point, 0.005 s drifted 13 mm in the spin.)
+        0.005 s is the default: every rate of the simulator (50, 40, 100
+        and 10 Hz) is a whole number of steps, and a simulated second costs
+        ~40 % of the instructions of 0.002 s (docs/benchmarks.md).
     gravity_m_s2: z component of gravity [m/s^2].
     solver_iterations: quickStep iterations per step.
     wheel_mu: Coulomb friction of wheel on soil, along (mu1) and across

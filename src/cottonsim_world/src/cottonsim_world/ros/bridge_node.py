@@ -33,7 +33,8 @@ TF
 Parameters (private)
   ~real_time_factor (float, 1.0): target sim/wall rate; 0 = as fast as possible
   ~lazy_sensors (bool, true): render/scan only while a topic of the sensor has subscribers
-  ~clock_period_s (float, 0.005): sim-time period of /clock [s]
+  ~clock_period_s (float, 0.01): sim-time period of /clock [s] (100 Hz: the fastest sim-time
+                               consumers run at 50 Hz; each /clock costs a publish)
   ~stats_period_s (float, 1.0): sim-time period of /sim/stats [s]
   ~publish_tf (bool, true): publish odom -> base_link
   ~urdf_file (str): robot URDF (default: cottonsim_description/urdf/cottonsim_robot.urdf)
@@ -75,7 +76,9 @@ class SimBridgeNode:
         if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0.0):
             raise ValueError(f"~real_time_factor must be >= 0 (0 = as fast as possible), got {self.real_time_factor}")
         self.lazy = bool(rospy.get_param("~lazy_sensors", True))
-        self.clock_period_s = float(rospy.get_param("~clock_period_s", 0.005))
+        self.clock_period_s = float(rospy.get_param("~clock_period_s", 0.01))
+        if not (math.isfinite(self.clock_period_s) and self.clock_period_s > 0.0):
+            raise ValueError(f"~clock_period_s must be a finite period > 0 [s], got {self.clock_period_s}")
         self.stats_period_s = float(rospy.get_param("~stats_period_s", 1.0))
         self.publish_tf = bool(rospy.get_param("~publish_tf", True))
         default_urdf = pathlib.Path(rospkg.RosPack().get_path("cottonsim_description")) / "urdf" / "cottonsim_robot.urdf"
