@@ -48,7 +48,7 @@ from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughC
                                                    original_passthrough_mask)
 from cottonsim_world.sensors.lidar import LidarConfig, LidarScan, Vlp16Model
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene
-from cottonsim_world.transforms import matrix_to_quaternion, pose_matrix, quaternion_to_matrix
+from cottonsim_world.transforms import matrix_to_quaternion, pose_matrix
 
 CAMERA_NAMES = ("realsense_p", "realsense_secondary", "realsense_tertiary")
 WHEEL_JOINTS = ("front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint",

@@ -291,10 +291,6 @@ def _yaw_wxyz(yaw: float) -> Tuple[float, float, float, float]:
     return (math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0))
 
 
-def _rot3(ode_rotation: Sequence[float]) -> np.ndarray:
-    return np.asarray(ode_rotation, dtype=float).reshape(3, 3)
-
-
 def _finite_tuple(values: Iterable[float], n: int, what: str) -> Tuple[float, ...]:
     out = tuple(float(v) for v in values)
     if len(out) != n or not all(math.isfinite(v) for v in out):
