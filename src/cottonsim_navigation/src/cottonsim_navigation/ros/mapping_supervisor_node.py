@@ -10,7 +10,7 @@ like map_saver (cottonsim_navigation.core.map_files.save_map) and shuts down
 from __future__ import annotations
 
 import json
-import math
+import os
 
 import numpy as np
 import rospy
@@ -32,7 +32,7 @@ class MappingSupervisorNode:
     Service clients
       ~map_service (default /dynamic_map)  nav_msgs/GetMap  the SLAM node's current map
     Parameters (private)
-      ~map_file (str, required): output base name, writes <map_file>.pgm and <map_file>.yaml
+      ~map_file (str, required): output base name, writes <map_file>.pgm and <map_file>.yaml (folder made)
       ~crop_margin_m (float, 1.0): margin kept around the observed cells [m]
       ~settle_s (float, 2.0): sim time waited after "finished" before the map is fetched (last scans) [s]
       ~occupied_thresh (float, 65), ~free_thresh (float, 19.6): map_saver's thresholds on OccupancyGrid values
@@ -71,6 +71,7 @@ class MappingSupervisorNode:
         msg = rospy.ServiceProxy(self.map_service, GetMap)().map
         grid, res, origin = occupancy_grid_to_array(msg)
         cropped, corigin = crop_to_known(grid, res, origin, self.margin_m)
+        os.makedirs(os.path.dirname(os.path.abspath(self.map_file)), exist_ok=True)
         pgm, yaml_path = save_map(self.map_file, cropped, res, corigin, self.saver_config)
         rospy.loginfo("mapping_supervisor: %d x %d map (cropped from %d x %d) saved to %s, %s; %d occupied cells",
                       cropped.shape[1], cropped.shape[0], grid.shape[1], grid.shape[0], pgm, yaml_path,

@@ -48,6 +48,8 @@ class SlamNode:
       ~str_, ~stt, ~lsigma_m, ~ogain, ~lskip, ~match_max_beams, ~logodds_*, ~occupied_prob);
       ~scan_topic (/scan_360), ~map_update_interval (0.5 s), ~transform_publish_period (0.05 s),
       ~map_frame (map), ~odom_frame (odom), ~base_frame (base_link), ~seed (-1 = random),
+      ~tf_start_delay_s (1.0): map -> odom is first published this long (sim time) after the first map, so
+      that nodes which start on TF (the waypoint navigators) find move_base holding a map [s];
       ~publish_full_extent (false): publish the whole xmin_m..ymax_m extent (unknown where unobserved)
       instead of only the observed tiles; with an extent around the farm this lets move_base accept
       goals in areas not yet seen (mapping.launch).
@@ -64,6 +66,8 @@ class SlamNode:
         self.base_frame = typed_param("~base_frame", "base_link")
         seed = typed_param("~seed", -1)
         self.full_extent = typed_param("~publish_full_extent", False)
+        self.tf_start_delay_s = typed_param("~tf_start_delay_s", 1.0, minimum=0.0)
+        self._tf_start: Optional[rospy.Time] = None
         self.slam = RbpfSlam(self.config, np.random.default_rng(None if seed < 0 else seed))
         self._lock = threading.Lock()
         self._map_dirty = False
@@ -132,6 +136,8 @@ class SlamNode:
         self._map_msg = msg
         self.meta_pub.publish(msg.info)
         self.map_pub.publish(msg)
+        if self._tf_start is None:
+            self._tf_start = rospy.Time.now() + rospy.Duration(self.tf_start_delay_s)
 
     def _on_dynamic_map(self, _req):
         msg = self._build_map_msg()
@@ -140,7 +146,7 @@ class SlamNode:
         return GetMapResponse(map=msg)
 
     def _on_tf_timer(self, _event):
-        if not self._started:
+        if not self._started or self._tf_start is None or rospy.Time.now() < self._tf_start:
             return
         stamp = rospy.Time.now() + rospy.Duration(self.tf_period_s)
         if self._last_tf_stamp is not None and stamp <= self._last_tf_stamp:
