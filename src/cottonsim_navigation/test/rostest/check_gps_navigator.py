@@ -39,7 +39,7 @@ class GpsNavigatorTest(unittest.TestCase):
         report_file = rospy.get_param("~report_file")
         if os.path.exists(report_file):
             os.remove(report_file)           # a report of an earlier run must not pass this one
-        self.wait_for(lambda: self.state is not None and self.state["state"] == "finished", 240, "the route")
+        self.wait_for(lambda: self.state is not None and self.state["state"] == "finished", 420, "the route")
         s = self.state
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")
         self.assertFalse(s["returned_home"])
