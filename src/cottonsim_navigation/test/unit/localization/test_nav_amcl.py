@@ -6,7 +6,7 @@ import pytest
 
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.sensor_models import Scan, simulate_scan
-from nav_loc_synthetic import corridor_map
+from nav_synthetic_maps import corridor_map
 
 
 def test_amcl_converges_and_tracks_a_drive():

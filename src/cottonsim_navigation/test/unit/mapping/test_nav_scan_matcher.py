@@ -6,7 +6,7 @@ import pytest
 
 from cottonsim_navigation.localization.sensor_models import simulate_scan
 from cottonsim_navigation.mapping.scan_matcher import ScanMatcher, ScanMatcherConfig
-from nav_map_synthetic import corridor_map, field_map
+from nav_synthetic_maps import corridor_map, field_map
 
 
 def _points(occ, spec, pose):

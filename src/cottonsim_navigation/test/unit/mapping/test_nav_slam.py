@@ -6,7 +6,7 @@ import pytest
 
 from cottonsim_navigation.localization.sensor_models import Scan, simulate_scan
 from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig, TiledLogOddsMap
-from nav_map_synthetic import field_map
+from nav_synthetic_maps import field_map
 
 
 def _blocks(x, y, size=0.2):
