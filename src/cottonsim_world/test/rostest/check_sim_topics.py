@@ -50,8 +50,9 @@ class SimTopicsTest(unittest.TestCase):
 
     def _cb(self, msg, topic):
         self.first.setdefault(topic, msg)
-        stamp = msg.header.stamp.to_sec()
-        self.stamps[topic].append(stamp)
+        # rospy numbers every message it publishes on a topic (header.seq), so the publication
+        # rate can be measured even when this (busy) test node misses messages of big topics
+        self.stamps[topic].append((msg.header.stamp.to_sec(), msg.header.seq))
 
     def test_topics_types_rates_tf_and_gps(self):
         deadline = rospy.Time.now().to_sec() + 300.0
@@ -61,10 +62,12 @@ class SimTopicsTest(unittest.TestCase):
         missing = [t for t in EXPECTED if not self.stamps[t]]
         self.assertEqual(missing, [], f"topics never published: {missing}")
         for topic, (_, rate) in EXPECTED.items():
-            stamps = [s for s in self.stamps[topic] if 0.5 < s <= 0.5 + WINDOW_S]
-            measured = len(stamps) / WINDOW_S
+            got = sorted(s for s in self.stamps[topic] if 0.5 < s[0] <= 0.5 + WINDOW_S)
+            self.assertGreaterEqual(len(got), max(2, 0.3 * rate * WINDOW_S), f"{topic}: received only {len(got)}")
+            (t0, seq0), (t1, seq1) = got[0], got[-1]
+            measured = (seq1 - seq0) / (t1 - t0)
             self.assertAlmostEqual(measured, rate, delta=0.1 * rate + 1.0,
-                                   msg=f"{topic}: {measured:.1f} Hz in sim time, expected {rate} Hz")
+                                   msg=f"{topic}: published at {measured:.1f} Hz in sim time, expected {rate} Hz")
         # image / cloud contents are sane
         img = self.first["/realsense_p/color/image_raw"]
         self.assertEqual((img.encoding, img.width, img.height), ("rgb8", 320, 240))
