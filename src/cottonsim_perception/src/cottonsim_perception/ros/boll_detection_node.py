@@ -42,7 +42,6 @@ TF (looked up): ~target_frame <- <camera>_color_optical_frame, ~arm_base_frame <
 from __future__ import annotations
 
 import collections
-import os
 import threading
 from typing import Optional
 
@@ -55,6 +54,7 @@ from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_msgs.msg import Bool
 
 from cottonsim_world.ros import conversions as conv
+from cottonsim_perception.ros.predictor_loading import load_predictor
 
 from cottonsim_perception.localisation import (BOLL, BollLocalisationConfig, boxes_from_semantic, localise_boxes,
                                                points_within_reach, transform_points)
@@ -88,7 +88,8 @@ class BollDetectionNode:
         if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise ValueError(f"~rate_hz must be > 0, got {self.rate_hz}")
         self.weights = str(rospy.get_param("~weights", ""))
-        self.predictor = self._load_predictor() if self.source == "network" else None
+        self.predictor = (load_predictor("boll_detection", self.weights, "~source")
+                          if self.source == "network" else None)
         self.optical_frame = f"{self.camera}_color_optical_frame"
 
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
@@ -115,23 +116,6 @@ class BollDetectionNode:
         rospy.loginfo("boll_detection: camera %s, source %s, reach %.2f m from %s", self.camera, self.source,
                       self.reach_m, self.arm_base_frame)
 
-    def _load_predictor(self):
-        if not self.weights:
-            rospy.logerr("boll_detection: ~source is 'network' but ~weights is empty; publishing nothing")
-            return None
-        if not os.path.isfile(self.weights):
-            rospy.logerr("boll_detection: weights file '%s' does not exist; publishing nothing", self.weights)
-            return None
-        try:
-            from cottonsim_perception.inference import Predictor
-            predictor = Predictor(self.weights, device=str(rospy.get_param("~device", "cpu")),
-                                  conf_threshold=float(rospy.get_param("~conf_threshold", 0.25)),
-                                  iou_threshold=float(rospy.get_param("~iou_threshold", 0.7)),
-                                  threads=int(rospy.get_param("~threads", 1)))
-        except Exception as exc:  # a bad checkpoint must not take the node down
-            rospy.logerr("boll_detection: cannot load weights '%s': %s; publishing nothing", self.weights, exc)
-            return None
-        return predictor
 
     # ------------------------------------------------------------------ inputs
     def _store(self, msg, args):

@@ -32,7 +32,6 @@ TF: none.
 """
 from __future__ import annotations
 
-import os
 import threading
 import time
 from typing import Optional
@@ -43,6 +42,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32
 
 from cottonsim_world.ros import conversions as conv
+from cottonsim_perception.ros.predictor_loading import load_predictor
 
 from cottonsim_perception.localisation import (BOLL, GROUND, PLANT, SKY, colourise_labels,
                                                label_image_from_detections)
@@ -65,7 +65,7 @@ class SegmentationNode:
         self.predictor = None
         self.weights = str(rospy.get_param("~weights", ""))
         if self.mask_source == "network":
-            self.predictor = self._load_predictor()
+            self.predictor = load_predictor("segmentation", self.weights, "~mask_source", "seg")
 
         self.labels_pub = rospy.Publisher("~labels", Image, queue_size=1)
         self.mask_pubs = {name: rospy.Publisher(f"~mask/{name}", Image, queue_size=1)
@@ -84,29 +84,6 @@ class SegmentationNode:
             # the camera image is only the overlay's background here
             rospy.Subscriber(image_topic, Image, self._keep_rgb, queue_size=1, buff_size=BUFF_SIZE)
         rospy.loginfo("segmentation: camera %s, mask source %s", self.camera, self.mask_source)
-
-    def _load_predictor(self):
-        """The network, or None (with an error naming the path) when it cannot be loaded."""
-        if not self.weights:
-            rospy.logerr("segmentation: ~mask_source is 'network' but ~weights is empty; publishing nothing")
-            return None
-        if not os.path.isfile(self.weights):
-            rospy.logerr("segmentation: weights file '%s' does not exist; publishing nothing", self.weights)
-            return None
-        try:
-            from cottonsim_perception.inference import Predictor
-            predictor = Predictor(self.weights, device=str(rospy.get_param("~device", "cpu")),
-                                  conf_threshold=float(rospy.get_param("~conf_threshold", 0.25)),
-                                  iou_threshold=float(rospy.get_param("~iou_threshold", 0.7)),
-                                  threads=int(rospy.get_param("~threads", 1)))
-        except Exception as exc:  # a bad checkpoint must not take the node down
-            rospy.logerr("segmentation: cannot load weights '%s': %s; publishing nothing", self.weights, exc)
-            return None
-        if predictor.task != "seg":
-            rospy.logerr("segmentation: weights '%s' are a '%s' model, not a segmentation model; "
-                         "publishing nothing", self.weights, predictor.task)
-            return None
-        return predictor
 
     # ------------------------------------------------------------------ callbacks
     def _keep_rgb(self, msg: Image):
