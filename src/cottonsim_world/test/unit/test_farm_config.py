@@ -55,6 +55,14 @@ def test_lane_clearance_accounts_for_jitter_and_robot():
         FarmConfig(robot_width_m=1.2)
 
 
+def test_narrow_lanes_allowed_only_when_lane_fit_is_not_required():
+    narrow = FarmConfig(row_spacing_m=1.0, require_lane_fit=False)
+    assert narrow.free_lane_width_m == pytest.approx(0.3)
+    with pytest.raises(ValueError, match="require_lane_fit"):
+        FarmConfig(require_lane_fit="no")
+    assert FarmConfig.from_dict({"row_spacing_m": 1.2, "require_lane_fit": False}).row_spacing_m == 1.2
+
+
 def test_layout_helpers():
     c = FarmConfig(first_lane_x_m=2.0, row_spacing_m=2.0)
     assert c.lane_x_m(0) == 2.0 and c.lane_x_m(3) == pytest.approx(-4.0)

@@ -58,6 +58,10 @@ class FarmConfig:
         robot_width_m: width of the robot that must fit in a lane [m].
         lane_clearance_margin_m: extra free width required in a lane beyond
             the robot's width (both sides together) [m].
+        require_lane_fit: refuse a farm whose lanes are narrower than
+            robot_width_m + lane_clearance_margin_m (default). Studies of
+            narrow spacings (the paper's Fig. 3a row-spacing test) switch it
+            off to build farms the robot is expected to fail in.
         spawn_x_m, spawn_y_m, spawn_yaw_rad: the robot's 'Home' pose, world.
         route_entry_distance_m: how far before the first stem of a lane (in
             the direction of travel) a lane's first waypoint lies [m].
@@ -82,6 +86,7 @@ class FarmConfig:
     plant_variants: int = 8
     robot_width_m: float = 0.67
     lane_clearance_margin_m: float = 0.1
+    require_lane_fit: bool = True
     seed: int = 0
     spawn_x_m: float = -6.0
     spawn_y_m: float = 1.0
@@ -98,6 +103,8 @@ class FarmConfig:
             raise ValueError(f"bolls_per_plant must hold integers, got {bolls!r}")
         object.__setattr__(self, "bolls_per_plant", (int(bolls[0]), int(bolls[1])))
 
+        if not isinstance(self.require_lane_fit, bool):
+            raise ValueError(f"require_lane_fit must be true or false, got {self.require_lane_fit!r}")
         for name in ("rows", "plants_per_row", "plant_variants", "seed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not _is_int(value):
@@ -105,7 +112,7 @@ class FarmConfig:
             object.__setattr__(self, name, int(value))
         for f in fields(self):
             if f.name in ("rows", "plants_per_row", "plant_variants", "seed",
-                          "bolls_per_plant", "growth_stage", "plant_detail"):
+                          "bolls_per_plant", "growth_stage", "plant_detail", "require_lane_fit"):
                 continue
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -158,7 +165,7 @@ class FarmConfig:
         # position jitter on both sides) must take the robot plus a margin.
         free = self.free_lane_width_m
         needed = self.robot_width_m + self.lane_clearance_margin_m
-        if free < needed:
+        if self.require_lane_fit and free < needed:
             raise ValueError(
                 f"row_spacing_m={self.row_spacing_m} leaves a free lane of {free:.3f} m "
                 f"(row_spacing_m - plant_width_m - 2 * position_jitter_m), narrower than "

@@ -1,0 +1,157 @@
+"""Run one roslaunch bringup as a child process: own master port, log file, progress line, clean stop.
+
+Experiments run their bringups one after another from a plain Python
+process (no rospy here): each gets a free TCP port for its own ROS master
+(roslaunch starts that master and stops it at the end, so a run never
+disturbs, nor is disturbed by, a roscore the user has running),
+its whole console output goes to a log file, and the navigator's log lines
+("goal 3/30 ... sent", "finished ...") become a one-line progress display.
+When the wall-clock limit passes, the launch gets SIGINT (roslaunch then
+shuts its nodes down, and the experiment recorder writes what it has), then
+SIGTERM and SIGKILL if it does not end.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable, List, Mapping, Optional
+
+_GOAL_RE = re.compile(r"goal (\d+)/(\d+)")
+_HOME_RE = re.compile(r"goal Home")
+_FINISHED_RE = re.compile(r"finished \(([^)]*)\)")
+_SUMMARY_RE = re.compile(r"(gps|map) route: CR")
+
+
+def free_port() -> int:
+    """A TCP port that is free right now (the kernel's pick)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class ProgressParser:
+    """Turns a bringup's console lines into a short progress text."""
+
+    label: str = ""
+    text: str = "starting"
+
+    def feed(self, line: str) -> bool:
+        """Read one console line; True when the progress text changed."""
+        new = None
+        m = _GOAL_RE.search(line)
+        if m:
+            new = f"waypoint {m.group(1)}/{m.group(2)}"
+        elif _HOME_RE.search(line):
+            new = "returning Home"
+        elif _FINISHED_RE.search(line):
+            new = f"navigator finished ({_FINISHED_RE.search(line).group(1)})"
+        elif _SUMMARY_RE.search(line):
+            new = "report written"
+        if new is None or new == self.text:
+            return False
+        self.text = new
+        return True
+
+
+@dataclass(frozen=True)
+class LaunchSpec:
+    """One bringup: ``roslaunch <package> <launch_file> k:=v ...`` with a wall-clock limit [s]."""
+
+    package: str
+    launch_file: str
+    args: Mapping[str, object] = field(default_factory=dict)
+    log_path: str = "launch.log"
+    wall_timeout_s: float = 3600.0
+    label: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.package or not self.launch_file:
+            raise ValueError("package and launch_file must be named")
+        if not self.wall_timeout_s > 0.0:
+            raise ValueError(f"wall_timeout_s must be > 0 s, got {self.wall_timeout_s!r}")
+
+    def command(self, port: int) -> List[str]:
+        return (["roslaunch", "-p", str(port), self.package, self.launch_file]
+                + [f"{k}:={v}" for k, v in self.args.items()])
+
+
+@dataclass(frozen=True)
+class LaunchResult:
+    returncode: Optional[int]
+    timed_out: bool
+    wall_s: float
+    log_path: str
+
+
+def _print_progress(label: str, text: str, started: float) -> None:
+    line = f"  [{label}] {text}  ({time.monotonic() - started:.0f} s wall)"
+    if sys.stdout.isatty():
+        sys.stdout.write("\r" + line.ljust(78))
+    else:
+        sys.stdout.write(line + "\n")
+    sys.stdout.flush()
+
+
+def run_launch(spec: LaunchSpec, show_progress: bool = True,
+               on_line: Optional[Callable[[str], None]] = None) -> LaunchResult:
+    """Run ``spec`` to its end (or its wall limit); returns how it ended."""
+    port = free_port()
+    env = dict(os.environ, ROS_MASTER_URI=f"http://localhost:{port}")
+    os.makedirs(os.path.dirname(os.path.abspath(spec.log_path)), exist_ok=True)
+    parser = ProgressParser(spec.label)
+    started = time.monotonic()
+    timed_out = False
+    with open(spec.log_path, "w", encoding="utf-8") as log:
+        log.write("$ " + " ".join(spec.command(port)) + "\n")
+        log.flush()
+        proc = subprocess.Popen(spec.command(port), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True, errors="replace", start_new_session=True)
+
+        def pump():
+            for line in proc.stdout:
+                log.write(line)
+                if on_line is not None:
+                    on_line(line)
+                if parser.feed(line) and show_progress:
+                    _print_progress(spec.label, parser.text, started)
+            log.flush()
+
+        reader = threading.Thread(target=pump, daemon=True)
+        reader.start()
+        try:
+            proc.wait(timeout=spec.wall_timeout_s)
+        except subprocess.TimeoutExpired:
+            timed_out = True
+            log.write(f"\n[launcher] wall-clock limit {spec.wall_timeout_s:.0f} s reached: stopping\n")
+        except KeyboardInterrupt:
+            _stop(proc)
+            raise
+        finally:
+            _stop(proc)
+            reader.join(timeout=10.0)
+    if show_progress and sys.stdout.isatty():
+        sys.stdout.write("\n")
+    return LaunchResult(proc.returncode, timed_out, time.monotonic() - started, spec.log_path)
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """SIGINT, then SIGTERM, then SIGKILL to the child's process group, waiting between."""
+    for sig, wait_s in ((signal.SIGINT, 30.0), (signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
+        if proc.poll() is not None:
+            return
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(timeout=wait_s)
+        except subprocess.TimeoutExpired:
+            continue

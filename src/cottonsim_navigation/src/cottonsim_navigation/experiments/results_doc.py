@@ -1,0 +1,171 @@
+"""docs/results.md, generated from the results folders of the experiments (never typed by hand).
+
+``render_results(results_root, doc_path)`` reads what ``reproduce`` wrote
+(see :mod:`.runs`), copies the plots next to the document (docs/results/),
+and writes one section per experiment with our figures beside the paper's
+and the command that produced them. An experiment without results gets a
+line saying so and the command that would produce them.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import shutil
+from typing import Dict, List, Mapping, Optional
+
+from .row_spacing import summary_markdown
+from .seeds import format_spread
+
+# The paper's published figures (its section 3, Tables 2 and 3, Fig. 3a).
+PAPER_ROUTES = {
+    "gps_route": {"cr_percent": "100 (at 5e-6 deg)", "ae_m": "0 (in degrees)", "rmse_m": "0 (in degrees)",
+                  "sim_duration_s": "20 min 42 s", "cr_percent_010m": "-", "plant_contacts": "-",
+                  "cross_track_mean_m": "-", "real_time_factor": "-"},
+    "map_route": {"cr_percent": "96.7 (at 0.25 m)", "ae_m": "0.137", "rmse_m": "0.156",
+                  "sim_duration_s": "31 min 7 s", "cr_percent_010m": "-", "plant_contacts": "-",
+                  "cross_track_mean_m": "-", "real_time_factor": "-"},
+}
+TARGETS = {
+    "gps_route": {"cr_percent": "100", "cr_percent_010m": "100", "plant_contacts": "0",
+                  "cross_track_mean_m": "<= 3 cm", "sim_duration_s": "<= 10 min", "real_time_factor": "> 1"},
+    "map_route": {"cr_percent": "100", "ae_m": "<= 0.05", "rmse_m": "<= 0.06", "plant_contacts": "0",
+                  "sim_duration_s": "<= 10 min"},
+}
+# (report key, label, scale, digits)
+ROUTE_ROWS = (("cr_percent", "CR [%] (paper's threshold)", 1.0, 1),
+              ("cr_percent_010m", "CR at 0.10 m [%]", 1.0, 1),
+              ("ae_m", "AE [m]", 1.0, 3),
+              ("rmse_m", "RMSE [m]", 1.0, 3),
+              ("plant_contacts", "plant contacts", 1.0, 1),
+              ("cross_track_mean_m", "in-row cross-track, mean [cm]", 100.0, 1),
+              ("cross_track_max_m", "in-row cross-track, max [cm]", 100.0, 1),
+              ("localization_error_mean_m", "localisation error vs truth, mean [m]", 1.0, 3),
+              ("localization_error_max_m", "localisation error vs truth, max [m]", 1.0, 3),
+              ("sim_duration_s", "route time (sim) [min]", 1.0 / 60.0, 2),
+              ("real_time_factor", "real-time factor", 1.0, 2))
+# The paper's Tables 2 (validation during training) and 3 (test): class -> (P, R, mAP50) [%].
+PAPER_TABLES = {
+    "seg": {"valid": {"sky": (99.0, 94.1, 95.0), "ground": (99.0, 94.1, 95.3), "cotton plants": (100.0, 96.2, 98.4),
+                      "all": (99.3, 94.8, 96.2)},
+            "test": {"sky": (99.1, 66.7, 66.9), "ground": (99.7, 100.0, 99.5), "cotton plants": (82.1, 100.0, 86.2),
+                     "all": (93.0, 88.9, 85.2)}},
+    "det": {"valid": {"cotton boll": (92.9, 85.6, 92.6), "all": (92.9, 85.6, 92.6)},
+            "test": {"cotton boll": (94.8, 87.2, 92.7), "all": (94.8, 87.2, 92.7)}},
+}
+COMMANDS = {
+    "gps_route": "rosrun cottonsim_navigation reproduce gps-route --seeds 0 1 2",
+    "map_route": "rosrun cottonsim_navigation reproduce map-route --seeds 0 1 2",
+    "row_spacing": "rosrun cottonsim_navigation reproduce row-spacing",
+    "perception": "rosrun cottonsim_navigation reproduce perception",
+}
+
+
+def _load(path: str) -> Optional[Dict]:
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            data = json.load(fh)
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def _route_section(name: str, title: str, results_root: str, doc_dir: str) -> List[str]:
+    out = [f"## {title}", "", f"Command: `{COMMANDS[name]}` (writes `results/{name}/`).", ""]
+    summary = _load(os.path.join(results_root, name, "summary.json"))
+    if summary is None:
+        return out + ["No results yet: run the command above.", ""]
+    spread = summary.get("spread", {})
+    n_runs = summary.get("runs_with_report", 0)
+    out += [f"Seeds {summary.get('seeds')} ({n_runs} runs with a report); mean ± sample standard deviation "
+            "(min..max) over the seeds.", "",
+            "| figure | ours | paper | target |", "|---|---|---|---|"]
+    for key, label, scale, digits in ROUTE_ROWS:
+        if key not in spread:
+            continue
+        out.append(f"| {label} | {format_spread(spread[key], scale, digits)} | "
+                   f"{PAPER_ROUTES[name].get(key, '-')} | {TARGETS[name].get(key, '-')} |")
+    out += ["", "| seed | complete | CR [%] | AE [m] | RMSE [m] | contacts | sim [min] | offline from bag |",
+            "|---|---|---|---|---|---|---|---|"]
+    for run in summary.get("runs", []):
+        r = run.get("report") or {}
+        off = run.get("offline")
+        off_txt = "-" if off is None else ("reproduces the report" if off.get("matches") else
+                                            f"differs: {sorted((off.get('differences') or {}).keys()) or off.get('error', '')}")
+        def g(key, scale=1.0, d=3):
+            v = r.get(key)
+            return "-" if v is None else f"{v * scale:.{d}f}"
+        out.append(f"| {run.get('seed')} | {r.get('complete', False)} | {g('cr_percent', d=1)} | {g('ae_m')} | "
+                   f"{g('rmse_m')} | {r.get('plant_contacts', '-')} | {g('sim_duration_s', 1 / 60, 2)} | {off_txt} |")
+    first = next((run for run in summary.get("runs", []) if run.get("report")), None)
+    if first is not None:
+        plot = os.path.join(first["run_dir"], "trajectory.png")
+        if os.path.isfile(plot):
+            rel = os.path.join("results", f"{name}_seed_{first['seed']}.png")
+            os.makedirs(os.path.join(doc_dir, "results"), exist_ok=True)
+            shutil.copyfile(plot, os.path.join(doc_dir, rel))
+            out += ["", f"Planned vs actual trajectory, seed {first['seed']} (the paper's Fig. 14 style):", "",
+                    f"![{name} trajectory]({rel})"]
+    return out + [""]
+
+
+def _row_spacing_section(results_root: str) -> List[str]:
+    out = ["## Row-spacing study (the paper's Fig. 3a)", "",
+           f"Command: `{COMMANDS['row_spacing']}` (writes `results/row_spacing/`). Each spacing is one full "
+           "GPS-navigation bringup on a two-row farm: the robot drives from Home into the lane between the rows "
+           "(entry, middle and exit waypoints on the centre line); it traverses when it reaches all three without "
+           "touching a plant.", ""]
+    summary = _load(os.path.join(results_root, "row_spacing", "summary.json"))
+    if summary is None:
+        return out + ["No results yet: run the command above.", ""]
+    return out + [summary_markdown(summary), ""]
+
+
+def _perception_section(results_root: str) -> List[str]:
+    out = ["## Perception (the paper's Tables 2 and 3)", "",
+           f"Command: `{COMMANDS['perception']}` (writes `results/perception/`): the evaluate command "
+           "(`rosrun cottonsim_perception evaluate`) with the shipped weights on the original's images "
+           "(valid split beside the paper's Table 2, test split beside Table 3) and on held-out synthetic frames "
+           "from farm seeds never used in training. Masks for segmentation, boxes for detection; P / R / mAP50 in %.",
+           ""]
+    summary = _load(os.path.join(results_root, "perception", "summary.json"))
+    if summary is None:
+        return out + ["No results yet: run the command above.", ""]
+    out += ["| data | task | split | class | ours P / R / mAP50 / mAP50-95 | paper P / R / mAP50 |",
+            "|---|---|---|---|---|---|"]
+    for name, table in summary.get("tables", {}).items():
+        evaluation = _load(table.get("json", ""))
+        if evaluation is None:
+            out.append(f"| {name} | {table.get('task')} | - | - | failed: {table.get('error', '')[:80]} | - |")
+            continue
+        task = table.get("task")
+        for split, per_split in (evaluation.get("splits") or {}).items():
+            block = per_split.get("mask") if task == "seg" else per_split.get("box")
+            for row in (block or {}).get("rows", []):
+                cls = row.get("class")
+                paper_split = "valid" if split == "valid" else ("test" if split == "test" else None)
+                paper = None
+                if name.endswith("_original") and paper_split:
+                    paper = PAPER_TABLES.get(task, {}).get(paper_split, {}).get(cls)
+                paper_txt = "-" if paper is None else f"{paper[0]:.1f} / {paper[1]:.1f} / {paper[2]:.1f}"
+                out.append(f"| {name} | {task} | {split} | {cls} | {100 * row['p']:.1f} / {100 * row['r']:.1f} / "
+                           f"{100 * row['map50']:.1f} / {100 * row['map50_95']:.1f} | {paper_txt} |")
+    return out + [""]
+
+
+def render_results(results_root: str, doc_path: str) -> str:
+    """Write the results page; returns its text."""
+    doc_dir = os.path.dirname(os.path.abspath(doc_path))
+    lines = ["# Results: CottonSim beside the paper", "",
+             "Generated by `rosrun cottonsim_navigation reproduce results-doc` from the folders under `results/` "
+             f"on {datetime.date.today().isoformat()}; do not edit by hand: re-run the experiments and this command.",
+             ""]
+    lines += _route_section("gps_route", "GPS-based route (the paper's section 3.3)", results_root, doc_dir)
+    lines += _route_section("map_route", "Map-based route (AMCL on our SLAM map)", results_root, doc_dir)
+    lines += _row_spacing_section(results_root)
+    lines += _perception_section(results_root)
+    text = "\n".join(lines)
+    os.makedirs(doc_dir, exist_ok=True)
+    with open(doc_path, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    return text

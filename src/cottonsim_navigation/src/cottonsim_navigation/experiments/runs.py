@@ -1,0 +1,283 @@
+"""The experiments of the paper, each one call: run its bringups, keep every output, summarise.
+
+Every experiment writes into its own folder under the results root:
+
+  gps_route/   seed_<s>/{report.json, trajectory.png, trajectory.csv, run.bag, launch.log, sim.yaml},
+               seed_<s>/offline/ (the report recomputed from the bag alone), summary.json
+  map_route/   the same for the map-based route (mode "map")
+  row_spacing/ spacing_<s>/{report.json, ...}, summary.json, summary.md
+  perception/  <table>.json from the evaluate command, summary.json
+
+Nothing here imports ROS: bringups run as child processes (see
+:mod:`.launcher`), the perception tables through the evaluate command.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from typing import Callable, Dict, List, Mapping, Optional, Sequence
+
+import yaml
+
+from . import row_spacing as rs
+from .launcher import LaunchSpec, run_launch
+from .seeds import aggregate_reports
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Where things are: the repository root and the results root [paths]."""
+
+    root: str
+    results: str
+
+    @property
+    def navigation(self) -> str:
+        return os.path.join(self.root, "src", "cottonsim_navigation")
+
+    @property
+    def perception(self) -> str:
+        return os.path.join(self.root, "src", "cottonsim_perception")
+
+
+# The two waypoint routes of the paper: launch file, route file, sim settings, mode.
+ROUTES = {
+    "gps_route": {"launch": "gps_navigation.launch", "mode": "gps",
+                  "waypoints": "config/waypoints/route_gps.txt", "sim_config": "config/sim_navigation.yaml"},
+    "map_route": {"launch": "map_navigation.launch", "mode": "map",
+                  "waypoints": "config/waypoints/route_map.csv", "sim_config": "config/sim_navigation.yaml"},
+}
+
+
+def deep_merge(base: Mapping, override: Mapping) -> Dict:
+    """``base`` with ``override`` merged in, nested dicts key by key (inputs are not changed)."""
+    out = copy.deepcopy(dict(base))
+    for key, value in override.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = deep_merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def write_sim_config(base_path: str, overrides: Mapping, out_path: str) -> str:
+    """Write base sim settings (YAML) with ``overrides`` merged in; returns ``out_path``."""
+    with open(base_path, "r", encoding="utf-8") as fh:
+        base = yaml.safe_load(fh) or {}
+    if not isinstance(base, Mapping):
+        raise ValueError(f"{base_path}: simulator settings must be a YAML mapping")
+    os.makedirs(os.path.dirname(os.path.abspath(out_path)), exist_ok=True)
+    with open(out_path, "w", encoding="utf-8") as fh:
+        fh.write(f"# {os.path.basename(base_path)} with the experiment's overrides {dict(overrides)}\n")
+        yaml.safe_dump(deep_merge(base, overrides), fh, sort_keys=False)
+    return out_path
+
+
+def read_report(path: str) -> Optional[Dict]:
+    """report.json as a dict, or None when the file is missing or not valid JSON."""
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            report = json.load(fh)
+    except (OSError, ValueError):
+        return None
+    return report if isinstance(report, dict) else None
+
+
+def _write_json(path: str, data) -> None:
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(data, fh, indent=1, allow_nan=True)
+        fh.write("\n")
+
+
+def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_factor: float = 0.0,
+              record_bag: bool = True, extra_args: Optional[Mapping[str, object]] = None,
+              wall_timeout_s: float = 5400.0, runner: Callable = run_launch) -> Dict:
+    """The GPS or map route once per seed (farm and simulator seeded alike), then the spread.
+
+    With ``record_bag`` each run's bag is re-evaluated offline (scripts/evaluate_bag)
+    and the summary says whether that reproduces the online report.
+    """
+    if experiment not in ROUTES:
+        raise ValueError(f"experiment must be one of {sorted(ROUTES)}, got {experiment!r}")
+    if not seeds:
+        raise ValueError("seeds must name at least one seed")
+    route = ROUTES[experiment]
+    out_dir = os.path.join(ws.results, experiment)
+    waypoints = os.path.join(ws.navigation, route["waypoints"])
+    runs = []
+    for k, seed in enumerate(seeds):
+        run_name = f"seed_{seed}"
+        run_dir = os.path.join(out_dir, run_name)
+        sim_yaml = write_sim_config(os.path.join(ws.navigation, route["sim_config"]),
+                                    {"seed": int(seed), "farm": {"seed": int(seed)}},
+                                    os.path.join(run_dir, "sim.yaml"))
+        args = {"run_name": run_name, "results_dir": out_dir, "sim_config": sim_yaml,
+                "real_time_factor": real_time_factor, "record_bag": str(bool(record_bag)).lower()}
+        args.update(extra_args or {})
+        print(f"{experiment}: run {k + 1}/{len(seeds)} (seed {seed})", flush=True)
+        result = runner(LaunchSpec("cottonsim_navigation", route["launch"], args,
+                                   os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"seed {seed}"))
+        report = read_report(os.path.join(run_dir, "report.json"))
+        entry = {"seed": seed, "run_dir": run_dir, "report": report, "launch_returncode": result.returncode,
+                 "launch_timed_out": result.timed_out, "launch_wall_s": result.wall_s}
+        if record_bag and report is not None and os.path.isfile(os.path.join(run_dir, "run.bag")):
+            entry["offline"] = _offline_check(ws, route["mode"], run_dir, waypoints, sim_yaml, report)
+        runs.append(entry)
+        print("  " + (_headline(report) if report else f"no report (see {run_dir}/launch.log)"), flush=True)
+    reports = [r["report"] for r in runs if r["report"] is not None]
+    summary = {"experiment": experiment, "mode": route["mode"], "seeds": list(seeds),
+               "waypoints_file": waypoints, "runs_with_report": len(reports), "runs": runs,
+               "spread": aggregate_reports(reports),
+               "all_complete": len(reports) == len(seeds) and all(r.get("complete", False) for r in reports)}
+    _write_json(os.path.join(out_dir, "summary.json"), summary)
+    return summary
+
+
+def _headline(report: Mapping) -> str:
+    def g(key, scale=1.0, fmt=".3f"):
+        v = report.get(key)
+        return "-" if v is None else format(v * scale, fmt)
+    return (f"CR {g('cr_percent', fmt='.1f')} %, AE {g('ae_m')} m, RMSE {g('rmse_m')} m, contacts "
+            f"{report.get('plant_contacts')}, cross-track {g('cross_track_mean_m', 100, '.1f')} cm, "
+            f"sim {g('sim_duration_s', 1 / 60, '.1f')} min, RTF {g('real_time_factor', fmt='.2f')}")
+
+
+# Figures compared between the online report and the one recomputed from the bag [same units].
+OFFLINE_TOLERANCES = {"cr_percent": 1e-6, "cr_percent_010m": 1e-6, "reached": 0, "plant_contacts": 0,
+                      "ae_m": 0.005, "rmse_m": 0.005, "cross_track_mean_m": 0.005, "sim_duration_s": 1.0}
+
+
+def compare_reports(online: Mapping, offline: Mapping, tolerances: Mapping[str, float] = OFFLINE_TOLERANCES
+                    ) -> Dict[str, object]:
+    """Which headline figures of two reports differ by more than their tolerance."""
+    differences = {}
+    for key, tol in tolerances.items():
+        a, b = online.get(key), offline.get(key)
+        if a is None and b is None:
+            continue
+        if a is None or b is None or not (abs(float(a) - float(b)) <= tol):
+            differences[key] = {"online": a, "offline": b, "tolerance": tol}
+    return {"matches": not differences, "differences": differences}
+
+
+def _offline_check(ws: Workspace, mode: str, run_dir: str, waypoints: str, sim_yaml: str, report: Mapping) -> Dict:
+    out = os.path.join(run_dir, "offline")
+    cmd = [sys.executable, os.path.join(ws.navigation, "scripts", "evaluate_bag"), os.path.join(run_dir, "run.bag"),
+           "--waypoints", waypoints, "--mode", mode, "--sim-config", sim_yaml, "--out", out]
+    proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    offline = read_report(os.path.join(out, "report.json"))
+    if proc.returncode != 0 or offline is None:
+        return {"matches": False, "error": proc.stdout.strip()[-500:]}
+    return compare_reports(report, offline)
+
+
+def run_row_spacing(ws: Workspace, config: rs.RowSpacingStudyConfig = rs.RowSpacingStudyConfig(),
+                    real_time_factor: float = 0.0, wall_timeout_s: float = 1200.0,
+                    runner: Callable = run_launch) -> Dict:
+    """The paper's Fig. 3a study: one GPS-navigation bringup per spacing (see :mod:`.row_spacing`)."""
+    from cottonsim_world.farm.config import FarmConfig
+    from cottonsim_world.geodesy import HectorGeodesy
+
+    base_sim = os.path.join(ws.navigation, "config", "sim_navigation.yaml")
+    out_dir = os.path.join(ws.results, "row_spacing")
+    outcomes = []
+    farm = None
+    for k, spacing in enumerate(config.spacings_m):
+        name = f"spacing_{spacing:.2f}"
+        run_dir = os.path.join(out_dir, name)
+        farm_settings = rs.attempt_farm_settings(config, spacing)
+        farm = FarmConfig.from_dict(farm_settings)
+        sim_yaml = write_sim_config(base_sim, {"seed": config.seed, "farm": farm_settings},
+                                    os.path.join(run_dir, "sim.yaml"))
+        with open(sim_yaml, "r", encoding="utf-8") as fh:
+            reference = (yaml.safe_load(fh) or {}).get("geodesy_reference", [49.9, 8.9, 0.0, 0.0])
+        geodesy = HectorGeodesy(*reference)
+        route = os.path.join(run_dir, "route_gps.txt")
+        with open(route, "w", encoding="utf-8") as fh:
+            fh.write(f"# lane 1 (between rows 0 and 1) at {spacing:.2f} m row spacing: entry, middle, exit\n")
+            for x, y in rs.attempt_route_world(farm):
+                lat, lon, _ = geodesy.world_to_geodetic(x, y, 0.0)
+                fh.write(f"{float(lat):.14f} {float(lon):.14f}\n")
+        args = {"run_name": name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": route,
+                "real_time_factor": real_time_factor, "on_failure": "stop",
+                "goal_timeout_s": config.goal_timeout_s, "record_bag": "false"}
+        print(f"row spacing {spacing:.2f} m: attempt {k + 1}/{len(config.spacings_m)}", flush=True)
+        result = runner(LaunchSpec("cottonsim_navigation", "gps_navigation.launch", args,
+                                   os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"{spacing:.2f} m"))
+        error = "wall-clock limit reached" if result.timed_out else ""
+        outcome = rs.outcome_from_report(spacing, farm.plant_width_m,
+                                         read_report(os.path.join(run_dir, "report.json")), error)
+        outcomes.append(outcome)
+        print(f"  {'traversed' if outcome.traversed else 'NOT traversed: ' + outcome.reason}", flush=True)
+    robot_width = farm.robot_width_m if farm is not None else float("nan")
+    summary = rs.study_summary(config, outcomes, robot_width)
+    _write_json(os.path.join(out_dir, "summary.json"), summary)
+    with open(os.path.join(out_dir, "summary.md"), "w", encoding="utf-8") as fh:
+        fh.write(rs.summary_markdown(summary) + "\n")
+    return summary
+
+
+# The perception tables: (name, task, dataset folder relative to the original data root or absolute, splits).
+PERCEPTION_TABLES = (
+    ("seg_original", "seg", "Segmentation", "valid,test"),
+    ("det_original", "det", "Detection", "valid,test"),
+)
+WEIGHTS = {"seg": "weights/scene_segmenter.pt", "det": "weights/boll_detector.pt"}
+
+
+def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[str] = None,
+                   synthetic_images: int = 120, synthetic_test_seeds: str = "900-904") -> Dict:
+    """Tables 2 and 3: the evaluate command on the paper's images and on held-out synthetic frames.
+
+    The synthetic frames are generated here from farm seeds ``synthetic_test_seeds``
+    (never used for training: see weights/README.md) into ``synthetic_data``
+    (default results/perception/synthetic) unless that folder already holds them.
+    """
+    out_dir = os.path.join(ws.results, "perception")
+    os.makedirs(out_dir, exist_ok=True)
+    tables = [(name, task, os.path.join(original_data, sub), split) for name, task, sub, split in PERCEPTION_TABLES]
+    synthetic = synthetic_data or os.path.join(out_dir, "synthetic")
+    if synthetic_images > 0:
+        if not os.path.isdir(os.path.join(synthetic, "seg")):
+            print(f"perception: generating {synthetic_images} held-out synthetic frames per task "
+                  f"(farm seeds {synthetic_test_seeds})", flush=True)
+            subprocess.run([sys.executable, os.path.join(ws.perception, "scripts", "generate_dataset"),
+                            "--task", "both", "--out", synthetic, "--images", "0",
+                            "--test-images", str(synthetic_images), "--seeds", "",
+                            "--test-seeds", synthetic_test_seeds], check=True)
+        tables += [("seg_synthetic", "seg", os.path.join(synthetic, "seg"), "test"),
+                   ("det_synthetic", "det", os.path.join(synthetic, "det"), "test")]
+    summary = {"experiment": "perception", "tables": {}}
+    for name, task, data, split in tables:
+        out_json = os.path.join(out_dir, f"{name}.json")
+        weights = os.path.join(ws.perception, WEIGHTS[task])
+        print(f"perception: {name} ({task}, {data}, split {split})", flush=True)
+        t0 = time.monotonic()
+        proc = subprocess.run([sys.executable, os.path.join(ws.perception, "scripts", "evaluate"), "--task", task,
+                               "--data", data, "--weights", weights, "--split", split, "--json", out_json],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        summary["tables"][name] = {"task": task, "data": data, "split": split, "weights": weights,
+                                   "json": out_json, "ok": proc.returncode == 0,
+                                   "wall_s": time.monotonic() - t0,
+                                   "error": "" if proc.returncode == 0 else proc.stdout.strip()[-500:]}
+    _write_json(os.path.join(out_dir, "summary.json"), summary)
+    return summary
+
+
+def headline_metrics(evaluation: Mapping, split: str) -> Optional[Dict[str, float]]:
+    """The 'all' row (P, R, mAP50, mAP50-95) of an evaluate JSON: masks for seg, boxes for det."""
+    per_split = (evaluation.get("splits") or {}).get(split)
+    if not per_split:
+        return None
+    block = per_split.get("mask") if per_split.get("task") == "seg" else per_split.get("box")
+    for row in (block or {}).get("rows", []):
+        if row.get("class") == "all":
+            return {k: row[k] for k in ("p", "r", "map50", "map50_95") if k in row}
+    return None

@@ -1,0 +1,199 @@
+"""The experiment plans, summaries and the results page (no ROS, no simulator runs)."""
+import json
+import math
+import os
+
+import pytest
+import yaml
+
+from cottonsim_navigation.experiments import row_spacing as rs
+from cottonsim_navigation.experiments.launcher import LaunchResult, LaunchSpec, ProgressParser
+from cottonsim_navigation.experiments.results_doc import render_results
+from cottonsim_navigation.experiments.runs import (Workspace, compare_reports, deep_merge, run_route,
+                                                   run_row_spacing, write_sim_config)
+from cottonsim_navigation.experiments.seeds import aggregate_reports, format_spread, spread
+from cottonsim_world.farm.config import FarmConfig
+
+
+# ----------------------------------------------------------------- row spacing
+def test_study_config_defaults_are_the_papers_ten_spacings_and_bad_values_are_named():
+    c = rs.RowSpacingStudyConfig()
+    assert c.spacings_m == pytest.approx([1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9])
+    for kwargs, name in ((dict(spacings_m=()), "spacings_m"), (dict(spacings_m=(1.0, -1.0)), "spacings_m"),
+                         (dict(rows=1), "rows"), (dict(goal_timeout_s=0.0), "goal_timeout_s"),
+                         (dict(seed=-1), "seed"), (dict(lane_x_m=math.nan), "lane_x_m")):
+        with pytest.raises(ValueError, match=name):
+            rs.RowSpacingStudyConfig(**kwargs)
+
+
+@pytest.mark.parametrize("spacing", [1.0, 1.35, 1.9])
+def test_attempt_farm_puts_the_driven_lane_ahead_of_home_between_two_rows(spacing):
+    config = rs.RowSpacingStudyConfig()
+    farm = FarmConfig.from_dict(rs.attempt_farm_settings(config, spacing))   # narrow farms are allowed
+    assert farm.lane_x_m(1) == pytest.approx(config.lane_x_m)
+    # the rows beside lane 1 are half a spacing away on either side
+    assert farm.row_x_m(0) - farm.lane_x_m(1) == pytest.approx(spacing / 2)
+    assert farm.lane_x_m(1) - farm.row_x_m(1) == pytest.approx(spacing / 2)
+    route = rs.attempt_route_world(farm)
+    assert [x for x, _ in route] == pytest.approx([config.lane_x_m] * 3)
+    ys = [y for _, y in route]
+    last_stem = farm.first_plant_y_m + 0.7 * 19
+    assert ys[0] == pytest.approx(farm.first_plant_y_m - farm.route_entry_distance_m)
+    assert ys[1] == pytest.approx((farm.first_plant_y_m + last_stem) / 2)
+    assert ys[2] == pytest.approx(last_stem + farm.route_exit_distance_m)
+
+
+def _report(reached=3, waypoints=3, contacts=0, complete=True, reason="route complete", aborted=0):
+    return {"waypoints": waypoints, "reached": reached, "plant_contacts": contacts, "complete": complete,
+            "sim_duration_s": 60.0, "cross_track_max_m": 0.04,
+            "navigator": {"reason": reason, "aborted": aborted}}
+
+
+def test_outcome_classification_names_why_an_attempt_failed():
+    ok = rs.outcome_from_report(1.8, 0.7, _report())
+    assert ok.traversed and ok.reason == "" and ok.free_lane_m == pytest.approx(1.1)
+    blocked = rs.outcome_from_report(1.2, 0.7, _report(reached=1, aborted=1, reason="goal 2 aborted: no path"))
+    assert not blocked.traversed and "1/3 waypoints reached" in blocked.reason and "no path" in blocked.reason
+    scraped = rs.outcome_from_report(1.5, 0.7, _report(contacts=4))
+    assert not scraped.traversed and "4 plant contacts" in scraped.reason
+    missing = rs.outcome_from_report(1.0, 0.7, None, "wall-clock limit reached")
+    assert not missing.traversed and "wall-clock" in missing.reason
+
+
+def test_smallest_traversable_spacing_needs_every_wider_spacing_to_pass():
+    def o(s, ok):
+        return rs.outcome_from_report(s, 0.7, _report() if ok else _report(contacts=1))
+    # 1.2 passes by luck but 1.3 fails: the answer is the bottom of the run that reaches the widest
+    outcomes = [o(1.0, False), o(1.2, True), o(1.3, False), o(1.4, True), o(1.5, True), o(1.6, True)]
+    assert rs.smallest_traversable_spacing(outcomes) == pytest.approx(1.4)
+    assert rs.smallest_traversable_spacing([o(1.8, True), o(1.9, False)]) is None
+    summary = rs.study_summary(rs.RowSpacingStudyConfig(spacings_m=(1.0, 1.2, 1.3, 1.4, 1.5, 1.6)), outcomes, 0.67)
+    text = rs.summary_markdown(summary)
+    assert "**1.40 m**" in text and "| 1.30 | 0.60 | no |" in text
+
+
+# ----------------------------------------------------------------------- seeds
+def test_spread_is_mean_and_sample_std_and_drops_non_finite_values():
+    s = spread([1.0, 2.0, 3.0, float("nan")])
+    assert (s["n"], s["n_dropped"], s["mean"], s["min"], s["max"]) == (3, 1, 2.0, 1.0, 3.0)
+    assert s["std"] == pytest.approx(1.0)                 # sample std of 1, 2, 3
+    assert spread([5.0])["std"] == 0.0
+    assert math.isnan(spread([])["mean"])
+    agg = aggregate_reports([{"ae_m": 0.1}, {"ae_m": 0.3, "rmse_m": 0.2}])
+    assert agg["ae_m"]["mean"] == pytest.approx(0.2)
+    assert agg["rmse_m"]["n"] == 1 and agg["rmse_m"]["n_dropped"] == 1   # the first report lacks it
+    assert "cr_percent" not in agg
+    assert format_spread(agg["ae_m"], 100.0, 1) == "20.0 ± 14.1 (10.0..30.0, n=2)"
+
+
+# ------------------------------------------------------------------------ runs
+def test_deep_merge_and_sim_config_file(tmp_path):
+    base = {"seed": 0, "farm": {"rows": 9, "row_spacing_m": 1.8}, "lidar": {"samples_per_ring": 440}}
+    merged = deep_merge(base, {"seed": 3, "farm": {"seed": 3}})
+    assert merged == {"seed": 3, "farm": {"rows": 9, "row_spacing_m": 1.8, "seed": 3},
+                      "lidar": {"samples_per_ring": 440}}
+    assert base["farm"] == {"rows": 9, "row_spacing_m": 1.8}          # input untouched
+    src = tmp_path / "base.yaml"
+    src.write_text(yaml.safe_dump(base))
+    out = write_sim_config(str(src), {"farm": {"seed": 5}}, str(tmp_path / "x" / "sim.yaml"))
+    assert yaml.safe_load(open(out))["farm"]["seed"] == 5
+    src.write_text("- not a mapping\n")
+    with pytest.raises(ValueError, match="mapping"):
+        write_sim_config(str(src), {}, str(tmp_path / "y.yaml"))
+
+
+def test_compare_reports_flags_figures_outside_tolerance():
+    a = {"cr_percent": 100.0, "ae_m": 0.050, "rmse_m": 0.060, "reached": 30, "plant_contacts": 0}
+    assert compare_reports(a, dict(a, ae_m=0.052))["matches"]
+    diff = compare_reports(a, dict(a, ae_m=0.070, reached=29))
+    assert not diff["matches"] and set(diff["differences"]) == {"ae_m", "reached"}
+
+
+def _fake_runner(reports):
+    """Stands in for run_launch: writes the next report where the launch would have."""
+    calls = []
+
+    def runner(spec):
+        calls.append(spec)
+        run_dir = os.path.join(spec.args["results_dir"], spec.args["run_name"])
+        os.makedirs(run_dir, exist_ok=True)
+        report = reports[len(calls) - 1]
+        if report is not None:
+            with open(os.path.join(run_dir, "report.json"), "w") as fh:
+                json.dump(report, fh)
+        return LaunchResult(0, False, 1.0, spec.log_path)
+    runner.calls = calls
+    return runner
+
+
+def _workspace(tmp_path):
+    root = pathlib_root()
+    return Workspace(root=root, results=str(tmp_path / "results"))
+
+
+def pathlib_root():
+    return os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
+
+
+def test_route_runs_per_seed_and_summarises_the_spread(tmp_path):
+    ws = _workspace(tmp_path)
+    good = dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, mode="gps")
+    worse = dict(_report(30, 30), cr_percent=100.0, ae_m=0.06, rmse_m=0.07, mode="gps")
+    runner = _fake_runner([good, worse, None])
+    summary = run_route(ws, "gps_route", [0, 1, 2], record_bag=False, runner=runner)
+    assert [c.args["run_name"] for c in runner.calls] == ["seed_0", "seed_1", "seed_2"]
+    sim = yaml.safe_load(open(runner.calls[1].args["sim_config"]))
+    assert sim["seed"] == 1 and sim["farm"]["seed"] == 1
+    assert sim["cameras"]["realsense_p"]["enabled"] is False        # the experiment's base settings kept
+    assert summary["runs_with_report"] == 2 and not summary["all_complete"]
+    assert summary["spread"]["ae_m"]["mean"] == pytest.approx(0.05)
+    assert json.load(open(tmp_path / "results" / "gps_route" / "summary.json"))["seeds"] == [0, 1, 2]
+    with pytest.raises(ValueError, match="experiment"):
+        run_route(ws, "boat_route", [0], runner=runner)
+
+
+def test_row_spacing_study_writes_gps_routes_in_the_tested_lane_and_a_summary(tmp_path):
+    ws = _workspace(tmp_path)
+    config = rs.RowSpacingStudyConfig(spacings_m=(1.2, 1.8))
+    runner = _fake_runner([_report(1, 3, aborted=1, reason="no path"), _report()])
+    summary = run_row_spacing(ws, config, runner=runner)
+    assert summary["smallest_traversable_spacing_m"] == pytest.approx(1.8)
+    from cottonsim_world.geodesy import HectorGeodesy
+    geo = HectorGeodesy()
+    lines = [l.split() for l in open(runner.calls[0].args["waypoints"]) if not l.startswith("#")]
+    xs = [geo.geodetic_to_world(float(lat), float(lon))[0] for lat, lon in lines]
+    assert xs == pytest.approx([config.lane_x_m] * 3, abs=1e-6)
+    farm = yaml.safe_load(open(runner.calls[0].args["sim_config"]))["farm"]
+    assert farm["row_spacing_m"] == 1.2 and farm["require_lane_fit"] is False and farm["rows"] == 2
+    assert runner.calls[0].args["on_failure"] == "stop"
+    assert "| 1.20 | 0.50 | no |" in open(tmp_path / "results" / "row_spacing" / "summary.md").read()
+
+
+# ----------------------------------------------------------------- results page
+def test_results_page_is_generated_from_the_results_folders(tmp_path):
+    ws = _workspace(tmp_path)
+    reports = [dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, sim_duration_s=540.0, mode="gps"),
+               dict(_report(30, 30), cr_percent=100.0, ae_m=0.06, rmse_m=0.07, sim_duration_s=600.0, mode="gps")]
+    run_route(ws, "gps_route", [0, 1], record_bag=False, runner=_fake_runner(reports))
+    run_row_spacing(ws, rs.RowSpacingStudyConfig(spacings_m=(1.5, 1.6)),
+                    runner=_fake_runner([_report(contacts=2), _report()]))
+    doc = tmp_path / "docs" / "results.md"
+    text = render_results(ws.results, str(doc))
+    assert doc.read_text() == text
+    assert "| AE [m] | 0.050 ± 0.014 (0.040..0.060, n=2) | 0.137" not in text     # that is the map route's paper value
+    assert "| AE [m] | 0.050 ± 0.014 (0.040..0.060, n=2) | 0 (in degrees) |" in text
+    assert "| route time (sim) [min] | 9.50 ± 0.71 (9.00..10.00, n=2) | 20 min 42 s | <= 10 min |" in text
+    assert "**1.60 m**" in text
+    assert "## Map-based route" in text and "No results yet" in text       # map route not run here
+
+
+def test_progress_parser_follows_the_navigator_log():
+    p = ProgressParser()
+    assert p.feed("[INFO] [12.3]: gps_waypoint_navigator: goal 3/30 entry (1.00, 2.00, yaw 0.00) sent")
+    assert p.text == "waypoint 3/30"
+    assert not p.feed("[INFO] something else")
+    assert p.feed("gps_waypoint_navigator: finished (route complete): 30/30 waypoints succeeded")
+    assert p.text.startswith("navigator finished (route complete")
+    with pytest.raises(ValueError, match="wall_timeout_s"):
+        LaunchSpec("cottonsim_navigation", "x.launch", wall_timeout_s=0.0)
+    assert LaunchSpec("p", "f.launch", {"a": 1}).command(12345) == ["roslaunch", "-p", "12345", "p", "f.launch", "a:=1"]
