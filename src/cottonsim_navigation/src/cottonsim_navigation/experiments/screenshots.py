@@ -95,8 +95,11 @@ def _one(root: str, name: str, out_dir: str, display: str, wait_scale: float) ->
                                               start_new_session=True))
                 time.sleep(3.0)
             # rviz reads /use_sim_time once at start: wait until the simulator's clock runs
-            subprocess.run(["rostopic", "echo", "-n", "1", "/clock"], env=env, stdout=subprocess.DEVNULL,
-                           stderr=subprocess.DEVNULL, timeout=180.0, check=False)
+            try:
+                subprocess.run(["rostopic", "echo", "-n", "1", "/clock"], env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL, timeout=180.0, check=False)
+            except subprocess.TimeoutExpired:
+                log.write("[screenshots] no /clock after 180 s; starting rviz anyway\n")
             rviz_cfg = os.path.join(_package_dir(root, rviz_pkg), rviz_rel)
             procs.append(subprocess.Popen(["rviz", "-d", rviz_cfg], env=env, stdout=log, stderr=subprocess.STDOUT,
                                           start_new_session=True))
