@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Entry point of the CottonSim image: one `docker run` per job.
+#   (no argument) | main      the main job (scripts/main.sh: the paper's GPS route)
+#   test                      every test (scripts/test.sh)
+#   reproduce <experiment>    an experiment of the paper (rosrun cottonsim_navigation reproduce --help)
+#   anything else             run as a command inside the workspace environment
+set -euo pipefail
+cd /cottonsim
+job="${1:-main}"
+[ "$#" -gt 0 ] && shift
+case "$job" in
+  main) exec bash scripts/main.sh "$@" ;;
+  test) exec bash scripts/test.sh "$@" ;;
+  reproduce)
+    # shellcheck disable=SC1091
+    source scripts/env.sh
+    exec python src/cottonsim_navigation/scripts/reproduce "$@" ;;
+  *)
+    # shellcheck disable=SC1091
+    source scripts/env.sh
+    exec "$job" "$@" ;;
+esac
