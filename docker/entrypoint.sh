@@ -8,15 +8,17 @@ set -euo pipefail
 cd /cottonsim
 job="${1:-main}"
 [ "$#" -gt 0 ] && shift
+args=("$@")
+set --     # catkin's setup script reads the positional parameters of whoever sources it
 case "$job" in
-  main) exec bash scripts/main.sh "$@" ;;
-  test) exec bash scripts/test.sh "$@" ;;
+  main) exec bash scripts/main.sh "${args[@]}" ;;
+  test) exec bash scripts/test.sh "${args[@]}" ;;
   reproduce)
     # shellcheck disable=SC1091
     source scripts/env.sh
-    exec python src/cottonsim_navigation/scripts/reproduce "$@" ;;
+    exec python src/cottonsim_navigation/scripts/reproduce "${args[@]}" ;;
   *)
     # shellcheck disable=SC1091
     source scripts/env.sh
-    exec "$job" "$@" ;;
+    exec "$job" "${args[@]}" ;;
 esac
