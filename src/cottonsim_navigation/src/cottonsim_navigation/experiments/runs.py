@@ -98,11 +98,13 @@ def _write_json(path: str, data) -> None:
 
 def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_factor: float = 0.0,
               record_bag: bool = True, extra_args: Optional[Mapping[str, object]] = None,
-              wall_timeout_s: float = 5400.0, runner: Callable = run_launch) -> Dict:
+              wall_timeout_s: float = 5400.0, runner: Callable = run_launch,
+              waypoints: Optional[str] = None) -> Dict:
     """The GPS or map route once per seed (farm and simulator seeded alike), then the spread.
 
     With ``record_bag`` each run's bag is re-evaluated offline (scripts/evaluate_bag)
-    and the summary says whether that reproduces the online report.
+    and the summary says whether that reproduces the online report. ``waypoints``
+    replaces the paper's route file (quick checks on a short route).
     """
     if experiment not in ROUTES:
         raise ValueError(f"experiment must be one of {sorted(ROUTES)}, got {experiment!r}")
@@ -110,7 +112,11 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
         raise ValueError("seeds must name at least one seed")
     route = ROUTES[experiment]
     out_dir = os.path.join(ws.results, experiment)
-    waypoints = os.path.join(ws.navigation, route["waypoints"])
+    if waypoints is None:
+        waypoints = os.path.join(ws.navigation, route["waypoints"])
+    elif not os.path.isfile(waypoints):
+        raise ValueError(f"waypoints file {waypoints!r} does not exist")
+    waypoints = os.path.abspath(waypoints)
     runs = []
     for k, seed in enumerate(seeds):
         run_name = f"seed_{seed}"
@@ -118,7 +124,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
         sim_yaml = write_sim_config(os.path.join(ws.navigation, route["sim_config"]),
                                     {"seed": int(seed), "farm": {"seed": int(seed)}},
                                     os.path.join(run_dir, "sim.yaml"))
-        args = {"run_name": run_name, "results_dir": out_dir, "sim_config": sim_yaml,
+        args = {"run_name": run_name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": waypoints,
                 "real_time_factor": real_time_factor, "record_bag": str(bool(record_bag)).lower()}
         args.update(extra_args or {})
         print(f"{experiment}: run {k + 1}/{len(seeds)} (seed {seed})", flush=True)
