@@ -9,12 +9,12 @@ line saying so and the command that would produce them.
 from __future__ import annotations
 
 import datetime
-import json
 import os
 import shutil
 from typing import Dict, List, Mapping, Optional
 
 from .row_spacing import summary_markdown
+from .runs import read_report
 from .seeds import format_spread
 
 # The paper's published figures (its section 3, Tables 2 and 3, Fig. 3a).
@@ -61,18 +61,11 @@ COMMANDS = {
 }
 
 
-def _load(path: str) -> Optional[Dict]:
-    try:
-        with open(path, "r", encoding="utf-8") as fh:
-            data = json.load(fh)
-    except (OSError, ValueError):
-        return None
-    return data if isinstance(data, dict) else None
 
 
 def _route_section(name: str, title: str, results_root: str, doc_dir: str) -> List[str]:
     out = [f"## {title}", "", f"Command: `{COMMANDS[name]}` (writes `results/{name}/`).", ""]
-    summary = _load(os.path.join(results_root, name, "summary.json"))
+    summary = read_report(os.path.join(results_root, name, "summary.json"))
     if summary is None:
         return out + ["No results yet: run the command above.", ""]
     spread = summary.get("spread", {})
@@ -115,7 +108,7 @@ def _row_spacing_section(results_root: str) -> List[str]:
            "GPS-navigation bringup on a two-row farm: the robot drives from Home into the lane between the rows "
            "(entry, middle and exit waypoints on the centre line); it traverses when it reaches all three without "
            "touching a plant.", ""]
-    summary = _load(os.path.join(results_root, "row_spacing", "summary.json"))
+    summary = read_report(os.path.join(results_root, "row_spacing", "summary.json"))
     if summary is None:
         return out + ["No results yet: run the command above.", ""]
     return out + [summary_markdown(summary), ""]
@@ -128,13 +121,13 @@ def _perception_section(results_root: str) -> List[str]:
            "(valid split beside the paper's Table 2, test split beside Table 3) and on held-out synthetic frames "
            "from farm seeds never used in training. Masks for segmentation, boxes for detection; P / R / mAP50 in %.",
            ""]
-    summary = _load(os.path.join(results_root, "perception", "summary.json"))
+    summary = read_report(os.path.join(results_root, "perception", "summary.json"))
     if summary is None:
         return out + ["No results yet: run the command above.", ""]
     out += ["| data | task | split | class | ours P / R / mAP50 / mAP50-95 | paper P / R / mAP50 |",
             "|---|---|---|---|---|---|"]
     for name, table in summary.get("tables", {}).items():
-        evaluation = _load(table.get("json", ""))
+        evaluation = read_report(table.get("json", ""))
         if evaluation is None:
             out.append(f"| {name} | {table.get('task')} | - | - | failed: {table.get('error', '')[:80]} | - |")
             continue
