@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime
 import os
 import shutil
-from typing import Dict, List, Mapping, Optional
+from typing import List
 
 from .row_spacing import summary_markdown
 from .runs import read_report
