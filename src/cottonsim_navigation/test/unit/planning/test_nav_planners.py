@@ -107,6 +107,21 @@ def test_no_path_when_walled_in_and_tolerance_search():
     assert not p.make_plan(g2, Pose2D(-5, 0), Pose2D(centre(10), centre(10))).ok   # start off map
 
 
+def test_start_in_an_obstacle_is_left_and_the_costmap_is_not_touched():
+    # navfn clears the robot's own cell: a robot whose cell became lethal can still leave it
+    costs = np.zeros((12, 20), np.uint8)
+    costs[6, 3] = LETHAL_OBSTACLE
+    before = costs.copy()
+    g = Grid(costs)
+    plan = NavfnPlanner().make_plan(g, Pose2D(centre(3), centre(6)), Pose2D(centre(15), centre(6)))
+    assert plan.ok
+    assert plan.cost == pytest.approx(brute_dijkstra(np.where(costs == LETHAL_OBSTACLE, 0, costs).astype(np.uint8),
+                                                     (3, 6), (15, 6)))
+    assert np.array_equal(g.costs, before)
+    # the goal on the robot's own (lethal) cell: a zero-length plan, not a failure
+    assert NavfnPlanner().make_plan(g, Pose2D(centre(3), centre(6)), Pose2D(centre(3), centre(6))).ok
+
+
 def test_unknown_space_respects_allow_unknown():
     costs = np.zeros((10, 20), np.uint8)
     costs[:, 10] = 255
