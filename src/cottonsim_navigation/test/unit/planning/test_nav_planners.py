@@ -220,3 +220,26 @@ def test_dwa_reports_no_valid_trajectory_when_boxed_in():
     v, w, st = planner.compute_velocity(Pose2D(0, 0, 0), (0.0, 0.0), cm)
     assert st is LocalPlannerStatus.NO_VALID_TRAJECTORY and v == 0.0 and w == 0.0
     assert np.all(~np.isfinite(planner.last_scores))
+
+
+def test_dwa_keeps_its_goal_latch_when_only_the_plan_frame_moves():
+    # robot inside xy_goal_tolerance, heading 90 deg off the goal yaw: latched, it turns in place
+    cm = make_local_costmap()
+    cm.update_map(Pose2D(0.0, 0.0, 0.0))
+    dwa = DWAPlanner(DWAConfig(xy_goal_tolerance=0.08, latch_xy_goal_tolerance=True))
+    path = np.column_stack([np.linspace(-1.0, 0.0, 21), np.zeros(21), np.zeros(21)])
+    dwa.set_plan(path)
+    robot = Pose2D(0.03, 0.0, math.pi / 2)
+    v, w, st = dwa.compute_velocity(robot, (0.0, 0.0), cm)
+    assert st is LocalPlannerStatus.ROTATING_TO_GOAL and v == 0.0 and w < 0.0
+    # a localisation correction moves the same plan 0.15 m: still latched, still turning in place
+    moved = path + np.array([0.15, 0.0, 0.0])
+    dwa.update_plan_frame(moved)
+    v, w, st = dwa.compute_velocity(robot, (0.0, w), cm)
+    assert st is LocalPlannerStatus.ROTATING_TO_GOAL and v == 0.0
+    # the same poses as a NEW plan: the latch is gone, the goal is 0.12 m away -> not rotating to it
+    dwa.set_plan(moved)
+    v, w, st = dwa.compute_velocity(robot, (0.0, 0.0), cm)
+    assert st is not LocalPlannerStatus.ROTATING_TO_GOAL
+    with pytest.raises(ValueError, match="non-finite"):
+        dwa.update_plan_frame(np.full((21, 3), np.nan))

@@ -165,7 +165,8 @@ class DWAPlanner(LocalPlanner):
         self.last_samples: Optional[np.ndarray] = None
 
     # --- plan --------------------------------------------------------------
-    def set_plan(self, path) -> None:
+    @staticmethod
+    def _as_plan_array(path) -> np.ndarray:
         if hasattr(path, "poses") and not isinstance(path, np.ndarray):
             path = path.poses
         if isinstance(path, (list, tuple)) and path and hasattr(path[0], "x_m"):
@@ -184,11 +185,29 @@ class DWAPlanner(LocalPlanner):
                 yaw[:-1] = np.arctan2(d[:, 1], d[:, 0])
                 yaw[-1] = yaw[-2]
             arr = np.column_stack([arr, yaw])
-        self.plan = arr
+        return arr
+
+    def set_plan(self, path) -> None:
+        """A new global plan: progress, the goal latch and the oscillation flags start afresh."""
+        self.plan = self._as_plan_array(path)
         self._progress = 0
         self._xy_latched = False
         self._osc_sign = 0
         self._osc_ref = None
+
+    def update_plan_frame(self, path) -> None:
+        """The same plan after a localisation correction moved it in the local frame.
+
+        Keeps the progress along the plan and the xy-goal latch (a latched robot
+        turning in place at its goal would otherwise lose the latch at every GPS
+        update, drop back to driving mode and dither around the goal). A path of
+        another length is a new plan (set_plan).
+        """
+        arr = self._as_plan_array(path)
+        if len(arr) != len(self.plan):
+            self.set_plan(arr)
+            return
+        self.plan = arr
 
     @property
     def goal(self) -> Optional[np.ndarray]:
