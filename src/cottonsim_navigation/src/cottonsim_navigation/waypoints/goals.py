@@ -26,6 +26,33 @@ from cottonsim_navigation.waypoints.files import GpsWaypoint, MapWaypoint
 GOAL_YAW_MODES = ("toward_next", "file")
 
 
+def pass_through_flags(xy_m, max_turn_rad: float, min_step_m: float = 1e-3) -> np.ndarray:
+    """Which waypoints the robot may drive through without stopping: (N,) bool.
+
+    Waypoint i (neither the first nor the last) qualifies when the route turns
+    there by at most ``max_turn_rad`` [rad]: the direction of the leg leaving it
+    differs from the leg reaching it by no more than that. A mid-lane waypoint
+    of a serpentine route qualifies; the lane ends (90 deg turns) do not.
+    Legs shorter than ``min_step_m`` [m] have no direction and disqualify.
+    """
+    p = np.asarray(xy_m, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0:
+        raise ValueError(f"xy_m must be a non-empty (N, 2) array, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("xy_m contains non-finite values")
+    if not (math.isfinite(max_turn_rad) and 0.0 <= max_turn_rad <= math.pi):
+        raise ValueError(f"max_turn_rad must be in [0, pi], got {max_turn_rad}")
+    out = np.zeros(len(p), dtype=bool)
+    if len(p) < 3:
+        return out
+    leg = np.diff(p, axis=0)
+    ok = np.hypot(leg[:, 0], leg[:, 1]) >= max(min_step_m, 1e-12)
+    yaw = np.arctan2(leg[:, 1], leg[:, 0])
+    turn = np.abs(np.angle(np.exp(1j * (yaw[1:] - yaw[:-1]))))
+    out[1:-1] = ok[:-1] & ok[1:] & (turn <= max_turn_rad)
+    return out
+
+
 def route_headings(xy_m, final_yaw_rad: Optional[float] = None, min_step_m: float = 1e-3) -> np.ndarray:
     """Heading [rad] of each waypoint: the direction from it to the next waypoint.
 

@@ -89,3 +89,20 @@ def test_shipped_route_files_read_and_match():
     # lane centres at x = -1.43 - 1.8 k
     lanes = np.round((-1.43 - x) / 1.8)
     assert np.allclose(x, -1.43 - 1.8 * lanes, atol=1e-3)
+
+
+def test_pass_through_flags_mark_straight_on_waypoints_not_turns():
+    from cottonsim_navigation.waypoints.goals import pass_through_flags
+    # a serpentine over two lanes: entry, middle, exit, (90 deg) entry, middle, exit
+    xy = np.array([[0, 0], [10, 0], [20, 0], [20, 2], [10, 2], [0, 2.0]])
+    assert pass_through_flags(xy, math.radians(20)).tolist() == [False, True, False, False, True, False]
+    # a slight kink (the original's uneven lanes) still passes; 0 rad demands a perfectly straight line
+    kinked = np.array([[0, 0], [10, 0.3], [20, 0.0]])
+    assert pass_through_flags(kinked, math.radians(20)).tolist() == [False, True, False]
+    assert pass_through_flags(kinked, 0.0).tolist() == [False, False, False]
+    # a repeated point has no direction
+    assert not pass_through_flags(np.array([[0, 0], [1, 0], [1, 0], [2, 0.0]]), 0.5).any()
+    with pytest.raises(ValueError, match="max_turn_rad"):
+        pass_through_flags(xy, -0.1)
+    with pytest.raises(ValueError, match="non-finite"):
+        pass_through_flags(np.array([[0, 0], [np.nan, 1]]), 0.3)

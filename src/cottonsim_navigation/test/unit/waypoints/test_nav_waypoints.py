@@ -94,3 +94,28 @@ def test_follower_battery_low_goes_home_and_stops():
     assert f.summary.skipped == 3 and f.summary.succeeded == 1
     with pytest.raises(ValueError, match="home"):
         WaypointFollower(["a"]).battery_low()
+
+
+def test_follower_drives_through_pass_through_waypoints_only_within_the_radius():
+    f = WaypointFollower(["a", "b", "c"], FollowerConfig(pass_through_radius_m=0.5), home="H",
+                         pass_through=[False, True, False])
+    assert f.next_goal() == "a"
+    assert not f.passed(0.1)                        # 'a' is a full stop: move_base must report it
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.next_goal() == "b"
+    assert not f.passed(0.51) and not f.passed(float("nan"))
+    assert f.passed(0.49)                           # counted, and the next goal is free to go
+    assert f.next_goal() == "c" and not f.passed(0.0)
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.finished and f.summary.succeeded == 3 and f.summary.passed == 1
+    # radius 0 switches it off; the way Home never passes through
+    g = WaypointFollower(["a", "b", "c"], FollowerConfig(), pass_through=[False, True, False])
+    g.next_goal(); g.report_result(GoalResult.SUCCEEDED); g.next_goal()
+    assert not g.passed(0.0)
+    h = WaypointFollower(["a", "b", "c"], FollowerConfig(pass_through_radius_m=1.0), home="H",
+                         pass_through=[True, True, True])
+    h.next_goal(); h.battery_low(); assert h.next_goal() == "H" and not h.passed(0.0)
+    with pytest.raises(ValueError, match="pass_through has 2 flags"):
+        WaypointFollower(["a", "b", "c"], pass_through=[True, False])
+    with pytest.raises(ValueError, match="pass_through_radius_m"):
+        FollowerConfig(pass_through_radius_m=-1.0)

@@ -31,6 +31,19 @@ What it does, step by step:
 5. Orientation filter: each pose looks along the path (direction from the
    pose ``orientation_window_m`` behind to the one that far ahead); the last
    pose takes the goal's yaw.
+
+Port's addition, off by default (``goal_approach_join_m`` = 0): approach the
+goal along its heading. A waypoint route's goal heading is the direction of
+the leg it starts (goals face the next waypoint), so for a goal straight ahead
+(the direction to it within ``goal_approach_max_angle_rad`` of its heading)
+the line through the goal along its heading is the lane the robot is driving.
+The plan then joins that line ``goal_approach_join_m`` ahead of the robot's
+foot point on it (navfn from the robot to the join point) and follows it
+straight to the goal; if any cell of that straight part is impassable
+(INSCRIBED or worse), or the robot is closer than the join distance, the
+ordinary plan is made instead. Why: a robot that stopped a few centimetres
+beside a lane-entry waypoint otherwise drives the whole lane on the slanted
+line from where it stopped to the next waypoint, beside the lane's centre.
 """
 from __future__ import annotations
 
@@ -63,6 +76,10 @@ class NavfnConfig:
     orientation filter; use_astar: order the search by potential + a
     consistent distance heuristic (same optimal path, far fewer cells
     expanded; False gives navfn's full Dijkstra wave).
+    goal_approach_join_m [m]: > 0 = approach a goal ahead along its heading,
+    joining that line this far ahead of the robot (see the module docstring);
+    0 = off (navfn). goal_approach_max_angle_rad [rad]: how far the direction
+    to the goal may differ from the goal's heading for that (default 0.35 = 20 deg).
     """
 
     allow_unknown: bool = True
@@ -71,9 +88,15 @@ class NavfnConfig:
     cost_factor: float = 0.8
     orientation_window_m: float = 0.25
     use_astar: bool = True
+    goal_approach_join_m: float = 0.0
+    goal_approach_max_angle_rad: float = 0.35
 
     def __post_init__(self) -> None:
-        for name in ("default_tolerance", "cost_factor", "orientation_window_m"):
+        if not (isinstance(self.goal_approach_max_angle_rad, (int, float))
+                and 0.0 <= self.goal_approach_max_angle_rad <= math.pi / 2):
+            raise ValueError(f"goal_approach_max_angle_rad must be in [0, pi/2], got "
+                             f"{self.goal_approach_max_angle_rad!r}")
+        for name in ("default_tolerance", "cost_factor", "orientation_window_m", "goal_approach_join_m"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -270,6 +293,45 @@ class NavfnPlanner(GlobalPlanner):
         tol = self.config.default_tolerance if tolerance_m is None else float(tolerance_m)
         if not (math.isfinite(tol) and tol >= 0):
             raise ValueError(f"tolerance_m must be a finite number >= 0, got {tolerance_m!r}")
+        if self.config.goal_approach_join_m > 0:
+            plan = self._approach_plan(costmap, start, goal, tol)
+            if plan is not None:
+                return plan
+        return self._navfn_plan(costmap, start, goal, tol)
+
+    def _approach_plan(self, costmap, start: Pose2D, goal: Pose2D, tol: float) -> Optional[Plan]:
+        """The plan that joins the goal's heading line (module docstring), or None where it does not apply."""
+        c = self.config
+        ux, uy = math.cos(goal.yaw_rad), math.sin(goal.yaw_rad)
+        dx, dy = goal.x_m - start.x_m, goal.y_m - start.y_m
+        along = dx * ux + dy * uy                       # goal ahead of the robot, along the goal's heading
+        if along <= c.goal_approach_join_m or math.hypot(dx, dy) <= 0.0:
+            return None
+        if abs(normalize_angle(math.atan2(dy, dx) - goal.yaw_rad)) > c.goal_approach_max_angle_rad:
+            return None
+        # the join point: on the line, goal_approach_join_m past the robot's foot point
+        rest = along - c.goal_approach_join_m
+        jx, jy = goal.x_m - rest * ux, goal.y_m - rest * uy
+        spec = costmap.spec
+        step = 0.5 * spec.resolution_m
+        n = max(2, int(math.ceil(rest / step)) + 1)
+        t = np.linspace(0.0, rest, n)
+        lx, ly = jx + t * ux, jy + t * uy
+        mx, my = spec.world_to_map(lx, ly)
+        if not np.all(spec.in_bounds(mx, my)):
+            return None
+        if np.any(np.asarray(costmap.costs)[my, mx] >= INSCRIBED_INFLATED_OBSTACLE):
+            return None
+        head = self._navfn_plan(costmap, start, Pose2D(jx, jy, goal.yaw_rad), tol)
+        if not head.ok:
+            return None
+        line = np.column_stack([lx, ly])
+        xy = np.vstack([head.poses[:-1, :2], line])
+        yaw = _orientations(xy, goal.yaw_rad, c.orientation_window_m)
+        cost = head.cost + c.neutral_cost * rest / spec.resolution_m   # the line at (at least) neutral cost
+        return Plan(np.column_stack([xy, yaw]), "", float(cost))
+
+    def _navfn_plan(self, costmap, start: Pose2D, goal: Pose2D, tol: float) -> Plan:
         spec = costmap.spec
         sx, sy = (int(v) for v in spec.world_to_map(start.x_m, start.y_m))
         gx, gy = (int(v) for v in spec.world_to_map(goal.x_m, goal.y_m))

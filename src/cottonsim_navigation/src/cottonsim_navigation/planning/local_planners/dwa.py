@@ -8,7 +8,9 @@ One control cycle (``compute_velocity``):
 2. Goal logic (base_local_planner's LatchedStopRotateController): inside
    xy_goal_tolerance of the final goal, stop, then rotate in place to the
    goal yaw; ``latch_xy_goal_tolerance`` keeps the position counted as
-   reached once it was.
+   reached once it was. The turn rate is the fastest from which the robot can
+   still stop on the goal yaw after holding it for one control period (ROS
+   brakes as if the next command came at once, and overshoots at 5 Hz).
 3. Dynamic window: velocities reachable within one control period
    (1 / controller_frequency) from the current (v, w) under acc_lim_x /
    acc_lim_theta, clipped to [min_vel_x, max_vel_x] and
@@ -271,8 +273,12 @@ class DWAPlanner(LocalPlanner):
             nw = math.copysign(max(0.0, abs(w) - c.acc_lim_theta * dt), w)
             return nv, nw, LocalPlannerStatus.ROTATING_TO_GOAL
         err = geo.shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))
-        # fastest speed from which we can still stop at the goal yaw
-        w_stop = math.sqrt(2.0 * c.acc_lim_theta * abs(err))
+        # fastest speed from which we can still stop at the goal yaw, counting that the command is
+        # held for a whole control period before the next one can brake: w dt + w^2 / (2 a) = |err|.
+        # (ROS's sqrt(2 a |err|) assumes braking starts at once; at 5 Hz it overshoots by up to
+        # w dt = 0.2 rad, beyond yaw_goal_tolerance, and the robot swings back and forth.)
+        a_dt = c.acc_lim_theta * dt
+        w_stop = -a_dt + math.sqrt(a_dt * a_dt + 2.0 * c.acc_lim_theta * abs(err))
         w_cmd = min(c.max_rot_vel, w_stop, abs(w) + c.acc_lim_theta * dt)
         w_cmd = max(c.min_rot_vel, w_cmd)
         w_cmd = math.copysign(w_cmd, err)
