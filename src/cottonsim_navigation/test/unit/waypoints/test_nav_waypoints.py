@@ -119,3 +119,21 @@ def test_follower_drives_through_pass_through_waypoints_only_within_the_radius()
         WaypointFollower(["a", "b", "c"], pass_through=[True, False])
     with pytest.raises(ValueError, match="pass_through_radius_m"):
         FollowerConfig(pass_through_radius_m=-1.0)
+
+
+def test_gps_lanes_file(tmp_path):
+    from cottonsim_navigation.waypoints.files import load_gps_lanes, save_gps_lanes
+    p = tmp_path / "lanes.txt"
+    p.write_text("# two lanes\n49.9 8.9 49.9 8.8999\n\n49.8999, 8.9, 49.8999, 8.8999  # comma separated\n")
+    lanes = load_gps_lanes(p)
+    assert len(lanes) == 2 and lanes[1][0].lat == 49.8999 and lanes[1][1].lon == 8.8999
+    q = tmp_path / "again.txt"
+    save_gps_lanes(q, lanes, comment="copy")
+    assert [(a.lat, a.lon, b.lat, b.lon) for a, b in load_gps_lanes(q)] == \
+        [(a.lat, a.lon, b.lat, b.lon) for a, b in lanes]
+    for text, what in (("49.9 8.9 49.9\n", "4 columns"), ("49.9 8.9 49.9 x\n", "not a number"),
+                       ("49.9 8.9 49.9 8.9\n", "same point"), ("# nothing\n", "no lanes"),
+                       ("49.9 8.9 95.0 8.9\n", "latitude")):
+        p.write_text(text)
+        with pytest.raises(WaypointFileError, match=what):
+            load_gps_lanes(p)
