@@ -125,6 +125,24 @@ def sim_world_from_settings(settings: Optional[dict] = None) -> SimWorld:
                     geodesy=HectorGeodesy(*config.geodesy_reference))
 
 
+def farm_lanes_gps(world: SimWorld) -> List[tuple]:
+    """The farm's lane centre lines as (GpsWaypoint start, GpsWaypoint end) pairs [deg].
+
+    What a surveyed farm would give the robot: each lane's centre line from
+    its first to its last plant (world y_start_m .. y_end_m at x_m), through
+    the simulator's GPS convention. The GPS navigator's ~lanes_file reads them.
+    """
+    out = []
+    for lane in world.lanes:
+        x = np.array([lane.x_m, lane.x_m], dtype=float)
+        y = np.array([lane.y_start_m, lane.y_end_m], dtype=float)
+        lat, lon, _ = world.geodesy.world_to_geodetic(x, y, np.zeros(2))
+        lat, lon = np.atleast_1d(lat), np.atleast_1d(lon)
+        out.append((GpsWaypoint(float(lat[0]), float(lon[0]), f"lane {lane.index} start"),
+                    GpsWaypoint(float(lat[1]), float(lon[1]), f"lane {lane.index} end")))
+    return out
+
+
 def planned_world_from_gps(waypoints: Sequence[GpsWaypoint], geodesy) -> np.ndarray:
     """GPS waypoints -> (N, 2) world x/y [m] through the simulator's geodesy (HectorGeodesy-like)."""
     if len(waypoints) == 0:

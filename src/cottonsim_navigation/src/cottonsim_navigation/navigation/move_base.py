@@ -370,7 +370,13 @@ class MoveBase:
         return StepResult(0.0, 0.0, MoveBaseState.IDLE, Outcome.ABORTED, reason)
 
     def _local_plan_sync(self, global_pose: geo.Pose2D, local_pose: geo.Pose2D) -> None:
-        """Give the local planner the plan in the local frame when the plan or map -> odom changed."""
+        """Give the local planner the plan in the local frame when the plan or map -> odom changed.
+
+        A new plan goes through ``set_plan``; a moved map -> odom (every GPS or
+        AMCL correction) only through ``update_plan_frame``, so the local
+        planner keeps its progress and goal latch as move_base's does (ROS
+        hands DWA the plan once and transforms it each cycle).
+        """
         t = geo.compose(global_pose, geo.inverse(local_pose))          # map -> odom
         if (self._plan_tf is not None and math.hypot(t.x_m - self._plan_tf.x_m, t.y_m - self._plan_tf.y_m) < 0.01
                 and abs(geo.shortest_angular_distance(t.yaw_rad, self._plan_tf.yaw_rad)) < 0.01):
@@ -379,7 +385,10 @@ class MoveBase:
         poses = self.plan.poses
         xy = geo.transform_points(to_local, poses[:, :2])
         yaw = geo.normalize_angle(poses[:, 2] + to_local.yaw_rad)
-        self.local_planner.set_plan(np.column_stack([xy, yaw]))
+        if self._plan_tf is None:                       # a new plan
+            self.local_planner.set_plan(np.column_stack([xy, yaw]))
+        else:                                           # the same plan, map -> odom moved
+            self.local_planner.update_plan_frame(np.column_stack([xy, yaw]))
         self._plan_tf = t
 
     def _do_plan(self, now_s: float, global_pose: geo.Pose2D) -> Optional[StepResult]:

@@ -76,6 +76,12 @@ class LocalPlanner(abc.ABC):
     def set_plan(self, path) -> None:
         """New global plan: (K, 2 or 3) array or a list of poses, in the costmap's frame."""
 
+    def update_plan_frame(self, path) -> None:
+        """The SAME plan, re-expressed after the global -> local transform moved (localisation
+        corrections), in the costmap's frame. Unlike set_plan this is not a new plan: a planner
+        keeps its progress and goal latches. Default: set_plan."""
+        self.set_plan(path)
+
     @abc.abstractmethod
     def compute_velocity(self, pose: Pose2D, velocity: Tuple[float, float], costmap
                          ) -> Tuple[float, float, LocalPlannerStatus]:

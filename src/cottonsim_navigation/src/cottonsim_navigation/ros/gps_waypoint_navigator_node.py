@@ -17,8 +17,8 @@ from sensor_msgs.msg import NavSatFix, NavSatStatus
 
 from cottonsim_navigation.geodesy.utm import NavsatConfig, NavsatTransform
 from cottonsim_navigation.ros.waypoint_navigator import NavigatorStartError, WaypointNavigatorBase, run_node
-from cottonsim_navigation.waypoints.files import MapWaypoint, load_gps_waypoints
-from cottonsim_navigation.waypoints.goals import gps_goals_in_map
+from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError, load_gps_lanes, load_gps_waypoints
+from cottonsim_navigation.waypoints.goals import gps_goals_in_map, gps_lanes_in_map
 
 
 class GpsWaypointNavigatorNode(WaypointNavigatorBase):
@@ -40,6 +40,11 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
       ~datum (list [lat deg, lon deg], unset): lat/lon of the map origin (0, 0); when set, neither
         topic is needed
       ~datum_topic (str, "/navsat_transform/datum"), ~fix_topic (str, "/navsat/fix")
+      ~lanes_file (str, ""): lane centre lines, 'lat lon lat lon' per lane (config/waypoints/
+        farm_lanes_gps.txt is the default farm's); when set, every waypoint within ~lane_snap_max_m
+        (float, 0.5 m) sideways of a lane, between ~lane_snap_margin_m (float, 5.0 m) before its start
+        and after its end, is moved onto the lane's centre line before the route starts
+        (waypoints.goals.snap_to_lanes); "" = the waypoints as they are
     Home = the robot's map pose when the route starts (the first fix, i.e. the datum, at map ~(0, 0),
     with the start heading).
     """
@@ -50,6 +55,19 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
         self.fix_topic = str(rospy.get_param("~fix_topic", "/navsat/fix"))
         self.datum_topic = str(rospy.get_param("~datum_topic", "/navsat_transform/datum"))
         datum = rospy.get_param("~datum", None)
+        self.lanes_file = str(rospy.get_param("~lanes_file", ""))
+        self.lane_snap_max_m = float(rospy.get_param("~lane_snap_max_m", 0.5))
+        self.lane_snap_margin_m = float(rospy.get_param("~lane_snap_margin_m", 5.0))
+        for name in ("lane_snap_max_m", "lane_snap_margin_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise NavigatorStartError(f"~{name} must be finite and >= 0, got {v}")
+        self.lanes = None
+        if self.lanes_file:
+            try:
+                self.lanes = load_gps_lanes(self.lanes_file)
+            except WaypointFileError as exc:
+                raise NavigatorStartError(f"bad lanes file {exc}") from None
         # ENU map: the transform's rotation must be zero, so no IMU yaw offset is applied here
         self.navsat = NavsatTransform(NavsatConfig(yaw_offset=0.0, magnetic_declination_radians=0.0))
         self._fix_lock = threading.Lock()
@@ -115,7 +133,16 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
         return True
 
     def make_goals(self, waypoints: list) -> List[MapWaypoint]:
-        return gps_goals_in_map(waypoints, self.navsat)
+        if self.lanes is None:
+            return gps_goals_in_map(waypoints, self.navsat)
+        lanes_m = gps_lanes_in_map(self.lanes, self.navsat)
+        raw = gps_goals_in_map(waypoints, self.navsat)
+        goals = gps_goals_in_map(waypoints, self.navsat, lanes_m=lanes_m, lane_snap_max_m=self.lane_snap_max_m,
+                                 lane_snap_margin_m=self.lane_snap_margin_m)
+        moved = [math.hypot(g.x_m - r.x_m, g.y_m - r.y_m) for g, r in zip(goals, raw)]
+        rospy.loginfo("%s: %d of %d waypoints moved onto the lane centres of %s (by up to %.2f m)", self.NAME,
+                      sum(m > 1e-6 for m in moved), len(goals), self.lanes_file, max(moved))
+        return goals
 
 
 def main():

@@ -16,8 +16,8 @@ defect).
 
 State (std_msgs/String on ~state, latched): a JSON object
 ``{"state": waiting|navigating|returning_home|finished, "index": i (1-based goal), "total": N,
-"label": ..., "goal": [x, y, yaw], "succeeded": n, "aborted": n, "skipped": n,
-"returned_home": bool, "home_reached": bool|null, "reason": ...}``.
+"label": ..., "goal": [x, y, yaw], "succeeded": n, "passed": n (of the succeeded, driven through),
+"aborted": n, "skipped": n, "returned_home": bool, "home_reached": bool|null, "reason": ...}``.
 """
 from __future__ import annotations
 
@@ -29,6 +29,7 @@ import time
 from typing import List, Optional
 
 import actionlib
+import numpy as np
 import rospy
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
@@ -38,6 +39,7 @@ from std_msgs.msg import String
 
 from cottonsim_navigation.core.geometry import yaw_to_quaternion
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
+from cottonsim_navigation.waypoints.goals import pass_through_flags
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
                                                      WaypointFollower)
 from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
@@ -74,6 +76,10 @@ class WaypointNavigatorBase:
       ~server_timeout_s (float, 60.0): wall time to wait for the move_base server; 0 = forever
       ~goal_timeout_s (float, 300.0): sim time after which a goal counts as aborted (cancelled); 0 = never
       ~loop_hz (float, 10.0): decision loop rate [Hz, sim time]
+      ~pass_through_radius_m (float, 0.0): a waypoint where the route goes on straight (turn <=
+        ~pass_through_max_turn_rad) counts as reached once the robot (TF) is this close, and the next
+        goal is sent at once (preempting), so the robot drives through instead of stopping; 0 = off
+      ~pass_through_max_turn_rad (float, 0.35 = 20 deg): the largest turn a pass-through waypoint may have
     """
 
     NAME = "waypoint_navigator"
@@ -103,10 +109,15 @@ class WaypointNavigatorBase:
         self.server_timeout_s = float(rospy.get_param("~server_timeout_s", 60.0))
         self.goal_timeout_s = float(rospy.get_param("~goal_timeout_s", 300.0))
         self.loop_hz = float(rospy.get_param("~loop_hz", 10.0))
+        self.pass_through_max_turn_rad = float(rospy.get_param("~pass_through_max_turn_rad", math.radians(20.0)))
         try:
-            self.follower_config = FollowerConfig(on_failure=on_failure)
+            self.follower_config = FollowerConfig(
+                on_failure=on_failure, pass_through_radius_m=float(rospy.get_param("~pass_through_radius_m", 0.0)))
         except ValueError as exc:
-            raise NavigatorStartError(f"~on_failure: {exc}") from None
+            raise NavigatorStartError(f"~{str(exc).split(' ')[0]}: {exc}") from None
+        if not (math.isfinite(self.pass_through_max_turn_rad) and 0.0 <= self.pass_through_max_turn_rad <= math.pi):
+            raise NavigatorStartError(f"~pass_through_max_turn_rad must be in [0, pi], got "
+                                      f"{self.pass_through_max_turn_rad}")
         if not (math.isfinite(self.return_home_percentage) and 0.0 <= self.return_home_percentage <= 100.0):
             raise NavigatorStartError(f"~return_home_percentage must be a percentage in [0, 100], "
                                       f"got {self.return_home_percentage}")
@@ -183,7 +194,8 @@ class WaypointNavigatorBase:
                "total": s.total if s else len(self.waypoints),
                "label": goal.label if goal is not None else "",
                "goal": [goal.x_m, goal.y_m, goal.yaw_rad] if goal is not None else None,
-               "succeeded": s.succeeded if s else 0, "aborted": s.aborted if s else 0,
+               "succeeded": s.succeeded if s else 0, "passed": s.passed if s else 0,
+               "aborted": s.aborted if s else 0,
                "skipped": s.skipped if s else 0, "returned_home": s.returned_home if s else False,
                "home_reached": s.home_reached if s else None,
                "reason": reason or (s.stopped_reason if s else "")}
@@ -253,7 +265,12 @@ class WaypointNavigatorBase:
             rospy.logfatal("%s: cannot place the waypoints in the map: %s", self.NAME, exc)
             self.publish_state("finished", reason=str(exc))
             return 1
-        self.follower = WaypointFollower(goals, self.follower_config, home=home)
+        flags = pass_through_flags(np.array([[g.x_m, g.y_m] for g in goals], dtype=float),
+                                   self.pass_through_max_turn_rad)
+        self.follower = WaypointFollower(goals, self.follower_config, home=home, pass_through=flags)
+        if self.follower_config.pass_through_radius_m > 0:
+            rospy.loginfo("%s: %d of %d waypoints are driven through (within %.2f m)", self.NAME, int(flags.sum()),
+                          len(goals), self.follower_config.pass_through_radius_m)
         rospy.loginfo("%s: Home = (%.2f, %.2f, yaw %.2f) in %s; starting the route", self.NAME, home.x_m, home.y_m,
                       home.yaw_rad, self.goal_frame)
         rate = rospy.Rate(self.loop_hz)
@@ -276,6 +293,19 @@ class WaypointNavigatorBase:
                       (", Home reached" if s.home_reached else ", Home NOT reached") if s.returned_home else "")
         return 0
 
+    def _passed_current(self) -> bool:
+        """Ask the follower whether the robot's TF pose passes the active pass-through goal."""
+        pose = self.robot_pose()
+        goal = self.follower.current_goal
+        if pose is None or goal is None:
+            return False
+        if not self.follower.passed(math.hypot(pose.x_m - goal.x_m, pose.y_m - goal.y_m)):
+            return False
+        with self._lock:
+            self._goal_seq += 1          # the passed goal's late result (preempted by the next) is ignored
+            self._result = None
+        return True
+
     def _step(self):
         f = self.follower
         if self._battery_low and not f.going_home:
@@ -291,6 +321,9 @@ class WaypointNavigatorBase:
                 rospy.logwarn("%s: goal %s ended %s", self.NAME, "Home" if f.going_home else f.index + 1,
                               _STATUS_NAMES.get(status, status))
             f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED)
+        elif f.current_is_pass_through and self._passed_current():
+            rospy.loginfo("%s: goal %d passed (within %.2f m); on to the next", self.NAME, f.index,
+                          self.follower_config.pass_through_radius_m)
         elif (f.state is FollowerState.ACTIVE and self.goal_timeout_s > 0 and self._goal_sent_at is not None
               and (rospy.Time.now() - self._goal_sent_at).to_sec() > self.goal_timeout_s):
             rospy.logwarn("%s: goal %s timed out after %.0f s; cancelled", self.NAME, f.index + 1, self.goal_timeout_s)

@@ -193,3 +193,41 @@ def save_gps_waypoints(path, waypoints: Sequence[GpsWaypoint]) -> None:
     with open(path, "w", encoding="utf-8") as f:
         for w in waypoints:
             f.write(f"{w.lat!r} {w.lon!r}\n")
+
+
+def load_gps_lanes(path) -> List[tuple]:
+    """Read lane centre lines: 'lat lon lat lon' per line (start and end of one lane) [deg].
+
+    '#' comments and blank lines allowed. Returns a list of (GpsWaypoint,
+    GpsWaypoint) pairs; a line with another column count, a bad number or two
+    equal ends raises WaypointFileError naming the line.
+    """
+    text = _read_text(path)
+    out: List[tuple] = []
+    for n, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        cols = _split(line)
+        if len(cols) != 4:
+            raise WaypointFileError(path, f"expected 4 columns 'lat lon lat lon' (a lane's two ends), "
+                                          f"got {len(cols)}", n)
+        vals = [_number(path, n, c, what) for c, what in zip(cols, ("start latitude", "start longitude",
+                                                                  "end latitude", "end longitude"))]
+        _check_gps(path, n, vals[0], vals[1])
+        _check_gps(path, n, vals[2], vals[3])
+        if vals[0] == vals[2] and vals[1] == vals[3]:
+            raise WaypointFileError(path, "the lane's two ends are the same point", n)
+        out.append((GpsWaypoint(vals[0], vals[1]), GpsWaypoint(vals[2], vals[3])))
+    if not out:
+        raise WaypointFileError(path, "no lanes in file")
+    return out
+
+
+def save_gps_lanes(path, lanes: Sequence[tuple], comment: str = "") -> None:
+    """Write lanes as 'lat lon lat lon' lines (see load_gps_lanes), with an optional header comment."""
+    with open(path, "w", encoding="utf-8") as f:
+        for line in comment.splitlines():
+            f.write(f"# {line}\n")
+        for a, b in lanes:
+            f.write(f"{a.lat!r} {a.lon!r} {b.lat!r} {b.lon!r}\n")

@@ -8,6 +8,15 @@ what to send next. Usage::
     ...                                           # when move_base ends:
     f.report_result(GoalResult.SUCCEEDED)
     f.battery_low()                               # paper: at 40 % go Home and stop
+    f.passed(distance_m)                          # pass-through waypoints: True = counted, send the next
+
+Pass-through (``FollowerConfig.pass_through_radius_m`` > 0 and the goal
+flagged in ``pass_through``): a waypoint where the route goes on straight
+counts as reached once the robot is within the radius, and the next goal is
+sent at once, so the robot drives through it instead of braking to a stop
+(move_base only knows one goal at a time). The paper's error of a waypoint
+is the trajectory's closest approach, which the robot still makes a moment
+later on its way to the next goal.
 
 States: WAITING (localisation not ready), READY (a goal may be sent),
 ACTIVE (a goal is out), FINISHED. Goals are any objects (map poses or GPS
@@ -16,6 +25,7 @@ waypoints); Home must be of the same kind.
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 from typing import Any, List, Optional, Sequence
 
@@ -34,19 +44,28 @@ class FollowerState(enum.Enum):
 
 @dataclass(frozen=True)
 class FollowerConfig:
-    """on_failure: 'skip' (go on with the next waypoint) or 'stop' (end the route)."""
+    """on_failure: 'skip' (go on with the next waypoint) or 'stop' (end the route).
+
+    pass_through_radius_m [m]: a pass-through waypoint counts as reached within
+    this distance of the robot; 0 (default) = every waypoint is a full stop.
+    """
 
     on_failure: str = "skip"
+    pass_through_radius_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.on_failure not in ("skip", "stop"):
             raise ValueError(f"on_failure must be 'skip' or 'stop', got {self.on_failure!r}")
+        r = self.pass_through_radius_m
+        if isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) or r < 0:
+            raise ValueError(f"pass_through_radius_m must be a finite number >= 0, got {r!r}")
 
 
 @dataclass
 class FollowerSummary:
     total: int = 0                 # route waypoints (Home excluded)
-    succeeded: int = 0
+    succeeded: int = 0             # includes the passed ones
+    passed: int = 0                # pass-through waypoints driven through
     aborted: int = 0
     skipped: int = 0               # never attempted (stop on failure / battery)
     returned_home: bool = False
@@ -58,11 +77,16 @@ class FollowerSummary:
 class WaypointFollower:
     """Holds the route and the current index; see the module docstring."""
 
-    def __init__(self, goals: Sequence[Any], config: FollowerConfig = FollowerConfig(), home: Any = None):
+    def __init__(self, goals: Sequence[Any], config: FollowerConfig = FollowerConfig(), home: Any = None,
+                 pass_through: Optional[Sequence[bool]] = None):
         if len(goals) == 0:
             raise ValueError("goals must contain at least one waypoint")
         self.config = config
         self.goals: List[Any] = list(goals)
+        flags = [False] * len(self.goals) if pass_through is None else [bool(f) for f in pass_through]
+        if len(flags) != len(self.goals):
+            raise ValueError(f"pass_through has {len(flags)} flags for {len(self.goals)} goals")
+        self.pass_through: List[bool] = flags
         self.home = home
         self.index = 0
         self.state = FollowerState.WAITING
@@ -119,6 +143,27 @@ class WaypointFollower:
         self.state = FollowerState.READY
         if self.index >= len(self.goals):
             self._finish("route complete")
+
+    @property
+    def current_is_pass_through(self) -> bool:
+        """The active goal may be driven through (flagged, radius > 0, not the way Home)."""
+        return (self.state is FollowerState.ACTIVE and not self._going_home and self.config.pass_through_radius_m > 0
+                and self.index < len(self.pass_through) and self.pass_through[self.index])
+
+    def passed(self, distance_m: float) -> bool:
+        """The robot is ``distance_m`` [m] from the active goal: True when that passes it.
+
+        Only for a pass-through goal within ``pass_through_radius_m``; it then
+        counts as succeeded (and passed) and the next goal may be sent. A
+        non-finite distance never passes.
+        """
+        if not self.current_is_pass_through or not math.isfinite(distance_m):
+            return False
+        if distance_m > self.config.pass_through_radius_m:
+            return False
+        self.summary.passed += 1
+        self.report_result(GoalResult.SUCCEEDED)
+        return True
 
     def battery_low(self) -> None:
         """Replace the remaining goals by Home; the follower stops once Home is reached.

@@ -102,3 +102,18 @@ def test_sim_world_matches_the_default_farm():
     assert w.lanes[0].x_m == pytest.approx(-1.43)
     with pytest.raises(ValueError, match="farm"):
         sim_world_from_settings({"farm": {"rows_per_field": 3}})
+
+
+def test_committed_lanes_file_is_the_default_farms_lane_centres():
+    import pathlib
+    from cottonsim_navigation.evaluation.experiment import farm_lanes_gps, sim_world_from_settings
+    from cottonsim_navigation.waypoints.files import load_gps_lanes
+    world = sim_world_from_settings({})
+    lanes = farm_lanes_gps(world)
+    committed = load_gps_lanes(pathlib.Path(__file__).resolve().parents[3] / "config/waypoints/farm_lanes_gps.txt")
+    assert len(committed) == len(world.lanes) == len(lanes)
+    for (a, b), lane in zip(committed, world.lanes):
+        # back through the simulator's geodesy: the lane's ends in the world frame
+        x, y, _ = world.geodesy.geodetic_to_world(np.array([a.lat, b.lat]), np.array([a.lon, b.lon]), np.zeros(2))
+        assert np.allclose(x, lane.x_m, atol=1e-6)
+        assert np.allclose(y, [lane.y_start_m, lane.y_end_m], atol=1e-6)

@@ -38,9 +38,15 @@ class FakeLocal(LocalPlanner):
     def __init__(self, v=0.3, w=0.0, status=LocalPlannerStatus.OK):
         self.v, self.w, self.status = v, w, status
         self.plans = []
+        self.calls = []          # "set_plan" / "update_plan_frame", in order
 
     def set_plan(self, path):
         self.plans.append(np.asarray(path, dtype=float))
+        self.calls.append("set_plan")
+
+    def update_plan_frame(self, path):
+        self.plans.append(np.asarray(path, dtype=float))
+        self.calls.append("update_plan_frame")
 
     def compute_velocity(self, pose, velocity, costmap):
         return self.v, self.w, self.status
@@ -281,6 +287,12 @@ def test_plan_is_handed_to_the_local_planner_in_the_local_frame():
     assert len(lp.plans) == n                 # unchanged transform: the plan is not re-sent
     mb.step(2 * DT, Pose2D(1.5, 2.0, math.pi / 2), Pose2D(0.0, 0.0, 0.0))   # map -> odom jumped 0.5 m
     assert len(lp.plans) == n + 1 and np.allclose(lp.plans[-1][-1, :2], [2.0, 0.5], atol=1e-9)
+    # a moved map -> odom re-expresses the same plan (the local planner keeps its latches);
+    # only a new plan is a set_plan
+    assert lp.calls == ["set_plan", "update_plan_frame"]
+    mb.set_goal(Pose2D(3.0, 4.0, 0.0), 3 * DT)
+    mb.step(3 * DT, Pose2D(1.5, 2.0, math.pi / 2), Pose2D(0.0, 0.0, 0.0))
+    assert lp.calls[-1] == "set_plan"
 
 
 def test_bad_input_is_rejected_with_named_errors():

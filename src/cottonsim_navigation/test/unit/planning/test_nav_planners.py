@@ -107,6 +107,21 @@ def test_no_path_when_walled_in_and_tolerance_search():
     assert not p.make_plan(g2, Pose2D(-5, 0), Pose2D(centre(10), centre(10))).ok   # start off map
 
 
+def test_start_in_an_obstacle_is_left_and_the_costmap_is_not_touched():
+    # navfn clears the robot's own cell: a robot whose cell became lethal can still leave it
+    costs = np.zeros((12, 20), np.uint8)
+    costs[6, 3] = LETHAL_OBSTACLE
+    before = costs.copy()
+    g = Grid(costs)
+    plan = NavfnPlanner().make_plan(g, Pose2D(centre(3), centre(6)), Pose2D(centre(15), centre(6)))
+    assert plan.ok
+    assert plan.cost == pytest.approx(brute_dijkstra(np.where(costs == LETHAL_OBSTACLE, 0, costs).astype(np.uint8),
+                                                     (3, 6), (15, 6)))
+    assert np.array_equal(g.costs, before)
+    # the goal on the robot's own (lethal) cell: a zero-length plan, not a failure
+    assert NavfnPlanner().make_plan(g, Pose2D(centre(3), centre(6)), Pose2D(centre(3), centre(6))).ok
+
+
 def test_unknown_space_respects_allow_unknown():
     costs = np.zeros((10, 20), np.uint8)
     costs[:, 10] = 255
@@ -205,3 +220,127 @@ def test_dwa_reports_no_valid_trajectory_when_boxed_in():
     v, w, st = planner.compute_velocity(Pose2D(0, 0, 0), (0.0, 0.0), cm)
     assert st is LocalPlannerStatus.NO_VALID_TRAJECTORY and v == 0.0 and w == 0.0
     assert np.all(~np.isfinite(planner.last_scores))
+
+
+def test_dwa_keeps_its_goal_latch_when_only_the_plan_frame_moves():
+    # robot inside xy_goal_tolerance, heading 90 deg off the goal yaw: latched, it turns in place
+    cm = make_local_costmap()
+    cm.update_map(Pose2D(0.0, 0.0, 0.0))
+    dwa = DWAPlanner(DWAConfig(xy_goal_tolerance=0.08, latch_xy_goal_tolerance=True))
+    path = np.column_stack([np.linspace(-1.0, 0.0, 21), np.zeros(21), np.zeros(21)])
+    dwa.set_plan(path)
+    robot = Pose2D(0.03, 0.0, math.pi / 2)
+    v, w, st = dwa.compute_velocity(robot, (0.0, 0.0), cm)
+    assert st is LocalPlannerStatus.ROTATING_TO_GOAL and v == 0.0 and w < 0.0
+    # a localisation correction moves the same plan 0.15 m: still latched, still turning in place
+    moved = path + np.array([0.15, 0.0, 0.0])
+    dwa.update_plan_frame(moved)
+    v, w, st = dwa.compute_velocity(robot, (0.0, w), cm)
+    assert st is LocalPlannerStatus.ROTATING_TO_GOAL and v == 0.0
+    # the same poses as a NEW plan: the latch is gone, the goal is 0.12 m away -> not rotating to it
+    dwa.set_plan(moved)
+    v, w, st = dwa.compute_velocity(robot, (0.0, 0.0), cm)
+    assert st is not LocalPlannerStatus.ROTATING_TO_GOAL
+    with pytest.raises(ValueError, match="non-finite"):
+        dwa.update_plan_frame(np.full((21, 3), np.nan))
+
+
+def test_goal_approach_joins_the_goal_heading_line_and_follows_it():
+    g = Grid(np.zeros((40, 240)), res=0.05)                 # 12 x 2 m, empty
+    start, goal = Pose2D(0.5, 1.07, 0.0), Pose2D(11.0, 1.0, 0.0)   # 7 cm beside the line y = 1
+    plain = NavfnPlanner().make_plan(g, start, goal)
+    joined = NavfnPlanner(NavfnConfig(goal_approach_join_m=1.0)).make_plan(g, start, goal)
+    assert plain.ok and joined.ok
+    p = joined.poses
+    assert np.allclose(p[0, :2], [0.5, 1.07]) and np.allclose(p[-1], [11.0, 1.0, 0.0])
+    # from 1 m ahead of the robot on, the plan lies on the goal's heading line
+    on = p[:, 0] >= 1.5 + 1e-9
+    assert on.sum() > 100 and np.max(np.abs(p[on, 1] - 1.0)) < 1e-9
+    assert np.max(np.hypot(*np.diff(p[:, :2], axis=0).T)) < 0.05 * 2.0      # no jumps (a diagonal cell step)
+    # the plain plan drifts from the robot's line to the goal instead
+    mid = np.argmin(np.abs(plain.poses[:, 0] - 3.0))
+    assert abs(plain.poses[mid, 1] - 1.0) > 0.02
+
+
+def test_goal_approach_only_where_it_applies():
+    planner = NavfnPlanner(NavfnConfig(goal_approach_join_m=1.0))
+    base = NavfnPlanner()
+    g = Grid(np.zeros((40, 240)), res=0.05)
+    start = Pose2D(0.5, 1.07, 0.0)
+    # goal heading 90 deg off the direction to it (a lane end): the ordinary plan
+    side = Pose2D(11.0, 1.0, math.pi / 2)
+    assert np.allclose(planner.make_plan(g, start, side).poses[:-1], base.make_plan(g, start, side).poses[:-1])
+    # robot closer than the join distance: the ordinary plan
+    near = Pose2D(1.2, 1.0, 0.0)
+    assert np.allclose(planner.make_plan(g, start, near).poses, base.make_plan(g, start, near).poses)
+    # an obstacle on the line: the ordinary plan, which goes around it
+    costs = np.zeros((40, 240), np.uint8)
+    costs[18:23, 150] = LETHAL_OBSTACLE                      # x = 7.5 m, across y = 1
+    gb = Grid(costs, res=0.05)
+    p = planner.make_plan(gb, start, Pose2D(11.0, 1.0, 0.0))
+    mx, my = gb.spec.world_to_map(p.poses[:, 0], p.poses[:, 1])
+    assert p.ok and np.all(costs[my, mx] < INSCRIBED_INFLATED_OBSTACLE)
+    with pytest.raises(ValueError, match="goal_approach_join_m"):
+        NavfnConfig(goal_approach_join_m=-1.0)
+    with pytest.raises(ValueError, match="goal_approach_max_angle_rad"):
+        NavfnConfig(goal_approach_max_angle_rad=2.0)
+
+
+@pytest.mark.parametrize("goal_yaw", [math.pi / 2, 1.0, 0.5])
+def test_dwa_turns_onto_the_goal_yaw_without_swinging_past_it(goal_yaw):
+    # a unicycle whose command takes effect half a control period late (as the simulated base
+    # does, counting the odometry delay): the in-place turn at the goal must end inside
+    # yaw_goal_tolerance without swinging beyond it and back
+    cfg = DWAConfig(xy_goal_tolerance=0.08, latch_xy_goal_tolerance=True)
+    cm = make_local_costmap()
+    cm.update_map(Pose2D(0.0, 0.0, 0.0))
+    dwa = DWAPlanner(cfg)
+    dwa.set_plan(np.column_stack([np.linspace(-1.0, 0.0, 21), np.zeros(21), np.full(21, goal_yaw)]))
+    yaw, w = 0.0, 0.0
+    errors = []
+    dt = 1.0 / cfg.controller_frequency
+    for _ in range(60):
+        v, w_cmd, st = dwa.compute_velocity(Pose2D(0.0, 0.0, yaw), (0.0, w), cm)
+        if st is LocalPlannerStatus.GOAL_REACHED:
+            break
+        assert v == 0.0
+        yaw += 0.5 * dt * w + 0.5 * dt * w_cmd
+        w = w_cmd
+        errors.append(goal_yaw - yaw)
+    assert st is LocalPlannerStatus.GOAL_REACHED
+    assert abs(errors[-1]) <= cfg.yaw_goal_tolerance
+    assert min(errors) > -cfg.yaw_goal_tolerance           # never swung past the tolerance band
+    # at most 1 rad/s plus a few braking periods (the start-braking-at-once rule took ~twice as long)
+    assert len(errors) * dt <= goal_yaw / cfg.max_rot_vel + 1.0
+
+
+def _gps_experiment_dwa_config():
+    """DWAConfig of the GPS experiment: dwa.yaml overridden by gps_navigation_move_base.yaml."""
+    import pathlib
+    import yaml
+    cfg_dir = pathlib.Path(__file__).resolve().parents[3] / "config"
+    params = dict(yaml.safe_load((cfg_dir / "dwa.yaml").read_text())["DWAPlannerROS"])
+    params.update(yaml.safe_load((cfg_dir / "gps_navigation_move_base.yaml").read_text())["DWAPlannerROS"])
+    return DWAConfig(**params)
+
+
+@pytest.mark.parametrize("short_m", [0.083, 0.12, 0.3])
+def test_gps_experiment_dwa_settings_reach_a_goal_from_just_outside_the_tolerance(short_m):
+    # a stopped robot on the line to the goal, short_m before it: the experiment's DWA must arrive
+    # (latch) instead of dithering in place; an ideal unicycle follows each command for one period
+    cfg = _gps_experiment_dwa_config()
+    assert cfg.xy_goal_tolerance < short_m
+    cm = make_local_costmap()
+    cm.update_map(Pose2D(0.0, 0.0, 0.0))
+    dwa = DWAPlanner(cfg)
+    dwa.set_plan(np.column_stack([np.linspace(-1.0, 0.0, 41), np.zeros(41), np.zeros(41)]))
+    x, yaw, v, w = -short_m, 0.0, 0.0, 0.0
+    dt = 1.0 / cfg.controller_frequency
+    for _ in range(50):
+        v, w, st = dwa.compute_velocity(Pose2D(x, 0.0, yaw), (v, w), cm)
+        if st is LocalPlannerStatus.GOAL_REACHED:
+            break
+        x += v * dt * math.cos(yaw)
+        yaw += w * dt
+    assert st is LocalPlannerStatus.GOAL_REACHED
+    assert abs(x) <= cfg.xy_goal_tolerance

@@ -89,3 +89,68 @@ def test_shipped_route_files_read_and_match():
     # lane centres at x = -1.43 - 1.8 k
     lanes = np.round((-1.43 - x) / 1.8)
     assert np.allclose(x, -1.43 - 1.8 * lanes, atol=1e-3)
+
+
+def test_pass_through_flags_mark_straight_on_waypoints_not_turns():
+    from cottonsim_navigation.waypoints.goals import pass_through_flags
+    # a serpentine over two lanes: entry, middle, exit, (90 deg) entry, middle, exit
+    xy = np.array([[0, 0], [10, 0], [20, 0], [20, 2], [10, 2], [0, 2.0]])
+    assert pass_through_flags(xy, math.radians(20)).tolist() == [False, True, False, False, True, False]
+    # a slight kink (the original's uneven lanes) still passes; 0 rad demands a perfectly straight line
+    kinked = np.array([[0, 0], [10, 0.3], [20, 0.0]])
+    assert pass_through_flags(kinked, math.radians(20)).tolist() == [False, True, False]
+    assert pass_through_flags(kinked, 0.0).tolist() == [False, False, False]
+    # a repeated point has no direction
+    assert not pass_through_flags(np.array([[0, 0], [1, 0], [1, 0], [2, 0.0]]), 0.5).any()
+    with pytest.raises(ValueError, match="max_turn_rad"):
+        pass_through_flags(xy, -0.1)
+    with pytest.raises(ValueError, match="non-finite"):
+        pass_through_flags(np.array([[0, 0], [np.nan, 1]]), 0.3)
+
+
+def test_snap_to_lanes_moves_only_waypoints_near_a_lane_sideways():
+    from cottonsim_navigation.waypoints.goals import snap_to_lanes
+    lanes = np.array([[[0.0, 0.0], [0.0, 10.0]], [[2.0, 0.0], [2.0, 10.0]]])   # two lanes along +y
+    xy = np.array([[0.3, -3.0],      # 0.3 m beside lane 0, 3 m before its start: snapped
+                   [0.2, 5.0],       # in lane 0
+                   [1.7, 5.0],       # nearer lane 1 (0.3) than lane 0 (1.7)
+                   [1.0, 5.0],       # between the lanes, 1 m from both: beyond max_offset, kept
+                   [2.1, 16.0],      # 6 m past lane 1's end: beyond the margin, kept
+                   [-0.45, 12.0]])
+    out, mask = snap_to_lanes(xy, lanes, max_offset_m=0.5, margin_m=5.0)
+    assert mask.tolist() == [True, True, True, False, False, True]
+    assert np.allclose(out, [[0.0, -3.0], [0.0, 5.0], [2.0, 5.0], [1.0, 5.0], [2.1, 16.0], [0.0, 12.0]])
+    # a slanted lane: the move is perpendicular to it, the position along it is kept
+    slanted = np.array([[[0.0, 0.0], [10.0, 10.0]]])
+    out, mask = snap_to_lanes(np.array([[5.0, 5.2]]), slanted, 0.5, 0.0)
+    assert mask[0] and np.allclose(out[0], [5.1, 5.1])
+    with pytest.raises(ValueError, match="lanes_m"):
+        snap_to_lanes(xy, np.zeros((0, 2, 2)), 0.5, 5.0)
+    with pytest.raises(ValueError, match="coincide"):
+        snap_to_lanes(xy, np.zeros((1, 2, 2)), 0.5, 5.0)
+    with pytest.raises(ValueError, match="max_offset_m"):
+        snap_to_lanes(xy, lanes, -1.0, 5.0)
+
+
+def test_original_route_snapped_onto_the_default_farm_lanes():
+    # the original's 30 waypoints lie up to ~0.35 m off this farm's evenly spaced lanes; with the
+    # committed lanes file every one of them moves onto a lane centre, only sideways
+    from cottonsim_navigation.waypoints.files import load_gps_lanes
+    from cottonsim_navigation.waypoints.goals import gps_lanes_in_map
+    wps = load_gps_waypoints(PKG / "config/waypoints/original_gps_waypoints.txt")
+    lanes = load_gps_lanes(PKG / "config/waypoints/farm_lanes_gps.txt")
+    nav = NavsatTransform(NavsatConfig(yaw_offset=0.0))
+    nav.set_datum(wps[0].lat, wps[0].lon, 0.0, 0.0, 0.0, 0.0)
+    lanes_m = gps_lanes_in_map(lanes, nav)
+    raw = gps_goals_in_map(wps, nav)
+    snapped = gps_goals_in_map(wps, nav, lanes_m=lanes_m)
+    d = lanes_m[:, 1] - lanes_m[:, 0]
+    u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+    for r, s in zip(raw, snapped):
+        side = [abs((s.x_m - a[0]) * -e[1] + (s.y_m - a[1]) * e[0]) for a, e in zip(lanes_m[:, 0], u)]
+        assert min(side) < 1e-6                                   # on a lane centre line
+        k = int(np.argmin(side))
+        along_move = (s.x_m - r.x_m) * u[k, 0] + (s.y_m - r.y_m) * u[k, 1]
+        assert abs(along_move) < 1e-6                             # moved sideways only
+        assert math.hypot(s.x_m - r.x_m, s.y_m - r.y_m) < 0.40
+    assert max(math.hypot(s.x_m - r.x_m, s.y_m - r.y_m) for r, s in zip(raw, snapped)) > 0.25

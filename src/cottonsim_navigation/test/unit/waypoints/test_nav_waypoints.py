@@ -94,3 +94,46 @@ def test_follower_battery_low_goes_home_and_stops():
     assert f.summary.skipped == 3 and f.summary.succeeded == 1
     with pytest.raises(ValueError, match="home"):
         WaypointFollower(["a"]).battery_low()
+
+
+def test_follower_drives_through_pass_through_waypoints_only_within_the_radius():
+    f = WaypointFollower(["a", "b", "c"], FollowerConfig(pass_through_radius_m=0.5), home="H",
+                         pass_through=[False, True, False])
+    assert f.next_goal() == "a"
+    assert not f.passed(0.1)                        # 'a' is a full stop: move_base must report it
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.next_goal() == "b"
+    assert not f.passed(0.51) and not f.passed(float("nan"))
+    assert f.passed(0.49)                           # counted, and the next goal is free to go
+    assert f.next_goal() == "c" and not f.passed(0.0)
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.finished and f.summary.succeeded == 3 and f.summary.passed == 1
+    # radius 0 switches it off; the way Home never passes through
+    g = WaypointFollower(["a", "b", "c"], FollowerConfig(), pass_through=[False, True, False])
+    g.next_goal(); g.report_result(GoalResult.SUCCEEDED); g.next_goal()
+    assert not g.passed(0.0)
+    h = WaypointFollower(["a", "b", "c"], FollowerConfig(pass_through_radius_m=1.0), home="H",
+                         pass_through=[True, True, True])
+    h.next_goal(); h.battery_low(); assert h.next_goal() == "H" and not h.passed(0.0)
+    with pytest.raises(ValueError, match="pass_through has 2 flags"):
+        WaypointFollower(["a", "b", "c"], pass_through=[True, False])
+    with pytest.raises(ValueError, match="pass_through_radius_m"):
+        FollowerConfig(pass_through_radius_m=-1.0)
+
+
+def test_gps_lanes_file(tmp_path):
+    from cottonsim_navigation.waypoints.files import load_gps_lanes, save_gps_lanes
+    p = tmp_path / "lanes.txt"
+    p.write_text("# two lanes\n49.9 8.9 49.9 8.8999\n\n49.8999, 8.9, 49.8999, 8.8999  # comma separated\n")
+    lanes = load_gps_lanes(p)
+    assert len(lanes) == 2 and lanes[1][0].lat == 49.8999 and lanes[1][1].lon == 8.8999
+    q = tmp_path / "again.txt"
+    save_gps_lanes(q, lanes, comment="copy")
+    assert [(a.lat, a.lon, b.lat, b.lon) for a, b in load_gps_lanes(q)] == \
+        [(a.lat, a.lon, b.lat, b.lon) for a, b in lanes]
+    for text, what in (("49.9 8.9 49.9\n", "4 columns"), ("49.9 8.9 49.9 x\n", "not a number"),
+                       ("49.9 8.9 49.9 8.9\n", "same point"), ("# nothing\n", "no lanes"),
+                       ("49.9 8.9 95.0 8.9\n", "latitude")):
+        p.write_text(text)
+        with pytest.raises(WaypointFileError, match=what):
+            load_gps_lanes(p)

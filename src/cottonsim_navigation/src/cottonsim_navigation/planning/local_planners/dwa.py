@@ -8,7 +8,9 @@ One control cycle (``compute_velocity``):
 2. Goal logic (base_local_planner's LatchedStopRotateController): inside
    xy_goal_tolerance of the final goal, stop, then rotate in place to the
    goal yaw; ``latch_xy_goal_tolerance`` keeps the position counted as
-   reached once it was.
+   reached once it was. The turn rate is the fastest from which the robot can
+   still stop on the goal yaw after holding it for one control period (ROS
+   brakes as if the next command came at once, and overshoots at 5 Hz).
 3. Dynamic window: velocities reachable within one control period
    (1 / controller_frequency) from the current (v, w) under acc_lim_x /
    acc_lim_theta, clipped to [min_vel_x, max_vel_x] and
@@ -165,7 +167,8 @@ class DWAPlanner(LocalPlanner):
         self.last_samples: Optional[np.ndarray] = None
 
     # --- plan --------------------------------------------------------------
-    def set_plan(self, path) -> None:
+    @staticmethod
+    def _as_plan_array(path) -> np.ndarray:
         if hasattr(path, "poses") and not isinstance(path, np.ndarray):
             path = path.poses
         if isinstance(path, (list, tuple)) and path and hasattr(path[0], "x_m"):
@@ -184,11 +187,29 @@ class DWAPlanner(LocalPlanner):
                 yaw[:-1] = np.arctan2(d[:, 1], d[:, 0])
                 yaw[-1] = yaw[-2]
             arr = np.column_stack([arr, yaw])
-        self.plan = arr
+        return arr
+
+    def set_plan(self, path) -> None:
+        """A new global plan: progress, the goal latch and the oscillation flags start afresh."""
+        self.plan = self._as_plan_array(path)
         self._progress = 0
         self._xy_latched = False
         self._osc_sign = 0
         self._osc_ref = None
+
+    def update_plan_frame(self, path) -> None:
+        """The same plan after a localisation correction moved it in the local frame.
+
+        Keeps the progress along the plan and the xy-goal latch (a latched robot
+        turning in place at its goal would otherwise lose the latch at every GPS
+        update, drop back to driving mode and dither around the goal). A path of
+        another length is a new plan (set_plan).
+        """
+        arr = self._as_plan_array(path)
+        if len(arr) != len(self.plan):
+            self.set_plan(arr)
+            return
+        self.plan = arr
 
     @property
     def goal(self) -> Optional[np.ndarray]:
@@ -252,8 +273,12 @@ class DWAPlanner(LocalPlanner):
             nw = math.copysign(max(0.0, abs(w) - c.acc_lim_theta * dt), w)
             return nv, nw, LocalPlannerStatus.ROTATING_TO_GOAL
         err = geo.shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))
-        # fastest speed from which we can still stop at the goal yaw
-        w_stop = math.sqrt(2.0 * c.acc_lim_theta * abs(err))
+        # fastest speed from which we can still stop at the goal yaw, counting that the command is
+        # held for a whole control period before the next one can brake: w dt + w^2 / (2 a) = |err|.
+        # (ROS's sqrt(2 a |err|) assumes braking starts at once; at 5 Hz it overshoots by up to
+        # w dt = 0.2 rad, beyond yaw_goal_tolerance, and the robot swings back and forth.)
+        a_dt = c.acc_lim_theta * dt
+        w_stop = -a_dt + math.sqrt(a_dt * a_dt + 2.0 * c.acc_lim_theta * abs(err))
         w_cmd = min(c.max_rot_vel, w_stop, abs(w) + c.acc_lim_theta * dt)
         w_cmd = max(c.min_rot_vel, w_cmd)
         w_cmd = math.copysign(w_cmd, err)
