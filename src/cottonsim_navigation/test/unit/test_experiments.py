@@ -56,6 +56,11 @@ def test_outcome_classification_names_why_an_attempt_failed():
     assert not blocked.traversed and "1/3 waypoints reached" in blocked.reason and "no path" in blocked.reason
     scraped = rs.outcome_from_report(1.5, 0.7, _report(contacts=4))
     assert not scraped.traversed and "4 plant contacts" in scraped.reason
+    stuck = rs.outcome_from_report(1.0, 0.7, _report(reached=1, aborted=1, contacts=9), progress=(2.5, 13.3))
+    assert stuck.reason.startswith("stopped 2.5 m into the 13.3 m row") and stuck.lane_progress_m == 2.5
+    farm = FarmConfig(plants_per_row=5)                 # stems from 8.95 to 11.75 m
+    assert rs.lane_progress_m([1.0, 9.95, 9.0], farm) == (pytest.approx(1.0), pytest.approx(2.8))
+    assert rs.lane_progress_m([1.0, 30.0], farm)[0] == pytest.approx(2.8)
     missing = rs.outcome_from_report(1.0, 0.7, None, "wall-clock limit reached")
     assert not missing.traversed and "wall-clock" in missing.reason
 

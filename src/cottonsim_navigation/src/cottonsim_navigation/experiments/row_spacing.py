@@ -112,19 +112,35 @@ class AttemptOutcome:
     reason: str               # why it failed ("" when traversed)
     sim_duration_s: float
     cross_track_max_m: Optional[float]
+    lane_progress_m: Optional[float] = None   # how far past the first stems the robot got [m] (None: unknown)
+    lane_length_m: Optional[float] = None     # first to last stem [m]
 
     def to_dict(self) -> Dict[str, object]:
         return asdict(self)
 
 
+def lane_progress_m(trajectory_y_m: Sequence[float], farm_config) -> Tuple[float, float]:
+    """How far into lane 1 the robot got (its northmost y past the first stems) and the lane's length [m]."""
+    length = farm_config.plant_spacing_m * (farm_config.plants_per_row - 1)
+    if len(trajectory_y_m) == 0:
+        return 0.0, length
+    progress = max(float(y) for y in trajectory_y_m) - farm_config.first_plant_y_m
+    return min(max(progress, 0.0), length), length
+
+
 def outcome_from_report(spacing_m: float, plant_width_m: float, report: Optional[Mapping[str, object]],
-                        launch_error: str = "") -> AttemptOutcome:
-    """Classify one attempt from its report (None: the bringup wrote none)."""
+                        launch_error: str = "", progress: Optional[Tuple[float, float]] = None) -> AttemptOutcome:
+    """Classify one attempt from its report (None: the bringup wrote none).
+
+    ``progress`` = (lane progress [m], lane length [m]) from the trajectory,
+    when known: a failed attempt then says where the robot stopped.
+    """
     free = float(spacing_m) - float(plant_width_m)
+    done_m, length_m = progress if progress is not None else (None, None)
     if report is None:
         return AttemptOutcome(spacing_m, free, False, 0, 0, 0,
                               launch_error or "no report written (the bringup failed to start or was killed)",
-                              float("nan"), None)
+                              float("nan"), None, done_m, length_m)
     waypoints = int(report.get("waypoints", 0))
     reached = int(report.get("reached", 0))
     contacts = int(report.get("plant_contacts", 0))
@@ -143,6 +159,8 @@ def outcome_from_report(spacing_m: float, plant_width_m: float, report: Optional
         reasons.append(detail)
     if contacts > 0:
         reasons.append(f"{contacts} plant contacts")
+    if reasons and done_m is not None and length_m and done_m < length_m - 1e-6:
+        reasons.insert(0, f"stopped {done_m:.1f} m into the {length_m:.1f} m row")
     if launch_error:
         reasons.append(launch_error)
     cross_max = report.get("cross_track_max_m")
@@ -152,7 +170,8 @@ def outcome_from_report(spacing_m: float, plant_width_m: float, report: Optional
         reached=reached, waypoints=waypoints, plant_contacts=contacts,
         reason="; ".join(reasons) if reasons else ("" if waypoints > 0 else "empty route"),
         sim_duration_s=float(report.get("sim_duration_s", float("nan"))),
-        cross_track_max_m=None if cross_max is None else float(cross_max))
+        cross_track_max_m=None if cross_max is None else float(cross_max),
+        lane_progress_m=done_m, lane_length_m=length_m)
 
 
 def smallest_traversable_spacing(outcomes: Sequence[AttemptOutcome]) -> Optional[float]:

@@ -88,6 +88,17 @@ def read_report(path: str) -> Optional[Dict]:
     return report if isinstance(report, dict) else None
 
 
+def read_trajectory_y(path: str) -> Optional[list]:
+    """The world y column [m] of a recorder's trajectory.csv, or None when it is missing or unreadable."""
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            header = fh.readline().strip().split(",")
+            col = header.index("y_m")
+            return [float(line.split(",")[col]) for line in fh if line.strip()]
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def _write_json(path: str, data) -> None:
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w", encoding="utf-8") as fh:
@@ -217,8 +228,10 @@ def run_row_spacing(ws: Workspace, config: rs.RowSpacingStudyConfig = rs.RowSpac
         result = runner(LaunchSpec("cottonsim_navigation", "gps_navigation.launch", args,
                                    os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"{spacing:.2f} m"))
         error = "wall-clock limit reached" if result.timed_out else ""
+        ys = read_trajectory_y(os.path.join(run_dir, "trajectory.csv"))
         outcome = rs.outcome_from_report(spacing, farm.plant_width_m,
-                                         read_report(os.path.join(run_dir, "report.json")), error)
+                                         read_report(os.path.join(run_dir, "report.json")), error,
+                                         None if ys is None else rs.lane_progress_m(ys, farm))
         outcomes.append(outcome)
         print(f"  {'traversed' if outcome.traversed else 'NOT traversed: ' + outcome.reason}", flush=True)
     robot_width = farm.robot_width_m if farm is not None else float("nan")
