@@ -24,10 +24,10 @@ def test_row_spacing_study_reduced(tmp_path):
            "--goal-timeout", "60", "--real-time-factor", "1", "--results", str(results)]
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-3000:]
-    summary = json.loads((results / "row_spacing" / "summary.json").read_text())
+    summary = json.loads((results / "row_spacing" / "seed_0" / "summary.json").read_text())
     by_spacing = {round(a["spacing_m"], 2): a for a in summary["attempts"]}
     narrow, paper = by_spacing[1.0], by_spacing[1.8]
-    logs = {s: (results / "row_spacing" / f"spacing_{s:.2f}" / "launch.log") for s in (1.0, 1.8)}
+    logs = {s: (results / "row_spacing" / "seed_0" / f"spacing_{s:.2f}" / "launch.log") for s in (1.0, 1.8)}
     assert paper["traversed"], f"1.8 m not traversed: {paper['reason']}\n" + logs[1.8].read_text()[-3000:]
     assert paper["reached"] == 3 and paper["plant_contacts"] == 0
     assert not narrow["traversed"] and narrow["reason"], narrow
@@ -39,4 +39,4 @@ def test_row_spacing_study_reduced(tmp_path):
     assert proc.returncode == 0, proc.stdout
     text = doc.read_text()
     assert "| 1.00 | 0.30 | no |" in text and "| 1.80 | 1.10 | yes | 3/3 | 0 |" in text
-    assert "**1.80 m**" in text
+    assert "**1.80 m** (one seed)" in text

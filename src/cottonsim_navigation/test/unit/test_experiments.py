@@ -162,7 +162,8 @@ def test_row_spacing_study_writes_gps_routes_in_the_tested_lane_and_a_summary(tm
     config = rs.RowSpacingStudyConfig(spacings_m=(1.2, 1.8))
     runner = _fake_runner([_report(1, 3, aborted=1, reason="no path"), _report()])
     summary = run_row_spacing(ws, config, runner=runner)
-    assert summary["smallest_traversable_spacing_m"] == pytest.approx(1.8)
+    assert summary["smallest_traversable_spacing_m"]["mean"] == pytest.approx(1.8)
+    assert summary["per_seed"][0]["smallest_traversable_spacing_m"] == pytest.approx(1.8)
     from cottonsim_world.geodesy import HectorGeodesy
     geo = HectorGeodesy()
     lines = [l.split() for l in open(runner.calls[0].args["waypoints"]) if not l.startswith("#")]
@@ -171,7 +172,28 @@ def test_row_spacing_study_writes_gps_routes_in_the_tested_lane_and_a_summary(tm
     farm = yaml.safe_load(open(runner.calls[0].args["sim_config"]))["farm"]
     assert farm["row_spacing_m"] == 1.2 and farm["require_lane_fit"] is False and farm["rows"] == 2
     assert runner.calls[0].args["on_failure"] == "stop"
-    assert "| 1.20 | 0.50 | no |" in open(tmp_path / "results" / "row_spacing" / "summary.md").read()
+    assert "| 1.20 | 0.50 | no |" in open(tmp_path / "results" / "row_spacing" / "seed_0" / "summary.md").read()
+    assert "| 1.20 | 0.50 | 0/1 | 0.0 |" in open(tmp_path / "results" / "row_spacing" / "summary.md").read()
+
+
+def test_row_spacing_over_seeds_reports_the_spread_of_the_answer(tmp_path):
+    ws = _workspace(tmp_path)
+    config = rs.RowSpacingStudyConfig(spacings_m=(1.2, 1.5, 1.8))
+    # seed 0: 1.2 fails; seed 4: everything passes; seed 7: even 1.8 fails (no answer)
+    outcomes = [_report(contacts=2), _report(), _report(),
+                _report(), _report(), _report(),
+                _report(contacts=1), _report(contacts=1), _report(reached=2)]
+    runner = _fake_runner(outcomes)
+    summary = run_row_spacing(ws, config, runner=runner, seeds=[0, 4, 7])
+    assert [c.args["results_dir"].endswith(f"seed_{s}") for c, s in zip(runner.calls[::3], (0, 4, 7))] == [True] * 3
+    assert summary["seeds"] == [0, 4, 7] and summary["seeds_without_answer"] == 1
+    st = summary["smallest_traversable_spacing_m"]
+    assert (st["n"], st["mean"], st["min"], st["max"]) == (2, pytest.approx(1.35), 1.2, 1.5)
+    rows = {round(r["spacing_m"], 2): r for r in summary["spacings"]}
+    assert (rows[1.2]["traversed"], rows[1.5]["traversed"], rows[1.8]["traversed"]) == (1, 2, 2)
+    assert rows[1.2]["plant_contacts_mean"] == pytest.approx(1.0)
+    text = rs.seeds_markdown(summary)
+    assert "**1.35 m** (± 0.21 m over 2 seeds, 1.20..1.50)" in text and "1 of 3 seeds had no traversable" in text
 
 
 # ----------------------------------------------------------------- results page

@@ -13,7 +13,7 @@ import os
 import shutil
 from typing import List
 
-from .row_spacing import summary_markdown
+from .row_spacing import seeds_markdown, summary_markdown
 from .runs import read_report
 from .seeds import format_spread
 
@@ -109,9 +109,12 @@ def _row_spacing_section(results_root: str) -> List[str]:
            "(entry, middle and exit waypoints on the centre line); it traverses when it reaches all three without "
            "touching a plant.", ""]
     summary = read_report(os.path.join(results_root, "row_spacing", "summary.json"))
-    if summary is None:
+    if summary is None or "per_seed" not in summary:
         return out + ["No results yet: run the command above.", ""]
-    return out + [summary_markdown(summary), ""]
+    out += [seeds_markdown(summary), ""]
+    first = summary["per_seed"][0]
+    out += [f"Seed {first['seed']} in detail:", "", summary_markdown(first), ""]
+    return out
 
 
 def _perception_section(results_root: str) -> List[str]:

@@ -191,7 +191,7 @@ def smallest_traversable_spacing(outcomes: Sequence[AttemptOutcome]) -> Optional
 
 
 def study_summary(config: RowSpacingStudyConfig, outcomes: Sequence[AttemptOutcome],
-                  robot_width_m: float, footprint_clearance_m: Optional[float] = None) -> Dict[str, object]:
+                  robot_width_m: float) -> Dict[str, object]:
     """JSON-ready summary: per-spacing outcomes, the smallest traversable spacing, the paper's."""
     smallest = smallest_traversable_spacing(outcomes)
     return {
@@ -201,7 +201,6 @@ def study_summary(config: RowSpacingStudyConfig, outcomes: Sequence[AttemptOutco
         "plants_per_row": config.plants_per_row,
         "seed": config.seed,
         "robot_width_m": robot_width_m,
-        "footprint_clearance_m": footprint_clearance_m,
         "smallest_traversable_spacing_m": smallest,
         "paper_smallest_spacing_m": PAPER_SMALLEST_SPACING_M,
         "attempts": [o.to_dict() for o in sorted(outcomes, key=lambda o: o.spacing_m)],
@@ -220,4 +219,55 @@ def summary_markdown(summary: Mapping[str, object]) -> str:
     lines.append("Smallest spacing traversed without plant contacts (with every wider one): "
                  + (f"**{smallest:.2f} m**" if smallest is not None else "**none**")
                  + f" (paper: {summary.get('paper_smallest_spacing_m', PAPER_SMALLEST_SPACING_M):.2f} m).")
+    return "\n".join(lines)
+
+
+def seeds_summary(per_seed: Sequence[Mapping[str, object]]) -> Dict[str, object]:
+    """The study over several seeds: per spacing, in how many seeds it was traversed; the spread of the answer.
+
+    ``per_seed``: :func:`study_summary` dicts of the same spacings, one per seed.
+    A seed whose widest spacing failed has no answer and is counted in
+    ``seeds_without_answer``.
+    """
+    from .seeds import spread
+
+    if not per_seed:
+        raise ValueError("per_seed must hold at least one study summary")
+    spacings = sorted({round(a["spacing_m"], 6) for s in per_seed for a in s["attempts"]})
+    rows = []
+    for sp in spacings:
+        attempts = [a for s in per_seed for a in s["attempts"] if abs(a["spacing_m"] - sp) < 1e-6]
+        failed = [a for a in attempts if not a["traversed"]]
+        rows.append({"spacing_m": sp, "free_lane_m": attempts[0]["free_lane_m"], "attempts": len(attempts),
+                     "traversed": len(attempts) - len(failed),
+                     "plant_contacts_mean": sum(a["plant_contacts"] for a in attempts) / len(attempts),
+                     "why_not": failed[0]["reason"] if failed else ""})
+    answers = [s["smallest_traversable_spacing_m"] for s in per_seed]
+    found = [a for a in answers if a is not None]
+    return {"experiment": "row_spacing", "seeds": [s["seed"] for s in per_seed], "spacings": rows,
+            "smallest_traversable_spacing_m": spread(found) if found else None,
+            "seeds_without_answer": len(answers) - len(found),
+            "paper_smallest_spacing_m": PAPER_SMALLEST_SPACING_M, "per_seed": list(per_seed)}
+
+
+def seeds_markdown(summary: Mapping[str, object]) -> str:
+    """Markdown of :func:`seeds_summary`: one row per spacing and the conclusion with its spread."""
+    n = len(summary["seeds"])
+    lines = [f"Seeds {summary['seeds']}.", "",
+             "| spacing [m] | free lane [m] | traversed (seeds) | plant contacts (mean) | why not (first failing seed) |",
+             "|---|---|---|---|---|"]
+    for r in summary["spacings"]:
+        lines.append(f"| {r['spacing_m']:.2f} | {r['free_lane_m']:.2f} | {r['traversed']}/{r['attempts']} | "
+                     f"{r['plant_contacts_mean']:.1f} | {r['why_not'] or '-'} |")
+    st = summary.get("smallest_traversable_spacing_m")
+    if st is None:
+        answer = "**none** (the widest spacing failed in every seed)"
+    elif st["n"] == 1:
+        answer = f"**{st['mean']:.2f} m** (one seed)"
+    else:
+        answer = f"**{st['mean']:.2f} m** (± {st['std']:.2f} m over {st['n']} seeds, {st['min']:.2f}..{st['max']:.2f})"
+    missing = summary.get("seeds_without_answer", 0)
+    lines += ["", f"Smallest spacing traversed without plant contacts (with every wider one): {answer}"
+              + (f"; {missing} of {n} seeds had no traversable spacing" if missing else "")
+              + f" (paper: {summary.get('paper_smallest_spacing_m', PAPER_SMALLEST_SPACING_M):.2f} m)."]
     return "\n".join(lines)

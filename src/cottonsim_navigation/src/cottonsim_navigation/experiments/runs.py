@@ -14,6 +14,7 @@ Nothing here imports ROS: bringups run as child processes (see
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import os
 import subprocess
@@ -196,13 +197,32 @@ def _offline_check(ws: Workspace, mode: str, run_dir: str, waypoints: str, sim_y
 
 def run_row_spacing(ws: Workspace, config: rs.RowSpacingStudyConfig = rs.RowSpacingStudyConfig(),
                     real_time_factor: float = 0.0, wall_timeout_s: float = 1200.0,
-                    runner: Callable = run_launch) -> Dict:
-    """The paper's Fig. 3a study: one GPS-navigation bringup per spacing (see :mod:`.row_spacing`)."""
+                    runner: Callable = run_launch, seeds: Optional[Sequence[int]] = None) -> Dict:
+    """The paper's Fig. 3a study: one GPS-navigation bringup per spacing and seed (see :mod:`.row_spacing`).
+
+    Writes row_spacing/seed_<s>/{spacing_<x>/..., summary.json, summary.md} per
+    seed (default: ``config.seed`` alone) and row_spacing/{summary.json,
+    summary.md} over the seeds.
+    """
+    out_dir = os.path.join(ws.results, "row_spacing")
+    per_seed = []
+    for seed in (list(seeds) if seeds else [config.seed]):
+        per_seed.append(_row_spacing_one_seed(ws, dataclasses.replace(config, seed=int(seed)),
+                                              os.path.join(out_dir, f"seed_{seed}"), real_time_factor,
+                                              wall_timeout_s, runner))
+    summary = rs.seeds_summary(per_seed)
+    _write_json(os.path.join(out_dir, "summary.json"), summary)
+    with open(os.path.join(out_dir, "summary.md"), "w", encoding="utf-8") as fh:
+        fh.write(rs.seeds_markdown(summary) + "\n")
+    return summary
+
+
+def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_dir: str, real_time_factor: float,
+                          wall_timeout_s: float, runner: Callable) -> Dict:
     from cottonsim_world.farm.config import FarmConfig
     from cottonsim_world.geodesy import HectorGeodesy
 
     base_sim = os.path.join(ws.navigation, "config", "sim_navigation.yaml")
-    out_dir = os.path.join(ws.results, "row_spacing")
     outcomes = []
     farm = None
     for k, spacing in enumerate(config.spacings_m):
@@ -224,7 +244,7 @@ def run_row_spacing(ws: Workspace, config: rs.RowSpacingStudyConfig = rs.RowSpac
         args = {"run_name": name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": route,
                 "real_time_factor": real_time_factor, "on_failure": "stop",
                 "goal_timeout_s": config.goal_timeout_s, "record_bag": "false"}
-        print(f"row spacing {spacing:.2f} m: attempt {k + 1}/{len(config.spacings_m)}", flush=True)
+        print(f"row spacing {spacing:.2f} m, seed {config.seed}: attempt {k + 1}/{len(config.spacings_m)}", flush=True)
         result = runner(LaunchSpec("cottonsim_navigation", "gps_navigation.launch", args,
                                    os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"{spacing:.2f} m"))
         error = "wall-clock limit reached" if result.timed_out else ""
