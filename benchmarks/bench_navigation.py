@@ -106,6 +106,18 @@ def main():
     print(f"DWA cycle ({dwa.config.vx_samples}x{dwa.config.vth_samples} samples, sim_time "
           f"{dwa.config.sim_time} s):         {t_dwa:7.2f} ms")
 
+    # the GPS experiment's DWA (config/gps_navigation_move_base.yaml): faster, finer speed samples
+    from cottonsim_navigation.planning.local_planners.dwa import DWAConfig
+    dwa_gps = DWAPlanner(DWAConfig(max_vel_x=0.7, min_vel_trans=0.05, vx_samples=11, xy_goal_tolerance=0.08,
+                                   latch_xy_goal_tolerance=True))
+
+    def dwa_gps_cycle():
+        dwa_gps.set_plan(path)
+        dwa_gps.compute_velocity(pose, (0.3, 0.0), lcm2)
+    t_gps = timed(dwa_gps_cycle, repeats=21)
+    print(f"DWA cycle, GPS experiment ({dwa_gps.config.vx_samples}x{dwa_gps.config.vth_samples} samples, "
+          f"<= {dwa_gps.config.max_vel_x} m/s): {t_gps:7.2f} ms")
+
 
 if __name__ == "__main__":
     main()

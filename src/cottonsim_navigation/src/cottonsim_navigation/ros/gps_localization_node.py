@@ -7,8 +7,9 @@ GpsLocalizer``; this node pairs each measurement with the odometry pose
 """
 from __future__ import annotations
 
+import collections
 import threading
-from typing import Optional
+from typing import Deque, Optional, Tuple
 
 import rospy
 import tf2_ros
@@ -25,6 +26,7 @@ _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.Ex
 
 
 class GpsLocalizationNode:
+
     """Publishes TF map -> odom so that map -> base_link follows the GPS and the IMU heading.
 
     Subscriptions
@@ -49,6 +51,8 @@ class GpsLocalizationNode:
     Messages with NaN are ignored with a warning.
     """
 
+    _IMU_MAX_WAIT_S = 0.2       # how long an IMU heading may wait for its odometry TF [s, sim time]
+
     def __init__(self):
         self.config = config_from_params(GpsLocalizationConfig)
         self.map_frame = typed_param("~map_frame", "map")
@@ -62,6 +66,7 @@ class GpsLocalizationNode:
         self.imu = ImuYawReader(self.tf_buffer, self.base_frame, "gps_localization")
         self.pose_pub = rospy.Publisher("~pose", Odometry, queue_size=10)
         self._last_published: Optional[rospy.Time] = None
+        self._imu_queue: Deque[Tuple[rospy.Time, float]] = collections.deque(maxlen=64)
         rospy.Subscriber("/odometry/gps", Odometry, self._on_gps, queue_size=20)
         rospy.Subscriber("/imu/data", Imu, self._on_imu, queue_size=20)
         self.timer = rospy.Timer(rospy.Duration(1.0 / self.config.frequency), self._on_timer)
@@ -78,15 +83,42 @@ class GpsLocalizationNode:
         return Pose2D(tr.translation.x, tr.translation.y, yaw_from_quaternion_msg(tr.rotation))
 
     def _on_imu(self, msg: Imu):
+        """Queue the heading; use every queued one whose odometry pose exists by now.
+
+        The IMU (50 Hz) often arrives just before the odometry TF of the same
+        stamp. Waiting for it in the callback (as for GPS fixes) polls the sim
+        clock and was this node's largest CPU cost; instead a heading waits in
+        a short queue (up to ~0.2 s, ``_IMU_MAX_WAIT_S``) and is used, in stamp
+        order, by a later IMU callback once the TF has arrived.
+        """
         yaw = self.imu.robot_yaw(msg)
         if yaw is None:
             return
-        odom = self._odom_pose(msg.header.stamp)
-        if odom is None:
-            return
         heading = enu_yaw(yaw, self.config.yaw_offset, self.config.magnetic_declination_radians)
-        with self._lock:
-            self.filter.update_heading(msg.header.stamp.to_sec(), odom, heading)
+        self._imu_queue.append((msg.header.stamp, heading))
+        newest = msg.header.stamp.to_sec()
+        while self._imu_queue:
+            stamp, h = self._imu_queue[0]
+            odom = self._odom_pose_now(stamp)
+            if odom is None:
+                if newest - stamp.to_sec() <= self._IMU_MAX_WAIT_S:
+                    return                                  # its odometry is not here yet: later
+                self._imu_queue.popleft()                   # too old: give up on it
+                rospy.logwarn_throttle(5.0, f"gps_localization: no TF {self.odom_frame} -> {self.base_frame} "
+                                            f"for an IMU heading after {self._IMU_MAX_WAIT_S} s; dropped")
+                continue
+            self._imu_queue.popleft()
+            with self._lock:
+                self.filter.update_heading(stamp.to_sec(), odom, h)
+
+    def _odom_pose_now(self, stamp: rospy.Time) -> Optional[Pose2D]:
+        """odom -> base_link at ``stamp`` if TF has it already (no waiting), else None."""
+        try:
+            t = self.tf_buffer.lookup_transform(self.odom_frame, self.base_frame, stamp)
+        except _TF_ERRORS:
+            return None
+        tr = t.transform
+        return Pose2D(tr.translation.x, tr.translation.y, yaw_from_quaternion_msg(tr.rotation))
 
     def _on_gps(self, msg: Odometry):
         p = msg.pose.pose.position

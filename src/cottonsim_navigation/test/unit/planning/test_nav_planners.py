@@ -344,3 +344,40 @@ def test_gps_experiment_dwa_settings_reach_a_goal_from_just_outside_the_toleranc
         yaw += w * dt
     assert st is LocalPlannerStatus.GOAL_REACHED
     assert abs(x) <= cfg.xy_goal_tolerance
+
+
+def _track_lane(cfg, offset_m, lane_y=0.012):
+    """Mean |lateral error| [m] while an ideal unicycle (commands half a period late) follows a
+    straight 12 m plan, starting offset_m beside it; measured over x = 3..10 m."""
+    dwa = DWAPlanner(cfg)
+    dwa.set_plan(np.column_stack([np.linspace(0, 12, 481), np.full(481, lane_y), np.zeros(481)]))
+    x, y, yaw, v, w = 0.0, lane_y + offset_m, 0.0, 0.0, 0.0
+    errors = []
+    cm = make_local_costmap()
+    for _ in range(120):
+        cm.update_map(Pose2D(x, y, yaw))                   # rolling window, empty
+        v_new, w_new, st = dwa.compute_velocity(Pose2D(x, y, yaw), (v, w), cm)
+        if st is LocalPlannerStatus.GOAL_REACHED:
+            break
+        for k in range(10):
+            vv, ww = (v, w) if k < 5 else (v_new, w_new)
+            x += vv * 0.02 * math.cos(yaw)
+            y += vv * 0.02 * math.sin(yaw)
+            yaw += ww * 0.02
+        v, w = v_new, w_new
+        if 3.0 < x < 10.0:
+            errors.append(abs(y - lane_y))
+    assert len(errors) > 20
+    return float(np.mean(errors))
+
+
+def test_exact_distances_correct_small_lateral_errors_the_grid_cannot_see():
+    # on the 0.05 m grid a robot 3 cm beside its plan scores (almost) like one on it and stays there;
+    # with exact distances it comes back onto the plan
+    base = dict(max_vel_x=0.7, min_vel_trans=0.05, vx_samples=11)
+    grid = _track_lane(DWAConfig(**base), 0.03)
+    exact = _track_lane(DWAConfig(exact_distances=True, **base), 0.03)
+    assert grid > 0.025
+    assert exact < 0.6 * grid and exact < 0.02
+    with pytest.raises(ValueError, match="exact_distances"):
+        DWAConfig(exact_distances=1)
