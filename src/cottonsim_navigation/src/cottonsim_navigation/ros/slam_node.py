@@ -16,18 +16,18 @@ from typing import Optional
 import numpy as np
 import rospy
 import tf2_ros
-from nav_msgs.msg import MapMetaData, OccupancyGrid
+from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 from nav_msgs.srv import GetMap, GetMapResponse
 from sensor_msgs.msg import Imu, LaserScan
 from std_msgs.msg import Float64
 
-from cottonsim_navigation.core.geometry import yaw_to_quaternion
+from cottonsim_navigation.core.geometry import Pose2D, compose, yaw_to_quaternion
 from cottonsim_navigation.mapping.scan_matcher import ScanMatcherConfig
 from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig
 from cottonsim_navigation.ros.amcl_node import TfPoseReader, scan_from_msg
 from cottonsim_navigation.ros.map_server_node import occupancy_grid_msg
 from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros.conversions import transform_msg
+from cottonsim_world.ros.conversions import transform_msg, yaw_from_quaternion_msg
 from cottonsim_world.transforms import quaternion_to_matrix
 
 
@@ -51,10 +51,14 @@ class SlamNode:
       ~imu_topic (default /imu/data; '' = none)  sensor_msgs/Imu  its orientation's yaw holds the particles'
           heading (mapping.heading_fusion; the yaw of the sample nearest each scan's stamp); samples whose
           orientation_covariance[0] is -1 (no orientation) are ignored
+      ~odom_topic (default /odometry/filtered; '' = none)  nav_msgs/Odometry  republished as ~map_odometry
     Publications
       map            nav_msgs/OccupancyGrid  latched, every ~map_update_interval once something changed
       map_metadata   nav_msgs/MapMetaData    latched
       ~entropy       std_msgs/Float64        entropy of the particle weights [nats] after each processed scan
+      ~map_odometry  nav_msgs/Odometry       (not in gmapping) each ~odom_topic message carried into the map
+          frame with the current map -> odom correction (frame map, child base_link; twist unchanged): the
+          robot's SLAM pose at the odometry's rate, for a driver that steers on it (mapping.launch)
     Services
       dynamic_map    nav_msgs/GetMap         the current map
     TF
@@ -112,9 +116,30 @@ class SlamNode:
         rospy.Subscriber(self.scan_topic, LaserScan, self._on_scan, queue_size=1, buff_size=2 ** 22)
         if self.imu_topic:
             rospy.Subscriber(self.imu_topic, Imu, self._on_imu, queue_size=50)
+        self.odom_topic = typed_param("~odom_topic", "/odometry/filtered")
+        self.map_odom_pub = rospy.Publisher("~map_odometry", Odometry, queue_size=5)
+        if self.odom_topic:
+            rospy.Subscriber(self.odom_topic, Odometry, self._on_odom, queue_size=5)
         self.map_timer = rospy.Timer(rospy.Duration(self.map_update_interval_s), self._on_map_timer)
         self.tf_timer = rospy.Timer(rospy.Duration(self.tf_period_s), self._on_tf_timer)
         rospy.loginfo("slam_gmapping: scans from %s, %d particles", self.scan_topic, self.config.particles)
+
+    def _on_odom(self, msg: Odometry):
+        if not self._started:
+            return
+        p = msg.pose.pose
+        m = compose(self.slam.map_to_odom, Pose2D(p.position.x, p.position.y, yaw_from_quaternion_msg(p.orientation)))
+        out = Odometry()
+        out.header.stamp = msg.header.stamp
+        out.header.frame_id = self.map_frame
+        out.child_frame_id = msg.child_frame_id or self.base_frame
+        out.pose.pose.position.x, out.pose.pose.position.y = m.x_m, m.y_m
+        q = yaw_to_quaternion(m.yaw_rad)
+        o = out.pose.pose.orientation
+        o.x, o.y, o.z, o.w = q
+        out.pose.covariance = msg.pose.covariance
+        out.twist = msg.twist
+        self.map_odom_pub.publish(out)
 
     def _on_imu(self, msg: Imu):
         if msg.orientation_covariance[0] < 0:
