@@ -207,17 +207,19 @@ def write_experiment(out_dir: str, mode: str, planned_world_xy, trajectory, sim_
                      wall_duration_s: float, plant_contacts: int = 0, lanes=None, plant_xy=None,
                      geodesy=None, planned_latlon=None, complete: bool = True, incomplete_reason: str = "",
                      run_name: str = "", waypoints_file: str = "", navigator: Optional[dict] = None,
-                     plot: bool = True) -> Dict[str, object]:
+                     plot: bool = True, extra: Optional[dict] = None) -> Dict[str, object]:
     """Write trajectory.csv, (plot=True) trajectory.png and then report.json into ``out_dir``; return the report.
 
     An incomplete run (``complete=False``: shut down early, navigator never
     finished) still gets every file, with ``complete: false`` and the reason.
+    ``extra``: more report keys (e.g. the localisation error of a map run).
     """
     report = experiment_report(mode, planned_world_xy, trajectory, sim_duration_s, wall_duration_s,
                                plant_contacts, lanes, geodesy, planned_latlon)
     report.update({"run_name": run_name, "complete": bool(complete),
                    "incomplete_reason": "" if complete else (incomplete_reason or "run did not finish"),
                    "waypoints_file": waypoints_file, "navigator": navigator or {}})
+    report.update(extra or {})
     os.makedirs(out_dir, exist_ok=True)
     traj = np.asarray(trajectory, dtype=float).reshape(-1, 4) if np.size(trajectory) else np.zeros((0, 4))
     with open(os.path.join(out_dir, TRAJECTORY_CSV), "w", newline="") as fh:

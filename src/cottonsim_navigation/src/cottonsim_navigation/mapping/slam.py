@@ -49,6 +49,7 @@ from ..core.grid import GridSpec
 from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
 from ..localization.particle_filter import effective_sample_size, systematic_resample_indices, weight_entropy
 from ..localization.sensor_models import Scan
+from .heading_fusion import HeadingFuser
 from .scan_matcher import ScanMatcher, ScanMatcherConfig, build_match_field
 
 try:
@@ -79,6 +80,11 @@ class SlamConfig:
     match_max_beams: at most this many evenly spaced end points are matched (a speed bound of this port);
     logodds_hit, logodds_miss, logodds_clamp: map update per hit / pass and the |log-odds| bound;
     occupied_prob: cells above this probability are occupied (100) in the output map;
+    heading_tau_s: time constant of the IMU heading correction [s] (see :class:`HeadingFuser`; used only
+        when :meth:`RbpfSlam.update` gets an IMU yaw);
+    heading_sigma_rad: with the IMU, each particle's predicted yaw is the fused heading plus noise of this std
+        (an absolute heading, not an accumulated one) [rad]; the matcher's prior_sigma_yaw_rad then bounds
+        how far the scan may turn it;
     matcher: the scan matcher's parameters.
     """
 
@@ -106,6 +112,8 @@ class SlamConfig:
     logodds_miss: float = -0.05
     logodds_clamp: float = 3.5
     occupied_prob: float = 0.65
+    heading_tau_s: float = 10.0
+    heading_sigma_rad: float = 0.005
     matcher: ScanMatcherConfig = field(default_factory=ScanMatcherConfig)
 
     def __post_init__(self) -> None:
@@ -117,11 +125,11 @@ class SlamConfig:
         if isinstance(self.lskip, bool) or not isinstance(self.lskip, int) or self.lskip < 0:
             raise ValueError(f"lskip must be an integer >= 0, got {self.lskip!r}")
         for name in ("max_urange_m", "max_range_m", "delta_m", "lsigma_m", "ogain", "logodds_hit",
-                     "logodds_clamp"):
+                     "logodds_clamp", "heading_tau_s"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        for name in ("linear_update_m", "angular_update_rad", "srr", "srt", "str_", "stt"):
+        for name in ("linear_update_m", "angular_update_rad", "srr", "srt", "str_", "stt", "heading_sigma_rad"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -281,6 +289,8 @@ class RbpfSlam:
         self._last_time_s: Optional[float] = None
         self._map_to_odom = Pose2D(0.0, 0.0, 0.0)
         self._scores = np.zeros(config.particles)
+        self._heading = HeadingFuser(config.heading_tau_s)
+        self._imu_seen = False
         self.n_updates = 0
 
     # --- weights -------------------------------------------------------------------
@@ -295,13 +305,23 @@ class RbpfSlam:
         return int(np.argmax(self.log_weights))
 
     # --- the update ------------------------------------------------------------------
-    def update(self, odom_pose, scan: Scan, stamp_s: float = 0.0) -> SlamResult:
-        """Process one scan taken at odometry pose ``odom_pose`` (x_m, y_m, yaw_rad) and time ``stamp_s``."""
+    def update(self, odom_pose, scan: Scan, stamp_s: float = 0.0, imu_yaw_rad: Optional[float] = None) -> SlamResult:
+        """Process one scan taken at odometry pose ``odom_pose`` (x_m, y_m, yaw_rad) and time ``stamp_s``.
+
+        ``imu_yaw_rad``: the IMU's absolute yaw of base_link at that time (any fixed reference) or None.
+        Given, the particles move with the odometry whose heading the IMU holds (:class:`HeadingFuser`);
+        call with every scan (also those not processed) so that the filter sees the whole odometry.
+        """
         if not isinstance(scan, Scan):
             raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
-        odom = _as_pose_array(odom_pose, "odom_pose")
+        raw = _as_pose_array(odom_pose, "odom_pose")
         if not (isinstance(stamp_s, (int, float)) and math.isfinite(stamp_s)):
             raise ValueError(f"stamp_s must be a finite number, got {stamp_s!r}")
+        if imu_yaw_rad is not None or self._imu_seen:
+            self._imu_seen = True
+            odom = self._heading.update(raw, imu_yaw_rad, float(stamp_s))
+        else:
+            odom = raw
         cfg = self.config
         first = self._last_odom is None
         resampled = False
@@ -313,8 +333,10 @@ class RbpfSlam:
                      or abs(normalize_angle(d[2])) >= cfg.angular_update_rad)
             timed = cfg.temporal_update_s > 0 and stamp_s - self._last_time_s >= cfg.temporal_update_s
             if not (moved or timed):
-                return self._result(False, False, odom)
+                return self._result(False, False, raw)
             self.poses = sample_motion_model_odometry(self.poses, self._last_odom, odom, self._motion, self.rng)
+            if self._imu_seen:     # the heading is the IMU's (absolute): re-anchor every particle's yaw to it
+                self.poses[:, 2] = odom[2] + self.rng.normal(0.0, cfg.heading_sigma_rad, cfg.particles)
         hits, ends, hit_mask = self._beams(scan)
         if not first:
             self._match_all(hits)
@@ -327,8 +349,8 @@ class RbpfSlam:
         self._last_time_s = float(stamp_s)
         self.n_updates += 1
         best = self.poses[self.best_index]
-        self._map_to_odom = compose(Pose2D(*best), inverse(Pose2D(*odom)))
-        return self._result(True, resampled, odom)
+        self._map_to_odom = compose(Pose2D(*best), inverse(Pose2D(*raw)))
+        return self._result(True, resampled, raw)
 
     def _result(self, updated: bool, resampled: bool, odom: np.ndarray) -> SlamResult:
         w = self.normalised_weights()

@@ -18,12 +18,14 @@ import time
 import numpy as np
 import rospy
 from cottonsim_msgs.msg import PlantContacts
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
 from cottonsim_navigation.evaluation.experiment import (MODES, TrajectoryLog, TrajectoryLogConfig,
                                                         planned_world_from_gps, planned_world_from_map,
                                                         sim_world_from_settings, summary_line, write_experiment)
+from cottonsim_navigation.evaluation.localization_error import localization_errors, localization_summary
 from cottonsim_navigation.waypoints.files import WaypointFileError, load_gps_waypoints, load_map_waypoints
 from cottonsim_world.farm.model import Pose2D
 from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
@@ -42,6 +44,9 @@ class ExperimentRecorderNode:
         the first message received)
       ~state_topic (std_msgs/String, default /gps_waypoint_navigator/state): the navigator's JSON state;
         the run's durations go from its first "navigating" to "finished", which triggers the report
+      ~localization_topic (geometry_msgs/PoseWithCovarianceStamped, default '' = none; map runs: /amcl_pose):
+        the robot's own pose estimate in the map (= Home) frame; the report gets its error against ground
+        truth over the route (localization_error_mean_m / _max_m / _rmse_m, localization_samples)
     Parameters (private)
       ~mode (str, "gps"): "gps" (waypoints are "lat lon") or "map" (x, y, yaw in the map = Home frame)
       ~waypoints_file (str, required): the planned route, the file the navigator drives
@@ -108,11 +113,15 @@ class ExperimentRecorderNode:
         self._end = None
         self._first_seen = None       # (sim s, wall s) of the first ground truth, fallback start
         self._navigator = {}
+        self._estimates = []          # (t s, x m, y m) of the localisation estimates, map frame
         self._done = threading.Event()
         self._written = False
         rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth, queue_size=50)
         rospy.Subscriber("/ground_truth/plant_contacts", PlantContacts, self._on_contacts, queue_size=10)
         rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=10)
+        self.localization_topic = str(rospy.get_param("~localization_topic", ""))
+        if self.localization_topic:
+            rospy.Subscriber(self.localization_topic, PoseWithCovarianceStamped, self._on_estimate, queue_size=20)
         rospy.on_shutdown(self._on_shutdown)
         if self.plot:
             # import matplotlib now, in the background: at the end (possibly during a shutdown, when
@@ -132,6 +141,12 @@ class ExperimentRecorderNode:
                     rospy.logwarn_throttle(10.0, "experiment_recorder: ground truth with NaN ignored")
             if self._first_seen is None:
                 self._first_seen = (t, time.monotonic())
+
+    def _on_estimate(self, msg: PoseWithCovarianceStamped):
+        p = msg.pose.pose.position
+        with self._lock:
+            if self._start is not None and self._end is None:      # along the route only
+                self._estimates.append((msg.header.stamp.to_sec(), p.x, p.y))
 
     def _on_contacts(self, msg: PlantContacts):
         with self._lock:
@@ -166,12 +181,17 @@ class ExperimentRecorderNode:
             end = self._end or (traj[-1, 0] if len(traj) else start[0], time.monotonic())
             contacts = 0 if self._contacts_first is None else self._contacts_last - self._contacts_first
             navigator = dict(self._navigator)
+            estimates = list(self._estimates)
+        extra = None
+        if self.localization_topic:
+            extra = {"localization_topic": self.localization_topic,
+                     **localization_summary(localization_errors(np.array(estimates).reshape(-1, 3), traj, self.home))}
         report = write_experiment(
             self.out_dir, self.mode, self.planned_world, traj, max(0.0, end[0] - start[0]),
             max(0.0, end[1] - start[1]), contacts, lanes=self.world.lanes, plant_xy=self.world.plant_xy,
             geodesy=self.world.geodesy, planned_latlon=self.planned_latlon, complete=complete,
             incomplete_reason=reason, run_name=self.run_name, waypoints_file=self.waypoints_file,
-            navigator=navigator, plot=self.plot)
+            navigator=navigator, plot=self.plot, extra=extra)
         rospy.loginfo("experiment_recorder: %s", summary_line(report))
         rospy.loginfo("experiment_recorder: wrote %s", self.out_dir)
         return report

@@ -1,7 +1,8 @@
 """mapping_supervisor: end a mapping run by saving the SLAM map once the exploration route is done.
 
-mapping.launch drives the farm's route with the map waypoint navigator on the
-map that slam_gmapping is building; when the navigator reports "finished" this
+mapping.launch drives the farm's route (with cottonsim_world's route_driver, or
+the map waypoint navigator on the map that slam_gmapping is building); when the
+driver reports done (route_driver: ~done true; navigator: state "finished") this
 node fetches the map from the SLAM node's dynamic_map service, crops it to the
 observed area plus a margin (cottonsim_navigation.mapping.map_crop), writes it
 like map_saver (cottonsim_navigation.core.map_files.save_map) and shuts down
@@ -15,7 +16,7 @@ import os
 import numpy as np
 import rospy
 from nav_msgs.srv import GetMap
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 
 from cottonsim_navigation.core.map_files import MapSaverConfig, save_map
 from cottonsim_navigation.mapping.map_crop import crop_to_known
@@ -29,6 +30,8 @@ class MappingSupervisorNode:
     Subscriptions
       ~state_topic (default /map_waypoint_navigator/state)  std_msgs/String  the navigator's JSON state;
           {"state": "finished", ...} triggers the save (unparsable messages are warned about and ignored)
+      ~done_topic (default /route_driver/done)  std_msgs/Bool  the route driver's end flag; true triggers the
+          save, false (route not finished, e.g. its time-out) too, with a warning
     Service clients
       ~map_service (default /dynamic_map)  nav_msgs/GetMap  the SLAM node's current map
     Parameters (private)
@@ -52,7 +55,10 @@ class MappingSupervisorNode:
                                            free_thresh=typed_param("~free_thresh", 19.6))
         self.finished = False
         self.saved = False
+        self.done_topic = typed_param("~done_topic", "/route_driver/done")
         rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=5)
+        if self.done_topic:
+            rospy.Subscriber(self.done_topic, Bool, self._on_done, queue_size=1)
         rospy.loginfo("mapping_supervisor: will save the map to %s when %s says finished", self.map_file,
                       self.state_topic)
 
@@ -64,6 +70,11 @@ class MappingSupervisorNode:
             return
         if state == "finished":
             self.finished = True
+
+    def _on_done(self, msg: Bool) -> None:
+        if not msg.data:
+            rospy.logwarn("mapping_supervisor: the route driver stopped before the end of its route; saving anyway")
+        self.finished = True
 
     def save(self) -> bool:
         """Fetch, crop and write the map; True on success."""
