@@ -39,18 +39,8 @@ from numba import njit, prange
 
 
 @njit(cache=True, inline="always")
-def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_max):  # pragma: no cover
-    """Depth-tested fill of one screen triangle; w = 1/z at the corners."""
-    height, width = zb.shape
-    area = (u1 - u0) * (v2 - v0) - (v1 - v0) * (u2 - u0)
-    if area == 0.0 or not math.isfinite(area):
-        return
-    x_lo = max(0, int(math.ceil(min(u0, u1, u2))))
-    x_hi = min(width - 1, int(math.floor(max(u0, u1, u2))))
-    y_lo = max(0, int(math.ceil(min(v0, v1, v2))))
-    y_hi = min(height - 1, int(math.floor(max(v0, v1, v2))))
-    if x_lo > x_hi or y_lo > y_hi:
-        return
+def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max):  # pragma: no cover
+    """Depth-tested fill of a screen triangle with a non-zero signed area and a non-empty sample box."""
     inv = 1.0 / area
     # barycentric weights as affine functions b_i(x, y) = ax_i x + ay_i y + c_i
     ax0, ay0 = (v1 - v2) * inv, (u2 - u1) * inv
@@ -98,6 +88,29 @@ def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_m
 
 
 @njit(cache=True, inline="always")
+def _sample_box(u0, v0, u1, v1, u2, v2, width, height):  # pragma: no cover
+    """Integer sample points (x_lo..x_hi, y_lo..y_hi) inside the screen box of a triangle (may be empty)."""
+    x_lo = max(0, int(math.ceil(min(u0, u1, u2))))
+    x_hi = min(width - 1, int(math.floor(max(u0, u1, u2))))
+    y_lo = max(0, int(math.ceil(min(v0, v1, v2))))
+    y_hi = min(height - 1, int(math.floor(max(v0, v1, v2))))
+    return x_lo, x_hi, y_lo, y_hi
+
+
+@njit(cache=True, inline="always")
+def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_max):  # pragma: no cover
+    """Depth-tested fill of one screen triangle; w = 1/z at the corners."""
+    height, width = zb.shape
+    area = (u1 - u0) * (v2 - v0) - (v1 - v0) * (u2 - u0)
+    if area == 0.0 or not math.isfinite(area):
+        return
+    x_lo, x_hi, y_lo, y_hi = _sample_box(u0, v0, u1, v1, u2, v2, width, height)
+    if x_lo > x_hi or y_lo > y_hi:
+        return
+    _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max)
+
+
+@njit(cache=True, inline="always")
 def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Project a camera-frame triangle p (3, 3) with z > 0 and draw it."""
     iz0, iz1, iz2 = 1.0 / p[0, 2], 1.0 / p[1, 2], 1.0 / p[2, 2]
@@ -135,25 +148,30 @@ def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max
 
 
 @njit(parallel=True, cache=True)
-def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, model_vcount, draw_base,
-                 draw_count, model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
+def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_vcount, draw_base, draw_count,
+                 model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
                  zbuf, ibuf, scratch):  # pragma: no cover
     """Rasterise the visible plants into per-thread buffers zbuf/ibuf (T, H, W).
 
+    visible (n,) plant indices; vis_model (n,) the model (level of detail)
+    to draw each with; vis_gbase (n,) its first global triangle id.
     A face seen from behind is skipped unless it has a reverse-wound twin
     (two-sided leaf), whose id it then takes (see ``InstancedPlants``).
+    For a face in front of the near plane the back-face test is the sign of
+    its screen area (the same sign as the camera-frame test n . a for
+    z > 0), done after the cheaper test whether its screen box holds any
+    sample point at all: most faces of a far plant hold none.
 
     rot (3, 3), trans (3,): optical_T_world. scratch (T, max verts, 6) holds
     each thread's transformed vertices (x, y, z, u, v, 1/z).
     """
-    n_threads = zbuf.shape[0]
+    n_threads, height, width = zbuf.shape
     w_min, w_max = 1.0 / far, 1.0 / near
     for k in prange(n_threads):
         zb, ib, sc = zbuf[k], ibuf[k], scratch[k]
-        tri = np.empty((3, 3))
         for j in range(k, visible.shape[0], n_threads):
             p = visible[j]
-            m = plant_model[p]
+            m = vis_model[j]
             px, py, co, si = plant_pose[p, 0], plant_pose[p, 1], plant_pose[p, 2], plant_pose[p, 3]
             # optical_T_plant = optical_T_world @ world_T_plant (yaw about z, then x, y)
             m00 = rot[0, 0] * co + rot[0, 1] * si
@@ -181,15 +199,33 @@ def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, mod
                     sc[i, 4] = fy * y * iz + cy
                     sc[i, 5] = iz
             fb = draw_base[m]
-            gb = plant_gbase[p]
+            gb = vis_gbase[j]
             for f in range(draw_count[m]):
                 ia = draw_faces[fb + f, 0] - vb
                 ib_ = draw_faces[fb + f, 1] - vb
                 ic = draw_faces[fb + f, 2] - vb
                 za, zb_, zc = sc[ia, 2], sc[ib_, 2], sc[ic, 2]
-                if za < near and zb_ < near and zc < near:
+                if za >= near and zb_ >= near and zc >= near:
+                    if za > far and zb_ > far and zc > far:
+                        continue
+                    ua, va, ub, vb_, uc, vc = sc[ia, 3], sc[ia, 4], sc[ib_, 3], sc[ib_, 4], sc[ic, 3], sc[ic, 4]
+                    x_lo, x_hi, y_lo, y_hi = _sample_box(ua, va, ub, vb_, uc, vc, width, height)
+                    if x_lo > x_hi or y_lo > y_hi:
+                        continue
+                    area = (ub - ua) * (vc - va) - (vb_ - va) * (uc - ua)
+                    if area == 0.0 or not math.isfinite(area):
+                        continue
+                    if area > 0.0:                                      # seen from behind
+                        twin = draw_twin[fb + f]
+                        if twin < 0:
+                            continue
+                        gid = gb + twin
+                    else:
+                        gid = gb + draw_local[fb + f]
+                    _fill(ua, va, sc[ia, 5], ub, vb_, sc[ib_, 5], uc, vc, sc[ic, 5], area, x_lo, x_hi, y_lo, y_hi,
+                          gid, zb, ib, w_min, w_max)
                     continue
-                if za > far and zb_ > far and zc > far:
+                if za < near and zb_ < near and zc < near:
                     continue
                 e1x, e1y, e1z = sc[ib_, 0] - sc[ia, 0], sc[ib_, 1] - sc[ia, 1], zb_ - za
                 e2x, e2y, e2z = sc[ic, 0] - sc[ia, 0], sc[ic, 1] - sc[ia, 1], zc - za
@@ -203,12 +239,8 @@ def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, mod
                     gid = gb + twin
                 else:
                     gid = gb + draw_local[fb + f]
-                if za >= near and zb_ >= near and zc >= near:
-                    _raster_triangle(sc[ia, 3], sc[ia, 4], sc[ia, 5], sc[ib_, 3], sc[ib_, 4], sc[ib_, 5],
-                                     sc[ic, 3], sc[ic, 4], sc[ic, 5], gid, zb, ib, w_min, w_max)
-                else:
-                    _clip_near_and_draw(sc[ia, :3], sc[ib_, :3], sc[ic, :3], near, fx, fy, cx, cy, gid,
-                                        zb, ib, w_min, w_max)
+                _clip_near_and_draw(sc[ia, :3], sc[ib_, :3], sc[ic, :3], near, fx, fy, cx, cy, gid,
+                                    zb, ib, w_min, w_max)
 
 
 @njit(cache=True, inline="always")
@@ -235,8 +267,14 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
     n_threads, height, width = zbuf.shape
     th, tw = texture.shape[0], texture.shape[1]
     cam_h = t_wo[2]
+    inv_fx, inv_rx, inv_ry = 1.0 / fx, 1.0 / tex_res_x, 1.0 / tex_res_y
     for y in prange(height):
         ry = (y - cy) / fy
+        # world ray of pixel (x, y) = row_* + x * step_* (affine in x)
+        row_x = rot_wo[0, 0] * (-cx * inv_fx) + rot_wo[0, 1] * ry + rot_wo[0, 2]
+        row_y = rot_wo[1, 0] * (-cx * inv_fx) + rot_wo[1, 1] * ry + rot_wo[1, 2]
+        row_z = rot_wo[2, 0] * (-cx * inv_fx) + rot_wo[2, 1] * ry + rot_wo[2, 2]
+        step_x, step_y, step_z = rot_wo[0, 0] * inv_fx, rot_wo[1, 0] * inv_fx, rot_wo[2, 0] * inv_fx
         for x in range(width):
             best = 0.0
             gid = -1
@@ -256,31 +294,37 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                 out_plant[y, x] = g_plant[gid]
                 continue
             out_plant[y, x] = -1
-            rx = (x - cx) / fx
             # ray K^-1 (x, y, 1) in the world
-            dxw = rot_wo[0, 0] * rx + rot_wo[0, 1] * ry + rot_wo[0, 2]
-            dyw = rot_wo[1, 0] * rx + rot_wo[1, 1] * ry + rot_wo[1, 2]
-            dzw = rot_wo[2, 0] * rx + rot_wo[2, 1] * ry + rot_wo[2, 2]
+            dxw = row_x + x * step_x
+            dyw = row_y + x * step_y
+            dzw = row_z + x * step_z
             if dzw < -1e-9 and cam_h > 0.0:
                 d = -cam_h / dzw
                 out_depth[y, x] = d if near <= d <= far else np.nan
                 out_sem[y, x] = ground_class
-                gx = (t_wo[0] + d * dxw - tex_x0) / tex_res_x
-                gy = (t_wo[1] + d * dyw - tex_y0) / tex_res_y
+                gx = (t_wo[0] + d * dxw - tex_x0) * inv_rx
+                gy = (t_wo[1] + d * dyw - tex_y0) * inv_ry
                 if not (abs(gx) < 1e9 and abs(gy) < 1e9):
                     gx, gy = 0.0, 0.0
                 fxi = math.floor(gx)
                 fyi = math.floor(gy)
                 ax, ay = gx - fxi, gy - fyi
-                c0, c1 = _reflect(int(fxi), tw), _reflect(int(fxi) + 1, tw)
-                r0, r1 = _reflect(int(fyi), th), _reflect(int(fyi) + 1, th)
+                ix, iy = int(fxi), int(fyi)
+                if 0 <= ix and ix + 1 < tw and 0 <= iy and iy + 1 < th:     # inside: no border rule needed
+                    c0, c1, r0, r1 = ix, ix + 1, iy, iy + 1
+                else:
+                    c0, c1 = _reflect(ix, tw), _reflect(ix + 1, tw)
+                    r0, r1 = _reflect(iy, th), _reflect(iy + 1, th)
+                w00, w01 = (1.0 - ay) * (1.0 - ax), (1.0 - ay) * ax
+                w10, w11 = ay * (1.0 - ax), ay * ax
                 for ch in range(3):
-                    v = ((1.0 - ay) * ((1.0 - ax) * texture[r0, c0, ch] + ax * texture[r0, c1, ch])
-                         + ay * ((1.0 - ax) * texture[r1, c0, ch] + ax * texture[r1, c1, ch]))
+                    v = (w00 * texture[r0, c0, ch] + w01 * texture[r0, c1, ch]
+                         + w10 * texture[r1, c0, ch] + w11 * texture[r1, c1, ch])
                     out_rgb[y, x, ch] = np.uint8(min(255.0, v + 0.5))
             else:
                 out_depth[y, x] = np.nan
                 out_sem[y, x] = sky_class
+                rx = (x - cx) * inv_fx
                 norm = math.sqrt(rx * rx + ry * ry + 1.0)
                 s = min(1.0, max(0.0, dzw / norm))
                 idx = int(s * 255.0)
