@@ -36,7 +36,7 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.fast.raster import _compose, _draw_plants
+from cottonsim_world.sensors.fast.raster import _back_project, _compose, _draw_plants, tile_texture
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
 _RENDERERS = ("numba", "tiny", "egl")
@@ -158,7 +158,8 @@ class _FastBuffers:
     def __init__(self, scene: SensorScene, width: int, height: int) -> None:
         import numba
         self.plants = scene.fast_plants
-        self.background = scene.background_layer()
+        tex, *rest = scene.background_layer()
+        self.background = (tile_texture(tex), tex.shape[1], tex.shape[0], *rest)
         threads = numba.get_num_threads()
         self.zbuf = np.zeros((threads, height, width), np.float32)     # 1/z [1/m], 0 = empty
         self.ibuf = np.zeros((threads, height, width), np.int32)       # global triangle id
@@ -303,10 +304,10 @@ class CameraModel:
         depth = np.empty((cfg.height, cfg.width), np.float32)
         semantic = np.empty((cfg.height, cfg.width), np.uint8)
         plant_id = np.empty((cfg.height, cfg.width), np.int32)
-        tex, x0, y0, rx, ry, sky = fb.background
+        tex, tex_w, tex_h, x0, y0, rx, ry, sky = fb.background
         _compose(fb.zbuf, fb.ibuf, inst.g_rgb, inst.g_semantic, inst.g_plant, np.ascontiguousarray(pose[:3, :3]),
                  np.ascontiguousarray(pose[:3, 3]), intr.fx, intr.fy, intr.cx, intr.cy, cfg.near_m, cfg.far_m,
-                 tex, x0, y0, rx, ry, sky, int(SemanticClass.GROUND), int(SemanticClass.SKY),
+                 tex, tex_w, tex_h, x0, y0, rx, ry, sky, int(SemanticClass.GROUND), int(SemanticClass.SKY),
                  rgb, depth, semantic, plant_id)
         if cfg.depth_noise_std_m > 0.0:
             depth = depth + self._rng.normal(0.0, cfg.depth_noise_std_m, depth.shape).astype(np.float32)
@@ -327,15 +328,9 @@ class CameraModel:
         cfg = self.config
         if frame.depth_m.shape != (cfg.height, cfg.width):
             raise ValueError(f"frame depth has shape {frame.depth_m.shape}, camera is {cfg.height}x{cfg.width}")
-        s = cfg.cloud_stride
-        z = frame.depth_m[::s, ::s]
-        with np.errstate(invalid="ignore"):
-            keep = (z >= cfg.cloud_min_m) & (z <= cfg.cloud_max_m)
-        rows, cols = np.nonzero(keep)
-        zk = z[rows, cols]
-        xyz = np.empty((len(zk), 3), dtype=np.float32)
-        xyz[:, 0] = self._ray_x[::s][cols] * zk
-        xyz[:, 1] = self._ray_y[::s][rows] * zk
-        xyz[:, 2] = zk
-        rgb = frame.rgb[::s, ::s][rows, cols]
-        return xyz, np.ascontiguousarray(rgb, dtype=np.uint8)
+        if frame.rgb.shape != (cfg.height, cfg.width, 3):
+            raise ValueError(f"frame rgb has shape {frame.rgb.shape}, camera is {cfg.height}x{cfg.width}x3")
+        depth = np.ascontiguousarray(frame.depth_m, dtype=np.float32)
+        rgb = np.ascontiguousarray(frame.rgb, dtype=np.uint8)
+        return _back_project(depth, rgb, self._ray_x, self._ray_y, int(cfg.cloud_stride),
+                             np.float32(cfg.cloud_min_m), np.float32(cfg.cloud_max_m))

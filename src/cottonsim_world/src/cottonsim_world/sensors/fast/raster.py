@@ -255,17 +255,38 @@ def _reflect(i, n):  # pragma: no cover
     return i
 
 
+TILE = 8    # texture tile edge [texels]
+
+
+def tile_texture(image: np.ndarray) -> np.ndarray:
+    """(h, w, 3) uint8 -> (ceil(h / 8), ceil(w / 8), 64) uint32, the texture layout of ``_compose``.
+
+    Each texel is packed as r | g << 8 | b << 16, and the texture is stored
+    in 8 x 8 tiles (row-major inside a tile, tiles row-major), so that
+    texels near each other on the ground are near each other in memory
+    whatever the direction the camera looks in (row-major storage costs a
+    cache and TLB miss per pixel when an image row runs along a texture
+    column).
+    """
+    image = np.asarray(image, dtype=np.uint32)
+    h, w = image.shape[:2]
+    ty, tx = -(-h // TILE), -(-w // TILE)
+    packed = np.zeros((ty * TILE, tx * TILE), dtype=np.uint32)
+    packed[:h, :w] = image[..., 0] | (image[..., 1] << 8) | (image[..., 2] << 16)
+    return np.ascontiguousarray(packed.reshape(ty, TILE, tx, TILE).transpose(0, 2, 1, 3).reshape(ty, tx, TILE * TILE))
+
+
 @njit(parallel=True, cache=True)
 def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, cy, near, far, texture,
-             tex_x0, tex_y0, tex_res_x, tex_res_y, sky_lut, ground_class, sky_class,
+             tex_w, tex_h, tex_x0, tex_y0, tex_res_x, tex_res_y, sky_lut, ground_class, sky_class,
              out_rgb, out_depth, out_sem, out_plant):  # pragma: no cover
     """Merge the thread buffers, colour by triangle id, paint ground and sky; clears zbuf.
 
     rot_wo (3, 3), t_wo (3,): world_T_optical. Depth outside [near, far]
-    becomes NaN (sky: NaN, semantic SKY).
+    becomes NaN (sky: NaN, semantic SKY). texture: the soil texture of
+    tex_w x tex_h texels in the tiled, packed layout of ``tile_texture``.
     """
     n_threads, height, width = zbuf.shape
-    th, tw = texture.shape[0], texture.shape[1]
     cam_h = t_wo[2]
     inv_fx, inv_rx, inv_ry = 1.0 / fx, 1.0 / tex_res_x, 1.0 / tex_res_y
     for y in prange(height):
@@ -308,19 +329,26 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                     gx, gy = 0.0, 0.0
                 fxi = math.floor(gx)
                 fyi = math.floor(gy)
-                ax, ay = gx - fxi, gy - fyi
                 ix, iy = int(fxi), int(fyi)
-                if 0 <= ix and ix + 1 < tw and 0 <= iy and iy + 1 < th:     # inside: no border rule needed
+                # bilinear weights in 1/256 steps (OpenCV's warps use 1/32)
+                ax = int((gx - fxi) * 256.0)
+                ay = int((gy - fyi) * 256.0)
+                if 0 <= ix and ix + 1 < tex_w and 0 <= iy and iy + 1 < tex_h:   # inside: no border rule needed
                     c0, c1, r0, r1 = ix, ix + 1, iy, iy + 1
                 else:
-                    c0, c1 = _reflect(ix, tw), _reflect(ix + 1, tw)
-                    r0, r1 = _reflect(iy, th), _reflect(iy + 1, th)
-                w00, w01 = (1.0 - ay) * (1.0 - ax), (1.0 - ay) * ax
-                w10, w11 = ay * (1.0 - ax), ay * ax
+                    c0, c1 = _reflect(ix, tex_w), _reflect(ix + 1, tex_w)
+                    r0, r1 = _reflect(iy, tex_h), _reflect(iy + 1, tex_h)
+                p00 = np.int64(texture[r0 >> 3, c0 >> 3, ((r0 & 7) << 3) | (c0 & 7)])
+                p01 = np.int64(texture[r0 >> 3, c1 >> 3, ((r0 & 7) << 3) | (c1 & 7)])
+                p10 = np.int64(texture[r1 >> 3, c0 >> 3, ((r1 & 7) << 3) | (c0 & 7)])
+                p11 = np.int64(texture[r1 >> 3, c1 >> 3, ((r1 & 7) << 3) | (c1 & 7)])
+                w00, w01 = (256 - ay) * (256 - ax), (256 - ay) * ax
+                w10, w11 = ay * (256 - ax), ay * ax
                 for ch in range(3):
-                    v = (w00 * texture[r0, c0, ch] + w01 * texture[r0, c1, ch]
-                         + w10 * texture[r1, c0, ch] + w11 * texture[r1, c1, ch])
-                    out_rgb[y, x, ch] = np.uint8(min(255.0, v + 0.5))
+                    sh = 8 * ch
+                    v = (w00 * ((p00 >> sh) & 255) + w01 * ((p01 >> sh) & 255)
+                         + w10 * ((p10 >> sh) & 255) + w11 * ((p11 >> sh) & 255) + 32768) >> 16
+                    out_rgb[y, x, ch] = np.uint8(v)
             else:
                 out_depth[y, x] = np.nan
                 out_sem[y, x] = sky_class
@@ -331,3 +359,38 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                 out_rgb[y, x, 0] = sky_lut[idx, 0]
                 out_rgb[y, x, 1] = sky_lut[idx, 1]
                 out_rgb[y, x, 2] = sky_lut[idx, 2]
+
+
+@njit(cache=True)
+def _back_project(depth, rgb, ray_x, ray_y, stride, min_m, max_m):  # pragma: no cover
+    """Point cloud of a depth image: xyz (N, 3) float32 [m] in the optical frame, rgb (N, 3) uint8.
+
+    Keeps every stride-th pixel in u and v whose depth lies in [min_m,
+    max_m] (NaN fails), in row-major order; x = ray_x[col] * z, y =
+    ray_y[row] * z with ray_x = (u - cx) / fx, ray_y = (v - cy) / fy
+    (float32, as numpy computes them). Two passes (count, then fill), no
+    temporary masks or index arrays.
+    """
+    height, width = depth.shape
+    n = 0
+    for y in range(0, height, stride):
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                n += 1
+    xyz = np.empty((n, 3), np.float32)
+    colour = np.empty((n, 3), np.uint8)
+    i = 0
+    for y in range(0, height, stride):
+        ry = ray_y[y]
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                xyz[i, 0] = ray_x[x] * z
+                xyz[i, 1] = ry * z
+                xyz[i, 2] = z
+                colour[i, 0] = rgb[y, x, 0]
+                colour[i, 1] = rgb[y, x, 1]
+                colour[i, 2] = rgb[y, x, 2]
+                i += 1
+    return xyz, colour
