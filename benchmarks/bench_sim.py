@@ -66,8 +66,9 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False):
     if callgrind:
         _callgrind("off")
     sim_s = sim.time_s - t0_sim
-    cpu_ms = sim.sensor_cpu_ms()
-    timing = {k: (v, cpu_ms[k]) for k, v in sim.sensor_timing_ms().items() if v > 0}
+    # (older trees lack sensor_cpu_ms; kept optional so that before/after runs use the same script)
+    cpu_ms = sim.sensor_cpu_ms() if hasattr(sim, "sensor_cpu_ms") else {}
+    timing = {k: (v, cpu_ms.get(k, float("nan"))) for k, v in sim.sensor_timing_ms().items() if v > 0}
     sim.close()
     return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s
 

@@ -63,6 +63,18 @@ def _model_arrays(model: PlantModel) -> Tuple[np.ndarray, np.ndarray, np.ndarray
     return v, f.astype(np.int32), np.concatenate(sem), np.concatenate(rgb), n
 
 
+def _hull_area(points: np.ndarray) -> float:
+    """Surface area of the convex hull of 3-D points [m^2]; 0 if they are (nearly) coplanar or too few."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    if len(points) < 4:
+        return 0.0
+    try:
+        return float(ConvexHull(points).area)
+    except (QhullError, ValueError):
+        return 0.0
+
+
 def _octahedron_faces() -> np.ndarray:
     """Faces of an octahedron with vertices +a0, -a0, +a1, -a1, +a2, -a2 (indices 0..5)."""
     out = []
@@ -85,11 +97,15 @@ def proxy_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.nd
     * flat parts (lambda3 < flat_ratio * lambda2, e.g. leaves, bracts)
       drawn from both sides (every face has a reverse-wound twin) become a
       two-sided rectangle in the principal plane, aspect sqrt(lambda1 /
-      lambda2), whose area is the part's one-sided area;
+      lambda2), whose area is half the surface area of the part's convex
+      hull (the one-sided area if the part is exactly planar);
     * solid parts (the rest that are not thin, e.g. bolls) become an
-      outward-facing octahedron along the principal axes, scaled so that
-      its surface area equals the part's (by Cauchy's formula the mean
-      silhouette area over all view directions is then the same);
+      outward-facing octahedron along the principal axes whose surface
+      area is that of the part's convex hull.
+      By Cauchy's formula a body's silhouette, averaged over all view
+      directions, is a quarter of its convex hull's surface area, so both
+      proxies keep the part's mean silhouette (the lumps of a boll add
+      surface but no silhouette, which matching the mesh area would miss);
     * thin parts (lambda2 < thin_ratio * lambda1: stems, branches, stalks)
       become an open three-sided prism along the principal axis over the
       part's extent, of the same lateral area (the mean silhouette width
@@ -133,6 +149,7 @@ def proxy_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.nd
         lam = np.maximum(lam[::-1], 0.0)                  # descending
         axes = axes[:, ::-1]
         area = float(face_area[fi].sum())
+        hull_area = _hull_area(pts)
         proxy = None
         if lam[0] > 0.0 and lam[1] < thin_ratio * lam[0]:
             along = (pts - centre) @ axes[:, 0]
@@ -162,13 +179,15 @@ def proxy_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.nd
             two_sided = np.count_nonzero(twin >= 0) * 2 == len(fi)
             if lam[2] < flat_ratio * lam[1]:
                 if two_sided:
-                    k = math.sqrt(0.5 * area / (4.0 * math.sqrt(lam[0] * lam[1])))
+                    one_sided = 0.5 * hull_area if hull_area > 0.0 else 0.5 * area
+                    k = math.sqrt(one_sided / (4.0 * math.sqrt(lam[0] * lam[1])))
                     a0, a1 = k * math.sqrt(lam[0]) * axes[:, 0], k * math.sqrt(lam[1]) * axes[:, 1]
                     corners = np.array([centre - a0 - a1, centre + a0 - a1, centre + a0 + a1, centre - a0 + a1])
                     quad = np.array([(0, 1, 2), (0, 2, 3)], dtype=np.int64)
                     proxy = corners, np.concatenate([quad, quad[:, ::-1]])
             elif lam[2] > 0.0:
-                k = math.sqrt(area / (4.0 * math.sqrt(lam[0] * lam[1] + lam[1] * lam[2] + lam[0] * lam[2])))
+                surface = hull_area if hull_area > 0.0 else area
+                k = math.sqrt(surface / (4.0 * math.sqrt(lam[0] * lam[1] + lam[1] * lam[2] + lam[0] * lam[2])))
                 half = [k * math.sqrt(lam[a]) * axes[:, a] for a in range(3)]
                 corners = np.array([centre + half[0], centre - half[0], centre + half[1], centre - half[1],
                                     centre + half[2], centre - half[2]])
