@@ -81,7 +81,7 @@ class CameraConfig:
     cull_distance_m: float = 25.0
     plant_id_image: bool = False
     seed: int = 0
-    lod_max_error_px: float = 3.0
+    lod_max_error_px: float = 4.0
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "cloud_stride"):
