@@ -151,6 +151,9 @@ class CameraReading:
     intrinsics: CameraIntrinsics
     cloud_xyz: Optional[np.ndarray] = None   # (N, 3) float32 in the optical frame, when wanted
     cloud_rgb: Optional[np.ndarray] = None   # (N, 3) uint8
+    # the same cloud in PointCloud2's layout: (N, 4) float32 x, y, z, packed 0x00RRGGBB bits
+    # (CameraModel.point_cloud_xyzrgb); cloud_xyz is a view of it
+    cloud_xyzrgb: Optional[np.ndarray] = None
 
 
 @dataclass
@@ -480,7 +483,9 @@ class Simulator:
         frame = camera.render(world_T_optical)
         reading = CameraReading(now, name, optical_frame(name), frame, camera.intrinsics())
         if self._camera_cloud_wanted[name]:
-            reading.cloud_xyz, reading.cloud_rgb = camera.point_cloud(frame)
+            packed, reading.cloud_rgb = camera.point_cloud_xyzrgb(frame)
+            reading.cloud_xyzrgb = packed
+            reading.cloud_xyz = packed[:, :3]
         return reading
 
     def _lidar(self, now: float, state: RobotState) -> LidarReading:

@@ -187,3 +187,30 @@ def test_lidar_scan_packs_what_ranges_reports(farm_scene):
     assert scan.points.dtype == np.float32 and scan.intensity.dtype == np.float32
     assert np.all(scan.intensity[scan.semantic == SemanticClass.GROUND]
                   == np.float32(cfg.reflectivity[SemanticClass.GROUND] * 100.0))
+
+
+def test_packed_cloud_and_its_message_match_the_unpacked_ones(farm_scene):
+    import rospy
+    from cottonsim_world.ros import conversions as conv
+    from cottonsim_world.ros.bridge_node import packed_xyzrgb_cloud_msg
+
+    cam = CameraModel(farm_scene, CameraConfig(width=160, height=120, cloud_stride=2))
+    lane = farm_scene.farm.lanes[1]
+    frame = cam.render(optical_pose(lane.x_m, lane.y_start_m - 1.0, 0.55, math.pi / 2, math.radians(5)))
+    xyz, rgb = cam.point_cloud(frame)
+    packed, colours = cam.point_cloud_xyzrgb(frame)
+    np.testing.assert_array_equal(colours, rgb)
+    assert packed.shape == (len(xyz), 4) and packed.dtype == np.float32 and len(xyz) > 100
+    np.testing.assert_array_equal(packed[:, :3], xyz)
+    colour = packed[:, 3].view(np.uint32)
+    np.testing.assert_array_equal(colour >> 16, rgb[:, 0])
+    np.testing.assert_array_equal((colour >> 8) & 255, rgb[:, 1])
+    np.testing.assert_array_equal(colour & 255, rgb[:, 2])
+    stamp = rospy.Time(12, 5)
+    a = packed_xyzrgb_cloud_msg(packed, stamp, "cam")
+    b = conv.xyzrgb_cloud_msg(xyz, rgb, stamp, "cam")
+    assert a.data == b.data and a.fields == b.fields and a.point_step == b.point_step == 16
+    assert (a.width, a.height, a.row_step, a.is_dense, a.header.frame_id) == (b.width, b.height, b.row_step,
+                                                                              b.is_dense, b.header.frame_id)
+    with pytest.raises(ValueError, match="packed cloud"):
+        packed_xyzrgb_cloud_msg(xyz, stamp, "cam")

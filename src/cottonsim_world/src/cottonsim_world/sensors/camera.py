@@ -36,7 +36,8 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.fast.raster import _back_project, _compose, _draw_plants, tile_texture
+from cottonsim_world.sensors.fast.raster import (_back_project, _compose, _count_cloud, _draw_plants,
+                                                   _fill_cloud_xyzrgb, tile_texture)
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
 _RENDERERS = ("numba", "tiny", "egl")
@@ -334,3 +335,26 @@ class CameraModel:
         rgb = np.ascontiguousarray(frame.rgb, dtype=np.uint8)
         return _back_project(depth, rgb, self._ray_x, self._ray_y, int(cfg.cloud_stride),
                              np.float32(cfg.cloud_min_m), np.float32(cfg.cloud_max_m))
+
+    def point_cloud_xyzrgb(self, frame: CameraFrame) -> Tuple[np.ndarray, np.ndarray]:
+        """The same cloud as ``point_cloud``, packed as PointCloud2 wants it, and its colours.
+
+        Returns packed (N, 4) float32: columns x, y, z [m] (optical frame)
+        and, in the fourth, the bits of PCL's packed colour 0x00RRGGBB (read
+        it with ``.view(np.uint32)``), so that ``packed.tobytes()`` is the
+        message's data for fields x, y, z, rgb at offsets 0, 4, 8, 12
+        (little-endian, point_step 16); and rgb (N, 3) uint8 as
+        ``point_cloud`` returns it. One compiled pass fills both.
+        """
+        cfg = self.config
+        if frame.depth_m.shape != (cfg.height, cfg.width) or frame.rgb.shape != (cfg.height, cfg.width, 3):
+            raise ValueError(f"frame has shapes {frame.depth_m.shape} / {frame.rgb.shape}, camera is "
+                             f"{cfg.height}x{cfg.width}")
+        depth = np.ascontiguousarray(frame.depth_m, dtype=np.float32)
+        rgb = np.ascontiguousarray(frame.rgb, dtype=np.uint8)
+        lo, hi, stride = np.float32(cfg.cloud_min_m), np.float32(cfg.cloud_max_m), int(cfg.cloud_stride)
+        n = _count_cloud(depth, stride, lo, hi)
+        out = np.empty((n, 4), np.uint32)
+        colours = np.empty((n, 3), np.uint8)
+        _fill_cloud_xyzrgb(depth, rgb, self._ray_x, self._ray_y, stride, lo, hi, out.view(np.float32), out, colours)
+        return out.view(np.float32), colours

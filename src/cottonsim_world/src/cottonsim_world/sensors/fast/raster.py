@@ -394,3 +394,42 @@ def _back_project(depth, rgb, ray_x, ray_y, stride, min_m, max_m):  # pragma: no
                 colour[i, 2] = rgb[y, x, 2]
                 i += 1
     return xyz, colour
+
+
+@njit(cache=True)
+def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
+    """Pixels kept by ``_back_project``'s rule (every stride-th, depth in [min_m, max_m])."""
+    height, width = depth.shape
+    n = 0
+    for y in range(0, height, stride):
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                n += 1
+    return n
+
+
+@njit(cache=True)
+def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, out_u, out_rgb):  # pragma: no cover
+    """``_back_project`` straight into PointCloud2's x, y, z, rgb layout (16 bytes a point).
+
+    out_f (N, 4) float32 and out_u (N, 4) uint32 are two views of the same
+    memory: x, y, z go to out_f[:, :3], PCL's packed colour 0x00RRGGBB to
+    out_u[:, 3]; out_rgb (N, 3) uint8 gets the colours unpacked.
+    """
+    height, width = depth.shape
+    i = 0
+    for y in range(0, height, stride):
+        ry = ray_y[y]
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                out_f[i, 0] = ray_x[x] * z
+                out_f[i, 1] = ry * z
+                out_f[i, 2] = z
+                r, g, b = rgb[y, x, 0], rgb[y, x, 1], rgb[y, x, 2]
+                out_u[i, 3] = (np.uint32(r) << 16) | (np.uint32(g) << 8) | np.uint32(b)
+                out_rgb[i, 0] = r
+                out_rgb[i, 1] = g
+                out_rgb[i, 2] = b
+                i += 1
