@@ -6,13 +6,18 @@ a plain compiled rasteriser draws in a few milliseconds.
 
 How a frame is made (``FastRasterCamera.render``):
 
-1. the visible plants come from ``SensorScene.plants_in_view`` (bounding
-   spheres against the view frustum, as the pybullet path does);
+1. the visible plants come from ``SensorScene.plants_in_view_depth``
+   (bounding spheres against the view frustum, as the pybullet path does);
+   ``CameraModel`` picks each one's level of detail (full model, or the
+   simplified proxies of ``geometry.proxy_model_arrays`` when their error
+   bound projects to at most ``lod_max_error_px``);
 2. ``_draw_plants`` (parallel): each worker thread takes every n-th visible
    plant, moves the plant's model vertices into the optical frame (one 3x4
-   transform per plant), drops back faces (counter-clockwise faces seen
-   from behind, the culling TinyRenderer does; a two-sided leaf's pair of
-   faces is drawn once, with the id of the side that faces the camera), clips faces that cross the near plane (a face with
+   transform per plant), skips faces whose screen box holds no sample point
+   (most faces of a far plant), drops back faces (counter-clockwise faces
+   seen from behind, the culling TinyRenderer does; a two-sided leaf's pair
+   of faces is drawn once, with the id of the side that faces the camera),
+   clips faces that cross the near plane (a face with
    corners on both sides becomes one or two triangles) and rasterises them
    into its *own* buffers of inverse depth 1/z and global triangle id. Own
    buffers per thread mean no write races; 1/z is affine in the pixel
@@ -20,10 +25,13 @@ How a frame is made (``FastRasterCamera.render``):
    along the optical axis of the triangle's plane;
 3. ``_compose`` (parallel over rows): per pixel the nearest of the threads'
    samples wins; its triangle id gives colour, SemanticClass and plant id;
-   pixels without a triangle get the ground or sky exactly as
+   pixels without a triangle get the ground or sky as
    ``SensorScene.ground_and_sky`` computes them (plane z = 0 with the
-   bilinear-sampled soil texture, sky gradient over the ray elevation).
-   The thread buffers are cleared on the way.
+   bilinear-sampled soil texture, tiled by ``tile_texture``, weights in
+   1/256 steps; sky gradient over the ray elevation). The thread buffers
+   are cleared on the way.
+4. ``_back_project`` / ``_fill_cloud_xyzrgb``: the depth point cloud, the
+   latter straight into PointCloud2's x, y, z, rgb byte layout.
 
 Sampling convention: pixel (col, row) is the point u = col, v = row of the
 pinhole model u = fx x / z + cx, v = fy y / z + cy with the intrinsics of
