@@ -151,6 +151,9 @@ class CameraReading:
     intrinsics: CameraIntrinsics
     cloud_xyz: Optional[np.ndarray] = None   # (N, 3) float32 in the optical frame, when wanted
     cloud_rgb: Optional[np.ndarray] = None   # (N, 3) uint8
+    # the same cloud in PointCloud2's layout: (N, 4) float32 x, y, z, packed 0x00RRGGBB bits
+    # (CameraModel.point_cloud_xyzrgb); cloud_xyz is a view of it
+    cloud_xyzrgb: Optional[np.ndarray] = None
 
 
 @dataclass
@@ -220,6 +223,7 @@ class _Schedule:
     next_s: float = 0.0
     active: bool = True
     wall_s: float = 0.0          # accumulated wall time of its updates [s]
+    cpu_s: float = 0.0           # accumulated process CPU time of its updates, all threads [s]
     count: int = 0
 
     def due(self, now_s: float) -> bool:
@@ -327,6 +331,13 @@ class Simulator:
         """Mean wall time per update of each sensor so far [ms] (0 if never run)."""
         return {s.name: (1e3 * s.wall_s / s.count if s.count else 0.0) for s in self._schedules.values()}
 
+    def sensor_cpu_ms(self) -> Dict[str, float]:
+        """Mean process CPU time per update of each sensor so far [ms], summed over threads (0 if never run).
+
+        On a shared machine wall time includes waiting for a core; CPU time does not.
+        """
+        return {s.name: (1e3 * s.cpu_s / s.count if s.count else 0.0) for s in self._schedules.values()}
+
     def physics_step_ms(self) -> float:
         steps = max(1, round(self.time_s / self.step_s))
         return 1e3 * self._physics_wall_s / steps
@@ -360,9 +371,10 @@ class Simulator:
             if now + 1e-9 >= sched.next_s and sched.due(now):
                 if state is None:
                     state = self.physics.robot_state()
-                t1 = time.perf_counter()
+                t1, c1 = time.perf_counter(), time.process_time()
                 reading = self._produce(sched.name, now, state)
                 sched.wall_s += time.perf_counter() - t1
+                sched.cpu_s += time.process_time() - c1
                 sched.count += 1
                 if reading is not None:
                     readings.append(reading)
@@ -471,7 +483,9 @@ class Simulator:
         frame = camera.render(world_T_optical)
         reading = CameraReading(now, name, optical_frame(name), frame, camera.intrinsics())
         if self._camera_cloud_wanted[name]:
-            reading.cloud_xyz, reading.cloud_rgb = camera.point_cloud(frame)
+            packed, reading.cloud_rgb = camera.point_cloud_xyzrgb(frame)
+            reading.cloud_xyzrgb = packed
+            reading.cloud_xyz = packed[:, :3]
         return reading
 
     def _lidar(self, now: float, state: RobotState) -> LidarReading:

@@ -57,7 +57,7 @@ from cottonsim_msgs.msg import PlantContact, PlantContacts, SimStats
 from geometry_msgs.msg import Point, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, NavSatFix, PointCloud2
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, NavSatFix, PointCloud2, PointField
 from trajectory_msgs.msg import JointTrajectory
 
 from cottonsim_world.config_io import simulator_config_from_dict
@@ -66,6 +66,22 @@ from cottonsim_world.ros import conversions as conv
 from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
                                        GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
                                        OdometryReading, Simulator)
+
+
+_XYZRGB_FIELDS = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                  for i, name in enumerate(("x", "y", "z", "rgb"))]
+
+
+def packed_xyzrgb_cloud_msg(packed: np.ndarray, stamp: rospy.Time, frame_id: str) -> PointCloud2:
+    """PointCloud2 (x, y, z, rgb: FLOAT32 at 0, 4, 8, 12) from ``CameraModel.point_cloud_xyzrgb``'s
+    (N, 4) float32 array: its bytes are the message data, no per-field packing. Same message as
+    ``conversions.xyzrgb_cloud_msg`` of the unpacked cloud."""
+    packed = np.ascontiguousarray(packed, dtype=np.float32)
+    if packed.ndim != 2 or packed.shape[1] != 4:
+        raise ValueError(f"packed cloud must be (N, 4) float32, got shape {packed.shape}")
+    n = packed.shape[0]
+    return PointCloud2(header=conv.header(stamp, frame_id), height=1, width=n, fields=list(_XYZRGB_FIELDS),
+                       is_bigendian=False, point_step=16, row_step=16 * n, data=packed.tobytes(), is_dense=True)
 
 
 class SimBridgeNode:
@@ -244,7 +260,9 @@ class SimBridgeNode:
         pubs["info"].publish(conv.camera_info_msg(intr.width, intr.height, intr.K, intr.P, stamp, r.frame_id))
         if pubs["semantic"].get_num_connections() or not self.lazy:
             pubs["semantic"].publish(conv.image_msg(r.frame.semantic, stamp, r.frame_id))
-        if r.cloud_xyz is not None:
+        if r.cloud_xyzrgb is not None:
+            pubs["points"].publish(packed_xyzrgb_cloud_msg(r.cloud_xyzrgb, stamp, r.frame_id))
+        elif r.cloud_xyz is not None:
             pubs["points"].publish(conv.xyzrgb_cloud_msg(r.cloud_xyz, r.cloud_rgb, stamp, r.frame_id))
 
     def _publish_lidar(self, r: LidarReading, stamp):

@@ -36,7 +36,8 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.fast.raster import _compose, _draw_plants
+from cottonsim_world.sensors.fast.raster import (_back_project, _compose, _count_cloud, _draw_plants,
+                                                   _fill_cloud_xyzrgb, tile_texture)
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
 _RENDERERS = ("numba", "tiny", "egl")
@@ -58,6 +59,12 @@ class CameraConfig:
     cull_distance_m: plants whose bounding sphere is farther than this along
     the optical axis are not rendered (inf = only frustum culling);
     plant_id_image: also return a per-pixel plant id image; seed: noise.
+    lod_max_error_px ('numba' only): a plant is drawn with its simplified
+    level of detail (``fast.geometry.proxy_model_arrays``: each leaf, boll
+    and stem part replaced by a few triangles of the same area, ~4.5x fewer
+    triangles) when that level's outline error bound, seen at the depth of
+    the plant's nearest bounding-sphere point, is at most this many pixels
+    [px]; 0 = always full detail.
     """
 
     width: int = 640
@@ -75,6 +82,7 @@ class CameraConfig:
     cull_distance_m: float = 25.0
     plant_id_image: bool = False
     seed: int = 0
+    lod_max_error_px: float = 4.0
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "cloud_stride"):
@@ -98,6 +106,8 @@ class CameraConfig:
                 raise ValueError(f"{name} must be >= 0, got {v}")
         if self.renderer not in _RENDERERS:
             raise ValueError(f"renderer must be one of {_RENDERERS}, got {self.renderer!r}")
+        if not (self.lod_max_error_px >= 0.0 and math.isfinite(self.lod_max_error_px)):
+            raise ValueError(f"lod_max_error_px must be a finite number >= 0, got {self.lod_max_error_px}")
         if not (self.cull_distance_m > 0.0):
             raise ValueError(f"cull_distance_m must be > 0 (inf allowed), got {self.cull_distance_m}")
 
@@ -149,7 +159,8 @@ class _FastBuffers:
     def __init__(self, scene: SensorScene, width: int, height: int) -> None:
         import numba
         self.plants = scene.fast_plants
-        self.background = scene.background_layer()
+        tex, *rest = scene.background_layer()
+        self.background = (tile_texture(tex), tex.shape[1], tex.shape[0], *rest)
         threads = numba.get_num_threads()
         self.zbuf = np.zeros((threads, height, width), np.float32)     # 1/z [1/m], 0 = empty
         self.ibuf = np.zeros((threads, height, width), np.int32)       # global triangle id
@@ -226,9 +237,10 @@ class CameraModel:
         cfg, scene = self.config, self.scene
         tan_h = math.tan(cfg.horizontal_fov_rad / 2.0)
         tan_v = math.tan(cfg.vertical_fov_rad / 2.0)
-        wanted = scene.plants_in_view(pose, tan_h, tan_v, min(cfg.cull_distance_m, cfg.far_m))
         if self._fast is not None:
-            return self._render_numba(pose, wanted)
+            visible, z_near = scene.plants_in_view_depth(pose, tan_h, tan_v, min(cfg.cull_distance_m, cfg.far_m))
+            return self._render_numba(pose, visible, z_near)
+        wanted = scene.plants_in_view(pose, tan_h, tan_v, min(cfg.cull_distance_m, cfg.far_m))
         added, removed = self._client.sync(wanted)
         self.last_render_stats = {"plants": len(wanted), "added": added, "removed": removed}
         sc = scene.config
@@ -265,26 +277,38 @@ class CameraModel:
         return CameraFrame(rgb=np.ascontiguousarray(rgb), depth_m=depth, semantic=semantic,
                            plant_id=plant_id, world_T_optical=pose)
 
-    def _render_numba(self, pose: np.ndarray, wanted) -> CameraFrame:
+    def _levels_of_detail(self, visible: np.ndarray, z_near: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Per visible plant the model slot to draw and its first global triangle id."""
+        inst = self._fast.plants
+        model = inst.plant_model[visible]
+        if self.config.lod_max_error_px <= 0.0 or len(visible) == 0:
+            return model, inst.plant_gbase[visible]
+        error_px = self._intr.fx * inst.proxy_error_m[model] / np.maximum(z_near, 1e-6)
+        far = (z_near > 0.0) & (error_px <= self.config.lod_max_error_px)
+        self.last_render_stats["simplified"] = int(np.count_nonzero(far))
+        return (np.where(far, model + inst.model_count, model),
+                np.where(far, inst.level_gbase[1, visible], inst.level_gbase[0, visible]))
+
+    def _render_numba(self, pose: np.ndarray, visible: np.ndarray, z_near: np.ndarray) -> CameraFrame:
         cfg, fb = self.config, self._fast
-        self.last_render_stats = {"plants": len(wanted), "added": 0, "removed": 0}
+        self.last_render_stats = {"plants": len(visible), "added": 0, "removed": 0, "simplified": 0}
         inst = fb.plants
-        visible = np.fromiter(sorted(wanted), dtype=np.int64, count=len(wanted))
+        slot, gbase = self._levels_of_detail(visible, z_near)
         rot = pose[:3, :3].T                                  # optical_R_world
         trans = -rot @ pose[:3, 3]
         intr = self._intr
-        _draw_plants(visible, inst.plant_model, inst.plant_pose, inst.plant_gbase, inst.model_vbase,
-                     inst.model_vcount, inst.draw_base, inst.draw_count, inst.model_verts, inst.draw_faces,
+        _draw_plants(visible, slot, gbase, inst.plant_pose,
+                     inst.model_vbase, inst.model_vcount, inst.draw_base, inst.draw_count, inst.model_verts, inst.draw_faces,
                      inst.draw_local, inst.draw_twin, rot, trans, intr.fx, intr.fy, intr.cx, intr.cy,
                      cfg.near_m, cfg.far_m, fb.zbuf, fb.ibuf, fb.scratch)
         rgb = np.empty((cfg.height, cfg.width, 3), np.uint8)
         depth = np.empty((cfg.height, cfg.width), np.float32)
         semantic = np.empty((cfg.height, cfg.width), np.uint8)
         plant_id = np.empty((cfg.height, cfg.width), np.int32)
-        tex, x0, y0, rx, ry, sky = fb.background
+        tex, tex_w, tex_h, x0, y0, rx, ry, sky = fb.background
         _compose(fb.zbuf, fb.ibuf, inst.g_rgb, inst.g_semantic, inst.g_plant, np.ascontiguousarray(pose[:3, :3]),
                  np.ascontiguousarray(pose[:3, 3]), intr.fx, intr.fy, intr.cx, intr.cy, cfg.near_m, cfg.far_m,
-                 tex, x0, y0, rx, ry, sky, int(SemanticClass.GROUND), int(SemanticClass.SKY),
+                 tex, tex_w, tex_h, x0, y0, rx, ry, sky, int(SemanticClass.GROUND), int(SemanticClass.SKY),
                  rgb, depth, semantic, plant_id)
         if cfg.depth_noise_std_m > 0.0:
             depth = depth + self._rng.normal(0.0, cfg.depth_noise_std_m, depth.shape).astype(np.float32)
@@ -305,15 +329,32 @@ class CameraModel:
         cfg = self.config
         if frame.depth_m.shape != (cfg.height, cfg.width):
             raise ValueError(f"frame depth has shape {frame.depth_m.shape}, camera is {cfg.height}x{cfg.width}")
-        s = cfg.cloud_stride
-        z = frame.depth_m[::s, ::s]
-        with np.errstate(invalid="ignore"):
-            keep = (z >= cfg.cloud_min_m) & (z <= cfg.cloud_max_m)
-        rows, cols = np.nonzero(keep)
-        zk = z[rows, cols]
-        xyz = np.empty((len(zk), 3), dtype=np.float32)
-        xyz[:, 0] = self._ray_x[::s][cols] * zk
-        xyz[:, 1] = self._ray_y[::s][rows] * zk
-        xyz[:, 2] = zk
-        rgb = frame.rgb[::s, ::s][rows, cols]
-        return xyz, np.ascontiguousarray(rgb, dtype=np.uint8)
+        if frame.rgb.shape != (cfg.height, cfg.width, 3):
+            raise ValueError(f"frame rgb has shape {frame.rgb.shape}, camera is {cfg.height}x{cfg.width}x3")
+        depth = np.ascontiguousarray(frame.depth_m, dtype=np.float32)
+        rgb = np.ascontiguousarray(frame.rgb, dtype=np.uint8)
+        return _back_project(depth, rgb, self._ray_x, self._ray_y, int(cfg.cloud_stride),
+                             np.float32(cfg.cloud_min_m), np.float32(cfg.cloud_max_m))
+
+    def point_cloud_xyzrgb(self, frame: CameraFrame) -> Tuple[np.ndarray, np.ndarray]:
+        """The same cloud as ``point_cloud``, packed as PointCloud2 wants it, and its colours.
+
+        Returns packed (N, 4) float32: columns x, y, z [m] (optical frame)
+        and, in the fourth, the bits of PCL's packed colour 0x00RRGGBB (read
+        it with ``.view(np.uint32)``), so that ``packed.tobytes()`` is the
+        message's data for fields x, y, z, rgb at offsets 0, 4, 8, 12
+        (little-endian, point_step 16); and rgb (N, 3) uint8 as
+        ``point_cloud`` returns it. One compiled pass fills both.
+        """
+        cfg = self.config
+        if frame.depth_m.shape != (cfg.height, cfg.width) or frame.rgb.shape != (cfg.height, cfg.width, 3):
+            raise ValueError(f"frame has shapes {frame.depth_m.shape} / {frame.rgb.shape}, camera is "
+                             f"{cfg.height}x{cfg.width}")
+        depth = np.ascontiguousarray(frame.depth_m, dtype=np.float32)
+        rgb = np.ascontiguousarray(frame.rgb, dtype=np.uint8)
+        lo, hi, stride = np.float32(cfg.cloud_min_m), np.float32(cfg.cloud_max_m), int(cfg.cloud_stride)
+        n = _count_cloud(depth, stride, lo, hi)
+        out = np.empty((n, 4), np.uint32)
+        colours = np.empty((n, 3), np.uint8)
+        _fill_cloud_xyzrgb(depth, rgb, self._ray_x, self._ray_y, stride, lo, hi, out.view(np.float32), out, colours)
+        return out.view(np.float32), colours

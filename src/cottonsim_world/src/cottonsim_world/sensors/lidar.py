@@ -29,7 +29,7 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.fast.raycast import HIT_GROUND, cast_rays
+from cottonsim_world.sensors.fast.raycast import HIT_GROUND, cast_rays, gather_returns
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
 LIDAR_BACKENDS = ("numba", "pybullet")
@@ -150,14 +150,29 @@ class Vlp16Model:
             self._plants = scene.fast_plants
             self._range = np.empty(len(self._dirs))
             self._hit = np.empty(len(self._dirs), np.int32)
-            self._cast_numba(np.eye(4))          # compile or load the kernel now, not at the first scan
+            # compile or load the kernels now, not at the first scan (no noise drawn: the stream stays as it was)
+            self._cast_into_buffers(np.eye(4))
+            gather_returns(self._range, self._hit, np.zeros(0), 0.0, 1.0, self._dirs, self._ring, self._azimuth,
+                           self._plants.g_semantic, self._plants.g_plant, 1, 2, self._reflect)
 
     @property
     def ray_count(self) -> int:
         return len(self._dirs)
 
-    def _cast_numba(self, pose: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Ranges [m] (inf = no hit), semantic and plant id per ray with the numba caster."""
+    def _scan_numba(self, pose: np.ndarray) -> LidarScan:
+        """``scan`` with the numba caster: the returns packed by one compiled pass (same result)."""
+        cfg = self.config
+        self._cast_into_buffers(pose)
+        n = len(self._range)
+        noise = self._rng.normal(0.0, cfg.noise_std_m, n) if cfg.noise_std_m > 0.0 else np.zeros(0)
+        pts, ring, intensity, az, sem, pid = gather_returns(
+            self._range, self._hit, noise, float(cfg.min_range_m), float(cfg.max_range_m), self._dirs, self._ring,
+            self._azimuth, self._plants.g_semantic, self._plants.g_plant, int(SemanticClass.GROUND),
+            int(SemanticClass.SKY), self._reflect)
+        return LidarScan(points=pts, ring=ring, intensity=intensity, azimuth_rad=az, semantic=sem, plant_id=pid)
+
+    def _cast_into_buffers(self, pose: np.ndarray) -> None:
+        """Run the numba caster from a checked pose into self._range / self._hit."""
         import numba
         g, cfg = self._grid, self.config
         before = numba.get_num_threads()
@@ -169,6 +184,10 @@ class Vlp16Model:
                       g.offsets, g.items, g.empty_radius, self._range, self._hit)
         finally:
             numba.set_num_threads(before)
+
+    def _cast_numba(self, pose: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ranges [m] (inf = no hit), semantic and plant id per ray with the numba caster."""
+        self._cast_into_buffers(pose)
         hit = self._hit
         on_plant = hit >= 0
         safe = np.where(on_plant, hit, 0)
@@ -216,6 +235,8 @@ class Vlp16Model:
     def scan(self, world_T_sensor: np.ndarray) -> LidarScan:
         """One revolution from the given pose of the 'velodyne' frame."""
         cfg = self.config
+        if cfg.backend == "numba":
+            return self._scan_numba(check_pose("world_T_sensor", world_T_sensor))
         rng_m, sem_all, pid_all = self.ranges(world_T_sensor)
         hit = np.isfinite(rng_m)
         n = len(rng_m)

@@ -379,8 +379,16 @@ class SensorScene:
         ``max_distance_m`` along z. Conservative: a sphere is kept unless it
         lies entirely outside one of the planes.
         """
+        index, _ = self.plants_in_view_depth(world_T_optical, tan_half_h, tan_half_v, max_distance_m)
+        return set(index.tolist())
+
+    def plants_in_view_depth(self, world_T_optical: np.ndarray, tan_half_h: float, tan_half_v: float,
+                             max_distance_m: float) -> Tuple[np.ndarray, np.ndarray]:
+        """Like ``plants_in_view``, as arrays: ascending plant indices (n,) int64 and the
+        optical-axis depth of each one's bounding sphere's nearest point (n,) float64 [m]
+        (centre depth minus radius; <= 0 when the camera is inside the sphere's slab)."""
         if len(self._bounding_spheres) == 0:
-            return set()
+            return np.zeros(0, np.int64), np.zeros(0)
         pose = check_pose("world_T_optical", world_T_optical)
         r_wo, t_wo = pose[:3, :3], pose[:3, 3]
         c = (self._bounding_spheres[:, :3] - t_wo) @ r_wo        # centres in the optical frame
@@ -393,7 +401,8 @@ class SensorScene:
         keep &= (-x - z * tan_half_h) / nh <= rad
         keep &= (y - z * tan_half_v) / nv <= rad
         keep &= (-y - z * tan_half_v) / nv <= rad
-        return set(np.nonzero(keep)[0].tolist())
+        index = np.nonzero(keep)[0].astype(np.int64)
+        return index, z[index] - rad[index]
 
     def new_render_client(self, renderer: str = "tiny") -> RenderClient:
         """A fresh, empty render client (one per camera)."""

@@ -6,13 +6,18 @@ a plain compiled rasteriser draws in a few milliseconds.
 
 How a frame is made (``FastRasterCamera.render``):
 
-1. the visible plants come from ``SensorScene.plants_in_view`` (bounding
-   spheres against the view frustum, as the pybullet path does);
+1. the visible plants come from ``SensorScene.plants_in_view_depth``
+   (bounding spheres against the view frustum, as the pybullet path does);
+   ``CameraModel`` picks each one's level of detail (full model, or the
+   simplified proxies of ``geometry.proxy_model_arrays`` when their error
+   bound projects to at most ``lod_max_error_px``);
 2. ``_draw_plants`` (parallel): each worker thread takes every n-th visible
    plant, moves the plant's model vertices into the optical frame (one 3x4
-   transform per plant), drops back faces (counter-clockwise faces seen
-   from behind, the culling TinyRenderer does; a two-sided leaf's pair of
-   faces is drawn once, with the id of the side that faces the camera), clips faces that cross the near plane (a face with
+   transform per plant), skips faces whose screen box holds no sample point
+   (most faces of a far plant), drops back faces (counter-clockwise faces
+   seen from behind, the culling TinyRenderer does; a two-sided leaf's pair
+   of faces is drawn once, with the id of the side that faces the camera),
+   clips faces that cross the near plane (a face with
    corners on both sides becomes one or two triangles) and rasterises them
    into its *own* buffers of inverse depth 1/z and global triangle id. Own
    buffers per thread mean no write races; 1/z is affine in the pixel
@@ -20,10 +25,13 @@ How a frame is made (``FastRasterCamera.render``):
    along the optical axis of the triangle's plane;
 3. ``_compose`` (parallel over rows): per pixel the nearest of the threads'
    samples wins; its triangle id gives colour, SemanticClass and plant id;
-   pixels without a triangle get the ground or sky exactly as
+   pixels without a triangle get the ground or sky as
    ``SensorScene.ground_and_sky`` computes them (plane z = 0 with the
-   bilinear-sampled soil texture, sky gradient over the ray elevation).
-   The thread buffers are cleared on the way.
+   bilinear-sampled soil texture, tiled by ``tile_texture``, weights in
+   1/256 steps; sky gradient over the ray elevation). The thread buffers
+   are cleared on the way.
+4. ``_back_project`` / ``_fill_cloud_xyzrgb``: the depth point cloud, the
+   latter straight into PointCloud2's x, y, z, rgb byte layout.
 
 Sampling convention: pixel (col, row) is the point u = col, v = row of the
 pinhole model u = fx x / z + cx, v = fy y / z + cy with the intrinsics of
@@ -39,18 +47,8 @@ from numba import njit, prange
 
 
 @njit(cache=True, inline="always")
-def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_max):  # pragma: no cover
-    """Depth-tested fill of one screen triangle; w = 1/z at the corners."""
-    height, width = zb.shape
-    area = (u1 - u0) * (v2 - v0) - (v1 - v0) * (u2 - u0)
-    if area == 0.0 or not math.isfinite(area):
-        return
-    x_lo = max(0, int(math.ceil(min(u0, u1, u2))))
-    x_hi = min(width - 1, int(math.floor(max(u0, u1, u2))))
-    y_lo = max(0, int(math.ceil(min(v0, v1, v2))))
-    y_hi = min(height - 1, int(math.floor(max(v0, v1, v2))))
-    if x_lo > x_hi or y_lo > y_hi:
-        return
+def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max):  # pragma: no cover
+    """Depth-tested fill of a screen triangle with a non-zero signed area and a non-empty sample box."""
     inv = 1.0 / area
     # barycentric weights as affine functions b_i(x, y) = ax_i x + ay_i y + c_i
     ax0, ay0 = (v1 - v2) * inv, (u2 - u1) * inv
@@ -98,6 +96,29 @@ def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_m
 
 
 @njit(cache=True, inline="always")
+def _sample_box(u0, v0, u1, v1, u2, v2, width, height):  # pragma: no cover
+    """Integer sample points (x_lo..x_hi, y_lo..y_hi) inside the screen box of a triangle (may be empty)."""
+    x_lo = max(0, int(math.ceil(min(u0, u1, u2))))
+    x_hi = min(width - 1, int(math.floor(max(u0, u1, u2))))
+    y_lo = max(0, int(math.ceil(min(v0, v1, v2))))
+    y_hi = min(height - 1, int(math.floor(max(v0, v1, v2))))
+    return x_lo, x_hi, y_lo, y_hi
+
+
+@njit(cache=True, inline="always")
+def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_max):  # pragma: no cover
+    """Depth-tested fill of one screen triangle; w = 1/z at the corners."""
+    height, width = zb.shape
+    area = (u1 - u0) * (v2 - v0) - (v1 - v0) * (u2 - u0)
+    if area == 0.0 or not math.isfinite(area):
+        return
+    x_lo, x_hi, y_lo, y_hi = _sample_box(u0, v0, u1, v1, u2, v2, width, height)
+    if x_lo > x_hi or y_lo > y_hi:
+        return
+    _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max)
+
+
+@njit(cache=True, inline="always")
 def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Project a camera-frame triangle p (3, 3) with z > 0 and draw it."""
     iz0, iz1, iz2 = 1.0 / p[0, 2], 1.0 / p[1, 2], 1.0 / p[2, 2]
@@ -135,25 +156,30 @@ def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max
 
 
 @njit(parallel=True, cache=True)
-def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, model_vcount, draw_base,
-                 draw_count, model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
+def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_vcount, draw_base, draw_count,
+                 model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
                  zbuf, ibuf, scratch):  # pragma: no cover
     """Rasterise the visible plants into per-thread buffers zbuf/ibuf (T, H, W).
 
+    visible (n,) plant indices; vis_model (n,) the model (level of detail)
+    to draw each with; vis_gbase (n,) its first global triangle id.
     A face seen from behind is skipped unless it has a reverse-wound twin
     (two-sided leaf), whose id it then takes (see ``InstancedPlants``).
+    For a face in front of the near plane the back-face test is the sign of
+    its screen area (the same sign as the camera-frame test n . a for
+    z > 0), done after the cheaper test whether its screen box holds any
+    sample point at all: most faces of a far plant hold none.
 
     rot (3, 3), trans (3,): optical_T_world. scratch (T, max verts, 6) holds
     each thread's transformed vertices (x, y, z, u, v, 1/z).
     """
-    n_threads = zbuf.shape[0]
+    n_threads, height, width = zbuf.shape
     w_min, w_max = 1.0 / far, 1.0 / near
     for k in prange(n_threads):
         zb, ib, sc = zbuf[k], ibuf[k], scratch[k]
-        tri = np.empty((3, 3))
         for j in range(k, visible.shape[0], n_threads):
             p = visible[j]
-            m = plant_model[p]
+            m = vis_model[j]
             px, py, co, si = plant_pose[p, 0], plant_pose[p, 1], plant_pose[p, 2], plant_pose[p, 3]
             # optical_T_plant = optical_T_world @ world_T_plant (yaw about z, then x, y)
             m00 = rot[0, 0] * co + rot[0, 1] * si
@@ -181,15 +207,33 @@ def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, mod
                     sc[i, 4] = fy * y * iz + cy
                     sc[i, 5] = iz
             fb = draw_base[m]
-            gb = plant_gbase[p]
+            gb = vis_gbase[j]
             for f in range(draw_count[m]):
                 ia = draw_faces[fb + f, 0] - vb
                 ib_ = draw_faces[fb + f, 1] - vb
                 ic = draw_faces[fb + f, 2] - vb
                 za, zb_, zc = sc[ia, 2], sc[ib_, 2], sc[ic, 2]
-                if za < near and zb_ < near and zc < near:
+                if za >= near and zb_ >= near and zc >= near:
+                    if za > far and zb_ > far and zc > far:
+                        continue
+                    ua, va, ub, vb_, uc, vc = sc[ia, 3], sc[ia, 4], sc[ib_, 3], sc[ib_, 4], sc[ic, 3], sc[ic, 4]
+                    x_lo, x_hi, y_lo, y_hi = _sample_box(ua, va, ub, vb_, uc, vc, width, height)
+                    if x_lo > x_hi or y_lo > y_hi:
+                        continue
+                    area = (ub - ua) * (vc - va) - (vb_ - va) * (uc - ua)
+                    if area == 0.0 or not math.isfinite(area):
+                        continue
+                    if area > 0.0:                                      # seen from behind
+                        twin = draw_twin[fb + f]
+                        if twin < 0:
+                            continue
+                        gid = gb + twin
+                    else:
+                        gid = gb + draw_local[fb + f]
+                    _fill(ua, va, sc[ia, 5], ub, vb_, sc[ib_, 5], uc, vc, sc[ic, 5], area, x_lo, x_hi, y_lo, y_hi,
+                          gid, zb, ib, w_min, w_max)
                     continue
-                if za > far and zb_ > far and zc > far:
+                if za < near and zb_ < near and zc < near:
                     continue
                 e1x, e1y, e1z = sc[ib_, 0] - sc[ia, 0], sc[ib_, 1] - sc[ia, 1], zb_ - za
                 e2x, e2y, e2z = sc[ic, 0] - sc[ia, 0], sc[ic, 1] - sc[ia, 1], zc - za
@@ -203,12 +247,8 @@ def _draw_plants(visible, plant_model, plant_pose, plant_gbase, model_vbase, mod
                     gid = gb + twin
                 else:
                     gid = gb + draw_local[fb + f]
-                if za >= near and zb_ >= near and zc >= near:
-                    _raster_triangle(sc[ia, 3], sc[ia, 4], sc[ia, 5], sc[ib_, 3], sc[ib_, 4], sc[ib_, 5],
-                                     sc[ic, 3], sc[ic, 4], sc[ic, 5], gid, zb, ib, w_min, w_max)
-                else:
-                    _clip_near_and_draw(sc[ia, :3], sc[ib_, :3], sc[ic, :3], near, fx, fy, cx, cy, gid,
-                                        zb, ib, w_min, w_max)
+                _clip_near_and_draw(sc[ia, :3], sc[ib_, :3], sc[ic, :3], near, fx, fy, cx, cy, gid,
+                                    zb, ib, w_min, w_max)
 
 
 @njit(cache=True, inline="always")
@@ -223,20 +263,47 @@ def _reflect(i, n):  # pragma: no cover
     return i
 
 
+TILE = 8    # texture tile edge [texels]
+
+
+def tile_texture(image: np.ndarray) -> np.ndarray:
+    """(h, w, 3) uint8 -> (ceil(h / 8), ceil(w / 8), 64) uint32, the texture layout of ``_compose``.
+
+    Each texel is packed as r | g << 8 | b << 16, and the texture is stored
+    in 8 x 8 tiles (row-major inside a tile, tiles row-major), so that
+    texels near each other on the ground are near each other in memory
+    whatever the direction the camera looks in (row-major storage costs a
+    cache and TLB miss per pixel when an image row runs along a texture
+    column).
+    """
+    image = np.asarray(image, dtype=np.uint32)
+    h, w = image.shape[:2]
+    ty, tx = -(-h // TILE), -(-w // TILE)
+    packed = np.zeros((ty * TILE, tx * TILE), dtype=np.uint32)
+    packed[:h, :w] = image[..., 0] | (image[..., 1] << 8) | (image[..., 2] << 16)
+    return np.ascontiguousarray(packed.reshape(ty, TILE, tx, TILE).transpose(0, 2, 1, 3).reshape(ty, tx, TILE * TILE))
+
+
 @njit(parallel=True, cache=True)
 def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, cy, near, far, texture,
-             tex_x0, tex_y0, tex_res_x, tex_res_y, sky_lut, ground_class, sky_class,
+             tex_w, tex_h, tex_x0, tex_y0, tex_res_x, tex_res_y, sky_lut, ground_class, sky_class,
              out_rgb, out_depth, out_sem, out_plant):  # pragma: no cover
     """Merge the thread buffers, colour by triangle id, paint ground and sky; clears zbuf.
 
     rot_wo (3, 3), t_wo (3,): world_T_optical. Depth outside [near, far]
-    becomes NaN (sky: NaN, semantic SKY).
+    becomes NaN (sky: NaN, semantic SKY). texture: the soil texture of
+    tex_w x tex_h texels in the tiled, packed layout of ``tile_texture``.
     """
     n_threads, height, width = zbuf.shape
-    th, tw = texture.shape[0], texture.shape[1]
     cam_h = t_wo[2]
+    inv_fx, inv_rx, inv_ry = 1.0 / fx, 1.0 / tex_res_x, 1.0 / tex_res_y
     for y in prange(height):
         ry = (y - cy) / fy
+        # world ray of pixel (x, y) = row_* + x * step_* (affine in x)
+        row_x = rot_wo[0, 0] * (-cx * inv_fx) + rot_wo[0, 1] * ry + rot_wo[0, 2]
+        row_y = rot_wo[1, 0] * (-cx * inv_fx) + rot_wo[1, 1] * ry + rot_wo[1, 2]
+        row_z = rot_wo[2, 0] * (-cx * inv_fx) + rot_wo[2, 1] * ry + rot_wo[2, 2]
+        step_x, step_y, step_z = rot_wo[0, 0] * inv_fx, rot_wo[1, 0] * inv_fx, rot_wo[2, 0] * inv_fx
         for x in range(width):
             best = 0.0
             gid = -1
@@ -256,34 +323,121 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                 out_plant[y, x] = g_plant[gid]
                 continue
             out_plant[y, x] = -1
-            rx = (x - cx) / fx
             # ray K^-1 (x, y, 1) in the world
-            dxw = rot_wo[0, 0] * rx + rot_wo[0, 1] * ry + rot_wo[0, 2]
-            dyw = rot_wo[1, 0] * rx + rot_wo[1, 1] * ry + rot_wo[1, 2]
-            dzw = rot_wo[2, 0] * rx + rot_wo[2, 1] * ry + rot_wo[2, 2]
+            dxw = row_x + x * step_x
+            dyw = row_y + x * step_y
+            dzw = row_z + x * step_z
             if dzw < -1e-9 and cam_h > 0.0:
                 d = -cam_h / dzw
                 out_depth[y, x] = d if near <= d <= far else np.nan
                 out_sem[y, x] = ground_class
-                gx = (t_wo[0] + d * dxw - tex_x0) / tex_res_x
-                gy = (t_wo[1] + d * dyw - tex_y0) / tex_res_y
+                gx = (t_wo[0] + d * dxw - tex_x0) * inv_rx
+                gy = (t_wo[1] + d * dyw - tex_y0) * inv_ry
                 if not (abs(gx) < 1e9 and abs(gy) < 1e9):
                     gx, gy = 0.0, 0.0
                 fxi = math.floor(gx)
                 fyi = math.floor(gy)
-                ax, ay = gx - fxi, gy - fyi
-                c0, c1 = _reflect(int(fxi), tw), _reflect(int(fxi) + 1, tw)
-                r0, r1 = _reflect(int(fyi), th), _reflect(int(fyi) + 1, th)
+                ix, iy = int(fxi), int(fyi)
+                # bilinear weights in 1/256 steps (OpenCV's warps use 1/32)
+                ax = int((gx - fxi) * 256.0)
+                ay = int((gy - fyi) * 256.0)
+                if 0 <= ix and ix + 1 < tex_w and 0 <= iy and iy + 1 < tex_h:   # inside: no border rule needed
+                    c0, c1, r0, r1 = ix, ix + 1, iy, iy + 1
+                else:
+                    c0, c1 = _reflect(ix, tex_w), _reflect(ix + 1, tex_w)
+                    r0, r1 = _reflect(iy, tex_h), _reflect(iy + 1, tex_h)
+                p00 = np.int64(texture[r0 >> 3, c0 >> 3, ((r0 & 7) << 3) | (c0 & 7)])
+                p01 = np.int64(texture[r0 >> 3, c1 >> 3, ((r0 & 7) << 3) | (c1 & 7)])
+                p10 = np.int64(texture[r1 >> 3, c0 >> 3, ((r1 & 7) << 3) | (c0 & 7)])
+                p11 = np.int64(texture[r1 >> 3, c1 >> 3, ((r1 & 7) << 3) | (c1 & 7)])
+                w00, w01 = (256 - ay) * (256 - ax), (256 - ay) * ax
+                w10, w11 = ay * (256 - ax), ay * ax
                 for ch in range(3):
-                    v = ((1.0 - ay) * ((1.0 - ax) * texture[r0, c0, ch] + ax * texture[r0, c1, ch])
-                         + ay * ((1.0 - ax) * texture[r1, c0, ch] + ax * texture[r1, c1, ch]))
-                    out_rgb[y, x, ch] = np.uint8(min(255.0, v + 0.5))
+                    sh = 8 * ch
+                    v = (w00 * ((p00 >> sh) & 255) + w01 * ((p01 >> sh) & 255)
+                         + w10 * ((p10 >> sh) & 255) + w11 * ((p11 >> sh) & 255) + 32768) >> 16
+                    out_rgb[y, x, ch] = np.uint8(v)
             else:
                 out_depth[y, x] = np.nan
                 out_sem[y, x] = sky_class
+                rx = (x - cx) * inv_fx
                 norm = math.sqrt(rx * rx + ry * ry + 1.0)
                 s = min(1.0, max(0.0, dzw / norm))
                 idx = int(s * 255.0)
                 out_rgb[y, x, 0] = sky_lut[idx, 0]
                 out_rgb[y, x, 1] = sky_lut[idx, 1]
                 out_rgb[y, x, 2] = sky_lut[idx, 2]
+
+
+@njit(cache=True)
+def _back_project(depth, rgb, ray_x, ray_y, stride, min_m, max_m):  # pragma: no cover
+    """Point cloud of a depth image: xyz (N, 3) float32 [m] in the optical frame, rgb (N, 3) uint8.
+
+    Keeps every stride-th pixel in u and v whose depth lies in [min_m,
+    max_m] (NaN fails), in row-major order; x = ray_x[col] * z, y =
+    ray_y[row] * z with ray_x = (u - cx) / fx, ray_y = (v - cy) / fy
+    (float32, as numpy computes them). Two passes (count, then fill), no
+    temporary masks or index arrays.
+    """
+    height, width = depth.shape
+    n = 0
+    for y in range(0, height, stride):
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                n += 1
+    xyz = np.empty((n, 3), np.float32)
+    colour = np.empty((n, 3), np.uint8)
+    i = 0
+    for y in range(0, height, stride):
+        ry = ray_y[y]
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                xyz[i, 0] = ray_x[x] * z
+                xyz[i, 1] = ry * z
+                xyz[i, 2] = z
+                colour[i, 0] = rgb[y, x, 0]
+                colour[i, 1] = rgb[y, x, 1]
+                colour[i, 2] = rgb[y, x, 2]
+                i += 1
+    return xyz, colour
+
+
+@njit(cache=True)
+def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
+    """Pixels kept by ``_back_project``'s rule (every stride-th, depth in [min_m, max_m])."""
+    height, width = depth.shape
+    n = 0
+    for y in range(0, height, stride):
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                n += 1
+    return n
+
+
+@njit(cache=True)
+def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, out_u, out_rgb):  # pragma: no cover
+    """``_back_project`` straight into PointCloud2's x, y, z, rgb layout (16 bytes a point).
+
+    out_f (N, 4) float32 and out_u (N, 4) uint32 are two views of the same
+    memory: x, y, z go to out_f[:, :3], PCL's packed colour 0x00RRGGBB to
+    out_u[:, 3]; out_rgb (N, 3) uint8 gets the colours unpacked.
+    """
+    height, width = depth.shape
+    i = 0
+    for y in range(0, height, stride):
+        ry = ray_y[y]
+        for x in range(0, width, stride):
+            z = depth[y, x]
+            if z >= min_m and z <= max_m:
+                out_f[i, 0] = ray_x[x] * z
+                out_f[i, 1] = ry * z
+                out_f[i, 2] = z
+                r, g, b = rgb[y, x, 0], rgb[y, x, 1], rgb[y, x, 2]
+                out_u[i, 3] = (np.uint32(r) << 16) | (np.uint32(g) << 8) | np.uint32(b)
+                out_rgb[i, 0] = r
+                out_rgb[i, 1] = g
+                out_rgb[i, 2] = b
+                i += 1

@@ -175,3 +175,57 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, b
             hit = HIT_NONE
         out_range[r] = best
         out_hit[r] = hit
+
+
+@njit(cache=True)
+def gather_returns(ranges, hits, noise, min_m, max_m, dirs, ring, azimuth, g_semantic, g_plant, ground_class,
+                   sky_class, reflectivity):  # pragma: no cover
+    """The returns of a cast, packed: what ``lidar.Vlp16Model.scan`` publishes.
+
+    ranges (N,) [m] (inf = no hit) and hits (N,) from ``cast_rays``; noise
+    (N,) [m] added to the hit rays' ranges (or an empty array: none); a ray
+    is kept when it hit something and its noisy range lies in [min_m,
+    max_m]. dirs (N, 3) unit ray directions in the sensor frame. Returns,
+    in ray order: points (K, 3) float32 = dirs * range [m], ring (K,),
+    intensity (K,) float32 = reflectivity[semantic], azimuth (K,),
+    semantic (K,) uint8, plant id (K,) int32 (-1 off the plants).
+    """
+    n = ranges.shape[0]
+    with_noise = noise.shape[0] == n
+    keep = np.zeros(n, np.bool_)
+    count = 0
+    for i in range(n):
+        r = ranges[i]
+        if math.isfinite(r):
+            if with_noise:
+                r += noise[i]
+            if min_m <= r <= max_m:
+                keep[i] = True
+                count += 1
+    points = np.empty((count, 3), np.float32)
+    out_ring = np.empty(count, ring.dtype)
+    intensity = np.empty(count, np.float32)
+    out_az = np.empty(count, azimuth.dtype)
+    semantic = np.empty(count, np.uint8)
+    plant = np.empty(count, np.int32)
+    k = 0
+    for i in range(n):
+        if not keep[i]:
+            continue
+        r = ranges[i] + noise[i] if with_noise else ranges[i]
+        points[k, 0] = np.float32(dirs[i, 0] * r)
+        points[k, 1] = np.float32(dirs[i, 1] * r)
+        points[k, 2] = np.float32(dirs[i, 2] * r)
+        h = hits[i]
+        if h >= 0:
+            s = g_semantic[h]
+            plant[k] = g_plant[h]
+        else:
+            s = ground_class if h == HIT_GROUND else sky_class
+            plant[k] = -1
+        semantic[k] = s
+        intensity[k] = reflectivity[s]
+        out_ring[k] = ring[i]
+        out_az[k] = azimuth[i]
+        k += 1
+    return points, out_ring, intensity, out_az, semantic, plant
