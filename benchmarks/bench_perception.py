@@ -1,26 +1,41 @@
 #!/usr/bin/env python3
 """Speed of the Cotton-Eye networks on the CPU: ms per 640x480 frame, params, GFLOPs.
 
-Measures Predictor.predict (letterbox + network + post-processing + masks
-mapped back to 640x480) for the scene segmenter and the boll detector, with
-randomly initialised weights of the default (or given) configuration, at 1 and
-2 torch threads. A random-weights network with conf_threshold 0.25 yields few
-boxes, so mask post-processing of a trained model (a handful of instances)
-adds a little; the network forward time is printed separately.
+Measures the whole per-frame work of the perception nodes:
+Predictor.predict (letterbox + network + post-processing + masks mapped back
+to 640x480) and, for the segmenter, the label image the row-centring node
+reads (localisation.label_image_from_detections), for the scene segmenter
+and the boll detector at 1 and 2 torch threads. By default the shipped
+weights (src/cottonsim_perception/weights/) run on real frames (the paper's
+Segmentation / Detection valid images, cycled), so post-processing handles
+the instances a trained model really outputs; --random-weights measures an
+untrained network of the default (or given) configuration instead.
 
-  python benchmarks/bench_perception.py [--frames 30] [--seg-width 0.125] [--det-width 0.25]
+Printed per case: median and 10th percentile wall ms per frame (the median is
+what a node sees; the 10th percentile approximates an unloaded machine), and
+CPU ms per frame (process time of all threads: on a shared machine the
+least load-sensitive figure; with 2 threads it is the sum over both).
+
+  python benchmarks/bench_perception.py [--frames 40] [--random-weights] [--only seg|det]
 """
 import argparse
+import glob
 import os
 import sys
 import tempfile
 import time
 
+import cv2
 import numpy as np
 import torch
 
 from cottonsim_perception.inference import Predictor
+from cottonsim_perception.localisation import label_image_from_detections
 from cottonsim_perception.nn.models import ModelConfig, build_model, count_parameters, save_checkpoint
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+WEIGHTS = os.path.join(HERE, "..", "src", "cottonsim_perception", "weights")
+ORIGINAL = "/work/shared/datasets/cottonsim_original"
 
 
 def gflops(model: torch.nn.Module, height: int, width: int) -> float:
@@ -41,51 +56,92 @@ def gflops(model: torch.nn.Module, height: int, width: int) -> float:
     return total[0] / 1e9
 
 
-def time_it(fn, frames: int) -> float:
-    for _ in range(3):
-        fn()
-    t = time.perf_counter()
-    for _ in range(frames):
-        fn()
-    return (time.perf_counter() - t) / frames * 1000.0
+def time_frames(fn, frames, n: int):
+    """(median wall ms, 10th-percentile wall ms, CPU ms) per call over n calls, cycling frames."""
+    for i in range(3):
+        fn(frames[i % len(frames)])
+    walls = []
+    c0 = time.process_time()
+    for i in range(n):
+        t = time.perf_counter()
+        fn(frames[i % len(frames)])
+        walls.append(time.perf_counter() - t)
+    cpu = (time.process_time() - c0) / n
+    w = np.array(walls) * 1e3
+    return float(np.median(w)), float(np.percentile(w, 10)), cpu * 1e3
+
+
+def load_frames(folder: str, count: int = 8):
+    """Up to ``count`` RGB frames of a folder resized to 640x480, or one noise frame if none."""
+    paths = sorted(glob.glob(os.path.join(folder, "*.jpg")) + glob.glob(os.path.join(folder, "*.png")))[:count]
+    frames = []
+    for p in paths:
+        bgr = cv2.imread(p, cv2.IMREAD_COLOR)
+        if bgr is not None:
+            frames.append(cv2.cvtColor(cv2.resize(bgr, (640, 480)), cv2.COLOR_BGR2RGB))
+    if not frames:
+        frames = [np.random.default_rng(0).integers(0, 255, (480, 640, 3), dtype=np.uint8)]
+    return frames, (folder if paths else "random noise")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--frames", type=int, default=30)
-    ap.add_argument("--seg-width", type=float, default=None)
-    ap.add_argument("--det-width", type=float, default=None)
-    ap.add_argument("--seg-imgsz", default=None, help="WxH")
-    ap.add_argument("--det-imgsz", default=None, help="WxH")
+    ap.add_argument("--frames", type=int, default=40, help="timed frames per case (default 40)")
+    ap.add_argument("--only", choices=("seg", "det"), default=None)
+    ap.add_argument("--random-weights", action="store_true", help="untrained networks of the presets")
+    ap.add_argument("--seg-weights", default=os.path.join(WEIGHTS, "scene_segmenter.pt"))
+    ap.add_argument("--det-weights", default=os.path.join(WEIGHTS, "boll_detector.pt"))
+    ap.add_argument("--seg-images", default=os.path.join(ORIGINAL, "Segmentation", "valid", "images"))
+    ap.add_argument("--det-images", default=os.path.join(ORIGINAL, "Detection", "valid", "images"))
+    ap.add_argument("--seg-width", type=float, default=None, help="with --random-weights")
+    ap.add_argument("--det-width", type=float, default=None, help="with --random-weights")
+    ap.add_argument("--seg-imgsz", default=None, help="WxH, with --random-weights")
+    ap.add_argument("--det-imgsz", default=None, help="WxH, with --random-weights")
     a = ap.parse_args()
-    rng = np.random.default_rng(0)
-    frame = rng.integers(0, 255, (480, 640, 3), dtype=np.uint8)
-    configs = []
-    for task, width, imgsz in (("seg", a.seg_width, a.seg_imgsz), ("det", a.det_width, a.det_imgsz)):
-        over = {}
-        if width:
-            over["width_multiple"] = width
-        if imgsz:
-            w, h = (int(v) for v in imgsz.lower().split("x"))
-            over.update(input_width=w, input_height=h)
-        configs.append(ModelConfig.scene_segmenter(**over) if task == "seg" else ModelConfig.boll_detector(**over))
-    print(f"torch {torch.__version__}, cpu count {os.cpu_count()}, frame 640x480, {a.frames} frames")
+    if a.frames < 1:
+        ap.error("--frames must be >= 1")
+    tasks = [t for t in ("seg", "det") if a.only in (None, t)]
+    print(f"torch {torch.__version__}, cpu count {os.cpu_count()}, load average "
+          f"{' '.join(f'{v:.1f}' for v in os.getloadavg())}, frame 640x480, {a.frames} frames per case")
     with tempfile.TemporaryDirectory() as d:
-        for cfg in configs:
-            torch.manual_seed(0)
-            model = build_model(cfg).eval()
-            path = os.path.join(d, f"{cfg.task}.pt")
-            save_checkpoint(path, model)
-            print(f"\n{cfg.task}: input {cfg.input_width}x{cfg.input_height}, width {cfg.width_multiple}, "
-                  f"depth {cfg.depth_multiple}, params {count_parameters(model) / 1e6:.3f} M, "
-                  f"{gflops(model, cfg.input_height, cfg.input_width):.2f} GFLOPs")
+        for task in tasks:
+            if a.random_weights:
+                width, imgsz = (a.seg_width, a.seg_imgsz) if task == "seg" else (a.det_width, a.det_imgsz)
+                over = {"width_multiple": width} if width else {}
+                if imgsz:
+                    w, h = (int(v) for v in imgsz.lower().split("x"))
+                    over.update(input_width=w, input_height=h)
+                cfg = ModelConfig.scene_segmenter(**over) if task == "seg" else ModelConfig.boll_detector(**over)
+                torch.manual_seed(0)
+                path = os.path.join(d, f"{task}.pt")
+                save_checkpoint(path, build_model(cfg).eval())
+            else:
+                path = a.seg_weights if task == "seg" else a.det_weights
+                if not os.path.isfile(path):
+                    print(f"{task}: weights {path} not found (use --random-weights)", file=sys.stderr)
+                    return 2
+            frames, source = load_frames(a.seg_images if task == "seg" else a.det_images)
             for threads in (1, 2):
                 p = Predictor(path, conf_threshold=0.25, threads=threads)
-                x = torch.rand(1, 3, cfg.input_height, cfg.input_width)
+                cfg = p.config
+                if threads == 1:
+                    print(f"\n{task}: {os.path.basename(path)}, input {cfg.input_width}x{cfg.input_height}, "
+                          f"width {cfg.width_multiple}, params {count_parameters(p.model) / 1e6:.3f} M, "
+                          f"{gflops(p.model, cfg.input_height, cfg.input_width):.2f} GFLOPs; "
+                          f"frames: {source} ({len(frames)})")
+                x = [torch.rand(1, 3, cfg.input_height, cfg.input_width)]
                 with torch.inference_mode():
-                    net_ms = time_it(lambda: p.model(x), a.frames)
-                total_ms = time_it(lambda: p.predict(frame), a.frames)
-                print(f"  threads {threads}: predict {total_ms:6.1f} ms/frame (network {net_ms:6.1f} ms)")
+                    net = time_frames(lambda t: p.model(t), x, a.frames)
+                if task == "seg":
+                    def work(f):
+                        return label_image_from_detections(p.predict(f), f.shape[:2])
+                else:
+                    work = p.predict
+                tot = time_frames(work, frames, a.frames)
+                n_inst = np.mean([len(p.predict(f)) for f in frames])
+                print(f"  threads {threads}: per frame {tot[0]:6.1f} ms median, {tot[1]:6.1f} ms p10, "
+                      f"{tot[2]:6.1f} ms CPU | network only {net[0]:6.1f} ms median, {net[1]:6.1f} ms p10, "
+                      f"{net[2]:6.1f} ms CPU | {n_inst:.1f} instances/frame")
     return 0
 
 

@@ -62,7 +62,13 @@ class TrainConfig:
     as a fraction of lr; ema_decay / ema_tau: EMA decay d * (1 - exp(-updates / tau));
     rotation_deg: +/- rotation augmentation (0 = off); max_minutes: stop
     (after saving) when the wall time exceeds this (None = no limit);
-    resume: a last.pt to continue from.
+    resume: a last.pt to continue from; init_weights: a checkpoint (e.g. the
+    shipped weights) whose weights start the run (fine-tuning; its model
+    configuration must equal this run's; ignored when resuming);
+    extra_data_dirs: more YOLO dataset roots whose train and valid splits are
+    added to data_dir's (e.g. the paper's images + simulator images; the
+    class names must agree); mosaic_prob: probability that a training item is
+    a 2x2 mosaic of four images (YOLOv8's mosaic, see YoloDataset; 0 = off).
     """
 
     task: str
@@ -83,6 +89,9 @@ class TrainConfig:
     rotation_deg: float = 0.0
     max_minutes: Optional[float] = None
     resume: Optional[str] = None
+    init_weights: Optional[str] = None
+    extra_data_dirs: Tuple[str, ...] = ()
+    mosaic_prob: float = 0.0
 
     def __post_init__(self) -> None:
         if self.task not in ("seg", "det"):
@@ -115,6 +124,14 @@ class TrainConfig:
             raise ValueError(f"TrainConfig.max_minutes must be > 0 or None, got {self.max_minutes}")
         if self.resume is not None and not os.path.isfile(self.resume):
             raise ValueError(f"TrainConfig.resume: checkpoint not found: {self.resume!r}")
+        if self.init_weights is not None and not os.path.isfile(self.init_weights):
+            raise ValueError(f"TrainConfig.init_weights: checkpoint not found: {self.init_weights!r}")
+        object.__setattr__(self, "extra_data_dirs", tuple(self.extra_data_dirs))
+        for d in self.extra_data_dirs:
+            if not os.path.isdir(d):
+                raise ValueError(f"TrainConfig.extra_data_dirs: not a folder: {d!r}")
+        if not (isinstance(self.mosaic_prob, (int, float)) and 0.0 <= self.mosaic_prob <= 1.0):
+            raise ValueError(f"TrainConfig.mosaic_prob must be in [0, 1], got {self.mosaic_prob!r}")
 
 
 class ModelEMA:
@@ -136,6 +153,44 @@ class ModelEMA:
                 v.mul_(d).add_(msd[k].detach(), alpha=1.0 - d)
             else:
                 v.copy_(msd[k])
+
+
+def _datasets(cfg: TrainConfig, width: int, height: int, dataset_cls):
+    """(train set, val set, class names) over data_dir and extra_data_dirs (concatenated)."""
+    from torch.utils.data import ConcatDataset
+
+    trains, vals, names = [], [], None
+    for k, root in enumerate((cfg.data_dir,) + cfg.extra_data_dirs):
+        tr = dataset_cls(root, "train", cfg.task, (width, height), augment=True, seed=cfg.seed + 7919 * k,
+                         class_names=names)
+        if names is None:
+            names = tuple(tr.class_names)
+        elif tuple(yf_class_names(root, cfg.task)) != names:
+            raise ValueError(f"{root}: class names {yf_class_names(root, cfg.task)} differ from "
+                             f"{cfg.data_dir}'s {names}")
+        tr.augment_config = type(tr.augment_config)(rotation_deg=cfg.rotation_deg, mosaic_prob=cfg.mosaic_prob)
+        if len(tr) == 0:
+            raise ValueError(f"{root}: the train split has no images")
+        trains.append(tr)
+        vals.append(dataset_cls(root, "valid", cfg.task, (width, height), augment=False, seed=cfg.seed,
+                                class_names=names))
+    train_set = trains[0] if len(trains) == 1 else _EpochConcat(trains)
+    val_set = vals[0] if len(vals) == 1 else ConcatDataset(vals)
+    return train_set, val_set, names
+
+
+def yf_class_names(root: str, task: str):
+    from .data.yolo_format import class_names_for
+
+    return class_names_for(root, task)
+
+
+class _EpochConcat(torch.utils.data.ConcatDataset):
+    """ConcatDataset that forwards set_epoch to its parts."""
+
+    def set_epoch(self, epoch: int) -> None:
+        for d in self.datasets:
+            d.set_epoch(epoch)
 
 
 def _param_groups(model: torch.nn.Module, weight_decay: float) -> List[Dict[str, Any]]:
@@ -186,13 +241,7 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
     preset = ModelConfig.scene_segmenter() if cfg.task == "seg" else ModelConfig.boll_detector()
     width, height = cfg.imgsz if cfg.imgsz is not None else (preset.input_width, preset.input_height)
 
-    train_set = YoloDataset(cfg.data_dir, "train", cfg.task, (width, height), augment=True, seed=cfg.seed)
-    train_set.augment_config = type(train_set.augment_config)(rotation_deg=cfg.rotation_deg)
-    val_set = YoloDataset(cfg.data_dir, "valid", cfg.task, (width, height), augment=False, seed=cfg.seed,
-                          class_names=train_set.class_names)
-    if len(train_set) == 0:
-        raise ValueError(f"{cfg.data_dir}: the train split has no images")
-    names = tuple(train_set.class_names)
+    train_set, val_set, names = _datasets(cfg, width, height, YoloDataset)
     overrides = dict(num_classes=len(names), class_names=names, input_width=width, input_height=height)
     if cfg.width_multiple is not None:
         overrides["width_multiple"] = cfg.width_multiple
@@ -200,6 +249,13 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
         ModelConfig.boll_detector(**overrides)
 
     model = build_model(model_cfg)
+    if cfg.init_weights and not cfg.resume:
+        init = load_checkpoint(cfg.init_weights)
+        if ModelConfig.from_dict(init["model_config"]) != model_cfg:
+            raise ValueError(f"{cfg.init_weights}: its model_config differs from this run's "
+                             f"(task / imgsz / width / classes must match to fine-tune)")
+        model.load_state_dict(init["state_dict"])
+        log(f"initialised from {cfg.init_weights}")
     optimizer = torch.optim.AdamW(_param_groups(model, cfg.weight_decay), lr=cfg.lr, betas=(0.9, 0.999))
     ema = ModelEMA(model, cfg.ema_decay, cfg.ema_tau)
     loss_fn = YoloLoss(model_cfg.num_classes, model_cfg.reg_max, model.strides)
@@ -259,6 +315,8 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
         improved = val_loss < best_val if math.isfinite(val_loss) else True
         best_val = val_loss if improved and math.isfinite(val_loss) else best_val
         meta = {"task": cfg.task, "data": os.path.abspath(cfg.data_dir), "seed": cfg.seed,
+                "extra_data": [os.path.abspath(d) for d in cfg.extra_data_dirs],
+                "init_weights": cfg.init_weights, "mosaic_prob": cfg.mosaic_prob,
                 "epochs_done": epoch + 1, "epochs": cfg.epochs, "batch": cfg.batch, "lr": cfg.lr,
                 "imgsz": [width, height], "best_val_loss": best_val, "metrics": history}
         opt_state = {"optimizer": optimizer.state_dict(), "model": model.state_dict(),

@@ -143,6 +143,10 @@ def test_seg_polygons_round_trip_to_the_semantic_mask(base_T_optical):
     _, frames, _ = _render_views("seg", 4, base_T_optical)
     for frame, _, _ in frames:
         inst = g.segmentation_instances(frame.semantic)
+        classes = [i.class_id for i in inst]
+        assert len(set(classes)) == len(classes), "default labels: one line per class"
+        regions = g.segmentation_instances(frame.semantic, g.LabelConfig(seg_instances="region"))
+        assert len(regions) >= len(inst)
         # through the text format and the project's reader, then rasterised independently
         lines = [yf.format_label_line(i, "seg") for i in inst]
         parsed = [yf.parse_label_line(line, "seg", 3) for line in lines]
@@ -326,6 +330,8 @@ def test_bad_variation_and_label_config():
         g.VariationConfig(exposure_range=(1.3, 0.7))
     with pytest.raises(ValueError, match="defoliated_probability"):
         g.VariationConfig(defoliated_probability=2.0)
+    with pytest.raises(ValueError, match="seg_instances"):
+        g.LabelConfig(seg_instances="pixel")
     with pytest.raises(ValueError, match="polygon_epsilon_px"):
         g.LabelConfig(polygon_epsilon_px=-1.0)
     with pytest.raises(ValueError, match="renderer"):

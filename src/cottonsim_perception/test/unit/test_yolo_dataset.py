@@ -112,3 +112,40 @@ def test_bad_arguments_and_labels(tmp_path):
     # class id 1 with a single class name -> error naming file and line
     with pytest.raises(yf.LabelFormatError, match=r"a\.txt:1"):
         YoloDataset(str(tmp_path), "train", "det", class_names=("only",))
+
+
+@pytest.mark.parametrize("task", ["seg", "det"])
+def test_mosaic_labels_follow_the_pasted_objects(tmp_path, task):
+    _make(str(tmp_path), task)
+    cfg = AugmentConfig(hsv_h=0, hsv_s=0, hsv_v=0, scale=0.1, translate=0.2, mosaic_prob=1.0,
+                        mosaic_min_visible=0.0, min_box_px=0.0)
+    ds = YoloDataset(str(tmp_path), "train", task, imgsz=(W0, H0), augment=True, seed=5,
+                     class_names=("a", "b"), augment_config=cfg)
+    n_boxes = 0
+    for epoch in range(8):
+        ds.set_epoch(epoch)
+        img, t = ds[0]
+        bright = img.numpy().mean(axis=0) > 0.5
+        covered = np.zeros_like(bright)
+        for bx in t["boxes_xyxy"].numpy():
+            assert bx[2] > bx[0] and bx[3] > bx[1]
+            x1, y1 = np.floor(bx[:2]).astype(int)
+            x2, y2 = np.ceil(bx[2:]).astype(int)
+            if (x2 - x1) * (y2 - y1) >= 4:                   # a box sits on a pasted object
+                assert bright[y1:y2, x1:x2].mean() > 0.5
+            covered[y1:y2, x1:x2] = True
+        # every visible object has a box (up to its 1-px blurred rim; solid pixels only)
+        covered = cv2.dilate(covered.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        solid = img.numpy().mean(axis=0) > 0.9
+        assert (solid & ~covered).sum() == 0
+        n_boxes += len(t["boxes_xyxy"])
+        if task == "seg":
+            union = t["masks"].numpy().astype(bool).any(axis=0) if len(t["masks"]) else covered & False
+            near = cv2.dilate(bright.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+            assert not (solid & ~union).any() and not (union & ~near).any()
+    assert n_boxes >= 4                                       # objects did get pasted
+
+
+def test_mosaic_probability_is_validated():
+    with pytest.raises(ValueError, match="mosaic_prob"):
+        AugmentConfig(mosaic_prob=1.5)

@@ -179,3 +179,59 @@ def test_layout_errors_are_clear(tmp_path):
     bad.write_text("names: {0: a, 2: b}\n")
     with pytest.raises(yf.LabelFormatError, match="names"):
         yf.read_data_yaml(str(bad))
+
+
+def test_join_polygons_rasterises_to_the_union_of_separate_regions():
+    rng = np.random.default_rng(3)
+    h, w = 60, 80
+    # Disjoint blobs (some with holes) traced into polygons by the label tracer.
+    mask = np.zeros((h, w), np.uint8)
+    for _ in range(6):
+        cx, cy, r = rng.integers(8, w - 8), rng.integers(8, h - 8), rng.integers(3, 8)
+        cv2.circle(mask, (int(cx), int(cy)), int(r), 1, -1)
+    cv2.rectangle(mask, (2, 2), (30, 20), 1, -1)
+    cv2.rectangle(mask, (8, 6), (20, 14), 0, -1)          # a hole
+    cv2.rectangle(mask, (12, 9), (15, 11), 1, -1)         # an island inside the hole
+    from cottonsim_perception.data.generate import mask_to_label_polygons
+    polys = mask_to_label_polygons(mask.astype(bool), epsilon_px=0.0)
+    assert len(polys) > 2
+    separate = np.zeros((h, w), bool)
+    for p in polys:
+        separate ^= yf.polygon_to_mask(p, h, w)
+    joined = yf.join_polygons(polys)
+    np.testing.assert_array_equal(yf.polygon_to_mask(joined, h, w), separate)
+    np.testing.assert_array_equal(separate, mask.astype(bool))
+
+
+def test_merge_instances_per_class_gives_one_line_per_class():
+    def square(x, y, s):
+        return np.array([[x, y], [x + s, y], [x + s, y + s], [x, y + s]], float)
+    insts = [yf.LabelInstance(1, yf.polygon_bbox_cxcywh(square(0.1, 0.1, 0.1)), square(0.1, 0.1, 0.1)),
+             yf.LabelInstance(0, yf.polygon_bbox_cxcywh(square(0.5, 0.5, 0.1)), square(0.5, 0.5, 0.1)),
+             yf.LabelInstance(1, yf.polygon_bbox_cxcywh(square(0.7, 0.2, 0.2)), square(0.7, 0.2, 0.2))]
+    merged = yf.merge_instances_per_class(insts)
+    assert [m.class_id for m in merged] == [0, 1]
+    np.testing.assert_allclose(merged[1].box_cxcywh, [0.5, 0.25, 0.8, 0.3])
+    m1 = yf.polygon_to_mask(merged[1].polygon_px(100, 100), 100, 100)
+    assert m1.sum() == 10 * 10 + 20 * 20
+    with pytest.raises(ValueError, match="polygon 0"):
+        yf.join_polygons([np.zeros((2, 2))])
+
+
+def test_merge_seg_label_files_rewrites_in_place(tmp_path):
+    lab = tmp_path / "labels" / "train"
+    lab.mkdir(parents=True)
+    (lab / "a.txt").write_text("0 0.1 0.1 0.2 0.1 0.2 0.2\n0 0.5 0.5 0.6 0.5 0.6 0.6\n2 0 0 1 0 1 0.05\n")
+    (lab / "b.txt").write_text("")
+    assert yf.merge_seg_label_files(str(tmp_path)) == (2, 3, 2)
+    merged = yf.read_label_file(str(lab / "a.txt"), "seg")
+    assert [m.class_id for m in merged] == [0, 2]
+    # two triangles of 50 px^2 each in a 100 x 100 image, centres inside counted
+    assert yf.polygon_to_mask(merged[0].polygon_px(100, 100), 100, 100).sum() == 2 * yf.polygon_to_mask(
+        np.array([[10, 10], [20, 10], [20, 20]], float), 100, 100).sum()
+    (lab / "c.txt").write_text("0 0.1 0.1\n")
+    with pytest.raises(yf.LabelFormatError, match="c.txt"):
+        yf.merge_seg_label_files(str(tmp_path))
+    with pytest.raises(yf.LabelFormatError, match="no label files"):
+        (tmp_path / "empty" / "images").mkdir(parents=True)
+        yf.merge_seg_label_files(str(tmp_path / "empty"))

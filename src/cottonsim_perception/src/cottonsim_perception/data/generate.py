@@ -132,6 +132,12 @@ class LabelConfig:
             pixels' quarter-pixel insets has about the pixel count minus half
             the perimeter: 2 px^2 drops specks of up to ~4 pixels).
         min_hole_area_px: the same for holes cut into a region [px^2].
+        seg_instances: 'class' (default) writes one label line per class
+            present, its regions joined by zero-width bridges
+            (``yolo_format.merge_instances_per_class``): the paper's label
+            style and what the scene segmenter predicts, one mask per class;
+            'region' writes one line per connected region (hundreds of
+            specks per image, which the mask mAP then counts one by one).
     Boll detection (see ``boll_boxes``)
         boll_extent_factor: a boll's mesh reaches out to about this many boll
             radii (the lumpy locks, up to ~1.45 R); pixels farther from the
@@ -149,6 +155,7 @@ class LabelConfig:
     polygon_epsilon_px: float = 0.3
     min_region_area_px: float = 0.1
     min_hole_area_px: float = 0.1
+    seg_instances: str = "class"
     boll_extent_factor: float = 1.5
     boll_depth_tolerance_m: float = 0.03
     min_boll_box_px: float = 4.0
@@ -159,6 +166,9 @@ class LabelConfig:
         _check_number("polygon_epsilon_px", self.polygon_epsilon_px, 0.0, 10.0)
         _check_number("min_region_area_px", self.min_region_area_px, 0.0, 1e6)
         _check_number("min_hole_area_px", self.min_hole_area_px, 0.0, 1e6)
+        if self.seg_instances not in ("class", "region"):
+            raise ValueError(f"LabelConfig.seg_instances must be 'class' or 'region', "
+                             f"got {self.seg_instances!r}")
         _check_number("boll_extent_factor", self.boll_extent_factor, 1.0, 5.0)
         _check_number("boll_depth_tolerance_m", self.boll_depth_tolerance_m, 0.0, 1.0)
         _check_number("min_boll_box_px", self.min_boll_box_px, 0.0, 1e4)
@@ -770,6 +780,8 @@ def segmentation_instances(semantic: np.ndarray, config: LabelConfig = LabelConf
                                            config.min_hole_area_px):
             norm = np.clip(poly / scale, 0.0, 1.0)
             out.append(yf.LabelInstance(cls, yf.polygon_bbox_cxcywh(norm), norm))
+    if config.seg_instances == "class":
+        out = yf.merge_instances_per_class(out)
     return out
 
 

@@ -49,6 +49,14 @@ class AugmentConfig:
     dataset was augmented offline with +/-13 deg, so 0 by default).
     min_box_px: instances whose box is narrower or lower than this [px] after
     the geometric transform are dropped.
+    mosaic_prob: probability that an item is a mosaic (YOLOv8-style, but
+    without down-scaling, so small bolls keep their size): the input is cut
+    into four quadrants at a random point (30-70 % of width and height), each
+    filled with a random same-size window of a different augmented item (the
+    item itself and three random others); boxes are clipped to their
+    quadrant and dropped when less than ``mosaic_min_visible`` of their area
+    is left (task 'seg': masks are cut the same way, boxes recomputed).
+    mosaic_min_visible: see mosaic_prob (fraction of the box area).
     """
 
     flip_lr_prob: float = 0.5
@@ -59,6 +67,8 @@ class AugmentConfig:
     translate: float = 0.1
     rotation_deg: float = 0.0
     min_box_px: float = 2.0
+    mosaic_prob: float = 0.0
+    mosaic_min_visible: float = 0.3
 
     def __post_init__(self) -> None:
         checks = {
@@ -70,6 +80,8 @@ class AugmentConfig:
             "translate": 0.0 <= self.translate <= 0.5,
             "rotation_deg": 0.0 <= self.rotation_deg <= 180.0,
             "min_box_px": self.min_box_px >= 0.0,
+            "mosaic_prob": 0.0 <= self.mosaic_prob <= 1.0,
+            "mosaic_min_visible": 0.0 <= self.mosaic_min_visible <= 1.0,
         }
         for name, ok in checks.items():
             value = getattr(self, name)
@@ -183,15 +195,82 @@ class YoloDataset(Dataset):
     def __getitem__(self, index: int):
         if not 0 <= index < len(self.pairs):
             raise IndexError(f"index {index} out of range for {len(self.pairs)} items")
+        rng = np.random.default_rng([self.seed, self._epoch, index]) if self.augment else None
+        img, classes, boxes, masks, lb, (h0, w0) = self._arrays(index, rng)
+        if rng is not None and self.augment_config.mosaic_prob > 0 and len(self.pairs) > 1:
+            mrng = np.random.default_rng([self.seed, self._epoch, index, 1])
+            if mrng.random() < self.augment_config.mosaic_prob:
+                img, classes, boxes, masks = self._mosaic(index, mrng, (img, classes, boxes, masks))
+        tensor = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float().div_(255.0)
+        targets: Dict[str, object] = {
+            "classes": torch.from_numpy(classes),
+            "boxes_xyxy": torch.from_numpy(boxes.astype(np.float32)),
+            "image_path": self.pairs[index].image_path,
+            "orig_hw": (h0, w0),
+            "letterbox": lb,
+        }
+        if masks is not None:
+            targets["masks"] = torch.from_numpy(masks)
+        return tensor, targets
+
+    def _mosaic(self, index: int, rng: np.random.Generator, first):
+        """Four items cut into quadrants (see AugmentConfig.mosaic_prob)."""
+        w, h = self.width, self.height
+        xc = int(round(rng.uniform(0.3, 0.7) * w))
+        yc = int(round(rng.uniform(0.3, 0.7) * h))
+        quads = [(0, 0, xc, yc), (xc, 0, w, yc), (0, yc, xc, h), (xc, yc, w, h)]
+        others = [int(j) for j in rng.integers(0, len(self.pairs), size=3)]
+        out_img = np.full((h, w, 3), PAD_VALUE, dtype=np.uint8)
+        out_cls, out_boxes, out_masks = [], [], []
+        min_vis, min_px = self.augment_config.mosaic_min_visible, self.augment_config.min_box_px
+        for q, (x0, y0, x1, y1) in enumerate(quads):
+            if q == 0:
+                img, cls, boxes, masks = first
+            else:
+                j = others[q - 1]
+                img, cls, boxes, masks, _, _ = self._arrays(j, np.random.default_rng(
+                    [self.seed, self._epoch, index, 2 + q, j]))
+            qw, qh = x1 - x0, y1 - y0
+            if qw <= 0 or qh <= 0:
+                continue
+            ox = int(rng.integers(0, w - qw + 1))       # window of the source item
+            oy = int(rng.integers(0, h - qh + 1))
+            out_img[y0:y1, x0:x1] = img[oy:oy + qh, ox:ox + qw]
+            if masks is not None:
+                cut = np.zeros((len(masks), h, w), dtype=np.uint8)
+                cut[:, y0:y1, x0:x1] = masks[:, oy:oy + qh, ox:ox + qw]
+                b = _mask_boxes(cut)
+                keep = cut.reshape(len(cut), h * w).any(axis=1)
+            else:
+                b = boxes.astype(np.float64) + [x0 - ox, y0 - oy, x0 - ox, y0 - oy]
+                area0 = np.prod(b[:, 2:] - b[:, :2], axis=1)
+                b[:, [0, 2]] = b[:, [0, 2]].clip(x0, x1)
+                b[:, [1, 3]] = b[:, [1, 3]].clip(y0, y1)
+                wh = b[:, 2:] - b[:, :2]
+                keep = (wh[:, 0] > min_px) & (wh[:, 1] > min_px) & \
+                    (wh[:, 0] * wh[:, 1] >= min_vis * np.maximum(area0, 1e-9))
+                cut = None
+            out_cls.append(cls[keep])
+            out_boxes.append(b[keep].astype(np.float32))
+            if cut is not None:
+                out_masks.append(cut[keep])
+        classes = np.concatenate(out_cls) if out_cls else np.zeros(0, np.int64)
+        boxes = np.concatenate(out_boxes).reshape(-1, 4) if out_boxes else np.zeros((0, 4), np.float32)
+        masks = (np.concatenate(out_masks) if out_masks else np.zeros((0, h, w), np.uint8)) \
+            if first[3] is not None else None
+        return out_img, classes, boxes, masks
+
+    def _arrays(self, index: int, rng: Optional[np.random.Generator]):
+        """(image uint8 (H, W, 3), classes, boxes (M, 4) [px], masks or None, letterbox, (H0, W0))
+        of item ``index``, augmented with ``rng`` (None: no augmentation)."""
         image = self.load_image(index)
         h0, w0 = image.shape[:2]
         img, lb = letterbox(image, self.width, self.height)
         affine = lb.affine()                     # original px -> input px
         instances = self.labels[index]
         classes = np.array([inst.class_id for inst in instances], dtype=np.int64)
-        rng = np.random.default_rng([self.seed, self._epoch, index]) if self.augment else None
         flip = False
-        if rng is not None:
+        if rng is not None:  # (the draws keep their order: same jitter as before mosaics existed)
             cfg = self.augment_config
             geo = _random_affine(rng, self.width, self.height, cfg)
             img = cv2.warpAffine(img, geo, (self.width, self.height), flags=cv2.INTER_LINEAR,
@@ -238,17 +317,7 @@ class YoloDataset(Dataset):
             if masks is not None:
                 masks = np.ascontiguousarray(masks[:, :, ::-1])
 
-        tensor = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float().div_(255.0)
-        targets: Dict[str, object] = {
-            "classes": torch.from_numpy(classes),
-            "boxes_xyxy": torch.from_numpy(boxes.astype(np.float32)),
-            "image_path": self.pairs[index].image_path,
-            "orig_hw": (h0, w0),
-            "letterbox": lb,
-        }
-        if masks is not None:
-            targets["masks"] = torch.from_numpy(masks)
-        return tensor, targets
+        return img, classes, boxes, masks, lb, (h0, w0)
 
 
 def collate(batch: List[Tuple[torch.Tensor, Dict[str, object]]]):

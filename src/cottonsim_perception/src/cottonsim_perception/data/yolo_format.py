@@ -418,6 +418,96 @@ def mask_to_polygons(mask: np.ndarray, epsilon_px: float = 1.0,
     return polys
 
 
+def join_polygons(polygons: Sequence[np.ndarray]) -> np.ndarray:
+    """Join several (K_i, 2) polygons into one vertex list by zero-width bridges.
+
+    Why: a YOLO segmentation line holds one polygon, while the paper's labels
+    (and the scene segmenter's predictions) have one instance per class, which
+    may be many separate regions. The polygons are visited in a greedy
+    nearest-neighbour order of their first vertices; after each polygon the path closes it (repeats
+    its first vertex) and steps to the next one; after the last polygon it
+    walks the same bridges back, so every bridge is traversed twice and adds
+    no area under the even-odd rule of :func:`polygon_to_mask`: the result
+    rasterises to the XOR of the inputs' masks, i.e. their union when they do
+    not overlap (outlines and holes of a label set never do). A single polygon
+    is returned unchanged. Raises ValueError for an empty list or a polygon
+    with fewer than 3 points.
+    """
+    polys = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in polygons]
+    if not polys:
+        raise ValueError("join_polygons: no polygons")
+    for i, p in enumerate(polys):
+        if p.shape[0] < 3:
+            raise ValueError(f"join_polygons: polygon {i} has {p.shape[0]} points (>= 3 needed)")
+    if len(polys) == 1:
+        return polys[0].copy()
+    firsts = np.array([p[0] for p in polys])       # ordering by first vertices: O(n^2) scalars
+    left = np.ones(len(polys), dtype=bool)
+    left[0] = False
+    order = [0]
+    for _ in range(len(polys) - 1):
+        d = np.sum((firsts - firsts[order[-1]]) ** 2, axis=1)
+        d[~left] = np.inf
+        j = int(np.argmin(d))
+        left[j] = False
+        order.append(j)
+    chain, anchors = [], []
+    for j in order:
+        p = polys[j]
+        if anchors:   # start the polygon at its vertex nearest to the previous anchor
+            k = int(np.argmin(np.sum((p - anchors[-1]) ** 2, axis=1)))
+            p = np.roll(p, -k, axis=0)
+        chain.append(p)
+        chain.append(p[:1])                       # close this polygon
+        anchors.append(p[0])
+    back = [a[None, :] for a in reversed(anchors[1:-1])]   # walk the bridges back
+    return np.concatenate(chain + back, axis=0)
+
+
+def merge_instances_per_class(instances: Sequence[LabelInstance]) -> List[LabelInstance]:
+    """One polygon instance per class (the paper's label style), joined by :func:`join_polygons`.
+
+    Box-only instances are kept as they are; the classes come out in
+    ascending order, each followed by nothing else of its class.
+    """
+    by_class: Dict[int, List[np.ndarray]] = {}
+    boxes: List[LabelInstance] = []
+    for inst in instances:
+        if inst.polygon is None:
+            boxes.append(inst)
+        else:
+            by_class.setdefault(int(inst.class_id), []).append(inst.polygon)
+    out = []
+    for cls in sorted(by_class):
+        poly = join_polygons(by_class[cls]).clip(0.0, 1.0)
+        out.append(LabelInstance(cls, polygon_bbox_cxcywh(poly), poly))
+    return out + boxes
+
+
+def merge_seg_label_files(root: str) -> Tuple[int, int, int]:
+    """Rewrite every ``*.txt`` under ``root`` (recursively, folders named 'labels' only)
+    with :func:`merge_instances_per_class`, in place.
+
+    Returns (files, label lines before, lines after). Raises LabelFormatError
+    for a malformed line (nothing is half-written: each file is parsed before
+    it is rewritten) or when ``root`` holds no label files.
+    """
+    paths = []
+    for dirpath, _dirs, files in os.walk(root):
+        if "labels" in dirpath.split(os.sep):
+            paths += [os.path.join(dirpath, f) for f in files if f.endswith(".txt")]
+    if not paths:
+        raise LabelFormatError(f"no label files in a 'labels' folder under {root!r}")
+    before = after = 0
+    for path in sorted(paths):
+        insts = read_label_file(path, "seg")
+        merged = merge_instances_per_class(insts)
+        before += len(insts)
+        after += len(merged)
+        write_label_file(path, merged, "seg")
+    return len(paths), before, after
+
+
 def instances_to_pixels(instances: Sequence[LabelInstance], width: int, height: int,
                         with_masks: bool) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
     """Labels of one image as (boxes_xyxy (M, 4) float32 [px], classes (M,) int64, masks).
