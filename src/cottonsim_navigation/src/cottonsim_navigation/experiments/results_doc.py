@@ -15,6 +15,7 @@ from typing import List
 
 from .row_spacing import seeds_markdown, summary_markdown
 from .runs import read_report
+from cottonsim_perception.evaluation.paper import PAPER_TABLES
 from .seeds import format_spread
 
 # The paper's published figures (its section 3, Tables 2 and 3, Fig. 3a).
@@ -44,15 +45,9 @@ ROUTE_ROWS = (("cr_percent", "CR [%] (paper's threshold)", 1.0, 1),
               ("localization_error_max_m", "localisation error vs truth, max [m]", 1.0, 3),
               ("sim_duration_s", "route time (sim) [min]", 1.0 / 60.0, 2),
               ("real_time_factor", "real-time factor", 1.0, 2))
-# The paper's Tables 2 (validation during training) and 3 (test): class -> (P, R, mAP50) [%].
-PAPER_TABLES = {
-    "seg": {"valid": {"sky": (99.0, 94.1, 95.0), "ground": (99.0, 94.1, 95.3), "cotton plants": (100.0, 96.2, 98.4),
-                      "all": (99.3, 94.8, 96.2)},
-            "test": {"sky": (99.1, 66.7, 66.9), "ground": (99.7, 100.0, 99.5), "cotton plants": (82.1, 100.0, 86.2),
-                     "all": (93.0, 88.9, 85.2)}},
-    "det": {"valid": {"cotton boll": (92.9, 85.6, 92.6), "all": (92.9, 85.6, 92.6)},
-            "test": {"cotton boll": (94.8, 87.2, 92.7), "all": (94.8, 87.2, 92.7)}},
-}
+# The paper's Tables 2 (its validation split, during training) and 3 (its test split) come from
+# cottonsim_perception.evaluation.paper: split -> table.
+PAPER_TABLE_OF_SPLIT = {"valid": "table2", "test": "table3"}
 COMMANDS = {
     "gps_route": "rosrun cottonsim_navigation reproduce gps-route --seeds 0 1 2",
     "map_route": "rosrun cottonsim_navigation reproduce map-route --seeds 0 1 2",
@@ -139,10 +134,9 @@ def _perception_section(results_root: str) -> List[str]:
             block = per_split.get("mask") if task == "seg" else per_split.get("box")
             for row in (block or {}).get("rows", []):
                 cls = row.get("class")
-                paper_split = "valid" if split == "valid" else ("test" if split == "test" else None)
                 paper = None
-                if name.endswith("_original") and paper_split:
-                    paper = PAPER_TABLES.get(task, {}).get(paper_split, {}).get(cls)
+                if name.endswith("_original") and split in PAPER_TABLE_OF_SPLIT:
+                    paper = PAPER_TABLES[PAPER_TABLE_OF_SPLIT[split]].get(task, {}).get(cls)
                 paper_txt = "-" if paper is None else f"{paper[0]:.1f} / {paper[1]:.1f} / {paper[2]:.1f}"
                 out.append(f"| {name} | {task} | {split} | {cls} | {100 * row['p']:.1f} / {100 * row['r']:.1f} / "
                            f"{100 * row['map50']:.1f} / {100 * row['map50_95']:.1f} | {paper_txt} |")
