@@ -65,6 +65,13 @@ def test_outcome_classification_names_why_an_attempt_failed():
     assert not missing.traversed and "wall-clock" in missing.reason
 
 
+def test_contact_free_spacing_is_robot_width_plus_both_collision_radii():
+    assert rs.contact_free_spacing_m(0.67, 0.25) == pytest.approx(1.17)
+    summary = rs.study_summary(rs.RowSpacingStudyConfig(spacings_m=(1.8,)), [rs.outcome_from_report(1.8, 0.7, _report())],
+                               0.67, 0.25)
+    assert summary["contact_free_spacing_m"] == pytest.approx(1.17)
+
+
 def test_smallest_traversable_spacing_needs_every_wider_spacing_to_pass():
     def o(s, ok):
         return rs.outcome_from_report(s, 0.7, _report() if ok else _report(contacts=1))

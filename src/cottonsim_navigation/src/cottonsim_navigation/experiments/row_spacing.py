@@ -190,9 +190,23 @@ def smallest_traversable_spacing(outcomes: Sequence[AttemptOutcome]) -> Optional
     return best
 
 
+def contact_free_spacing_m(robot_width_m: float, plant_collision_radius_m: float) -> float:
+    """The narrowest spacing at which a robot centred in the lane clears the plants' collision shapes [m].
+
+    The lane's stems are one spacing apart; the robot (half its width each
+    side of the centre line) touches a plant whose collision radius reaches
+    past the remaining half spacing.
+    """
+    return float(robot_width_m) + 2.0 * float(plant_collision_radius_m)
+
+
 def study_summary(config: RowSpacingStudyConfig, outcomes: Sequence[AttemptOutcome],
-                  robot_width_m: float) -> Dict[str, object]:
-    """JSON-ready summary: per-spacing outcomes, the smallest traversable spacing, the paper's."""
+                  robot_width_m: float, plant_collision_radius_m: Optional[float] = None) -> Dict[str, object]:
+    """JSON-ready summary: per-spacing outcomes, the smallest traversable spacing, the paper's.
+
+    plant_collision_radius_m: the widest collision radius of the study's plants
+    [m], for the geometric explanation (None: unknown).
+    """
     smallest = smallest_traversable_spacing(outcomes)
     return {
         "experiment": "row_spacing",
@@ -201,6 +215,9 @@ def study_summary(config: RowSpacingStudyConfig, outcomes: Sequence[AttemptOutco
         "plants_per_row": config.plants_per_row,
         "seed": config.seed,
         "robot_width_m": robot_width_m,
+        "plant_collision_radius_m": plant_collision_radius_m,
+        "contact_free_spacing_m": (None if plant_collision_radius_m is None
+                                   else contact_free_spacing_m(robot_width_m, plant_collision_radius_m)),
         "smallest_traversable_spacing_m": smallest,
         "paper_smallest_spacing_m": PAPER_SMALLEST_SPACING_M,
         "attempts": [o.to_dict() for o in sorted(outcomes, key=lambda o: o.spacing_m)],

@@ -89,6 +89,17 @@ def read_report(path: str) -> Optional[Dict]:
     return report if isinstance(report, dict) else None
 
 
+def _widest_collision_radius_m(farm_config) -> Optional[float]:
+    """The largest horizontal collision radius among the farm's plants [m] (None without a farm)."""
+    if farm_config is None:
+        return None
+    from cottonsim_world.farm.generator import generate_farm
+
+    radii = [pr.size[0] for plant in generate_farm(farm_config).plants for pr in plant.model.collision
+             if pr.shape == "cylinder"]
+    return max(radii) if radii else None
+
+
 def read_trajectory_y(path: str) -> Optional[list]:
     """The world y column [m] of a recorder's trajectory.csv, or None when it is missing or unreadable."""
     try:
@@ -255,7 +266,7 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
         outcomes.append(outcome)
         print(f"  {'traversed' if outcome.traversed else 'NOT traversed: ' + outcome.reason}", flush=True)
     robot_width = farm.robot_width_m if farm is not None else float("nan")
-    summary = rs.study_summary(config, outcomes, robot_width)
+    summary = rs.study_summary(config, outcomes, robot_width, _widest_collision_radius_m(farm))
     _write_json(os.path.join(out_dir, "summary.json"), summary)
     with open(os.path.join(out_dir, "summary.md"), "w", encoding="utf-8") as fh:
         fh.write(rs.summary_markdown(summary) + "\n")
