@@ -67,6 +67,9 @@ class AmclTest(unittest.TestCase):
         cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
         assert wait_until(lambda: cls.truth is not None and cls.localized is not None, 90.0), \
             "no /ground_truth/odom or /amcl/localized"
+        # AMCL's first map -> odom may come late on a busy machine (map load, first filter update)
+        assert wait_until(lambda: cls.tf_buffer.can_transform("map", "base_link", rospy.Time(0)), 90.0), \
+            "no TF map -> base_link from AMCL"
 
     @classmethod
     def _on_localized(cls, msg):
