@@ -111,6 +111,14 @@ def read_trajectory_y(path: str) -> Optional[list]:
         return None
 
 
+def machine_description() -> str:
+    """The machine a run used: architecture, cores, Python, load average when asked (for the results page)."""
+    import platform
+
+    return (f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+            f"load average {os.getloadavg()[0]:.1f} at the start")
+
+
 def _write_json(path: str, data) -> None:
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w", encoding="utf-8") as fh:
@@ -134,6 +142,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
         raise ValueError("seeds must name at least one seed")
     route = ROUTES[experiment]
     out_dir = os.path.join(ws.results, experiment)
+    machine = machine_description()
     if waypoints is None:
         waypoints = os.path.join(ws.navigation, route["waypoints"])
     elif not os.path.isfile(waypoints):
@@ -160,7 +169,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
         runs.append(entry)
         print("  " + (_headline(report) if report else f"no report (see {run_dir}/launch.log)"), flush=True)
     reports = [r["report"] for r in runs if r["report"] is not None]
-    summary = {"experiment": experiment, "mode": route["mode"], "seeds": list(seeds),
+    summary = {"experiment": experiment, "mode": route["mode"], "seeds": list(seeds), "machine": machine,
                "waypoints_file": waypoints, "runs_with_report": len(reports), "runs": runs,
                "spread": aggregate_reports(reports),
                "all_complete": len(reports) == len(seeds) and all(r.get("complete", False) for r in reports)}
@@ -216,12 +225,13 @@ def run_row_spacing(ws: Workspace, config: rs.RowSpacingStudyConfig = rs.RowSpac
     summary.md} over the seeds.
     """
     out_dir = os.path.join(ws.results, "row_spacing")
+    machine = machine_description()
     per_seed = []
     for seed in (list(seeds) if seeds else [config.seed]):
         per_seed.append(_row_spacing_one_seed(ws, dataclasses.replace(config, seed=int(seed)),
                                               os.path.join(out_dir, f"seed_{seed}"), real_time_factor,
                                               wall_timeout_s, runner))
-    summary = rs.seeds_summary(per_seed)
+    summary = dict(rs.seeds_summary(per_seed), machine=machine)
     _write_json(os.path.join(out_dir, "summary.json"), summary)
     with open(os.path.join(out_dir, "summary.md"), "w", encoding="utf-8") as fh:
         fh.write(rs.seeds_markdown(summary) + "\n")
