@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
 from typing import Dict, List, Mapping, Sequence, Tuple
@@ -83,7 +84,7 @@ def _one(root: str, name: str, out_dir: str, display: str, wait_scale: float) ->
     launches, (rviz_pkg, rviz_rel), wait_s = BRINGUPS[name]
     port = free_port()
     env = dict(os.environ, DISPLAY=display, ROS_MASTER_URI=f"http://localhost:{port}")
-    log_path = os.path.join(out_dir, f"{name}.log")
+    log_path = os.path.join(tempfile.gettempdir(), f"cottonsim_screenshot_{name}.log")   # not beside the PNGs in docs/
     procs = []
     png = os.path.join(out_dir, f"{name}.png")
     with open(log_path, "w", encoding="utf-8") as log:
