@@ -6,44 +6,32 @@
 import json
 import math
 import os
-import time
-import unittest
 
 import numpy as np
 import rospy
 import rostest
 from nav_msgs.msg import Odometry
-from std_msgs.msg import String
 
 from cottonsim_navigation.waypoints.files import load_gps_waypoints
 from cottonsim_world.geodesy import HectorGeodesy
+from navigator_watch import NavigatorWatch
 
 
-class GpsNavigatorTest(unittest.TestCase):
+class GpsNavigatorTest(NavigatorWatch):
+    STATE_TOPIC = "/gps_waypoint_navigator/state"
+
     def setUp(self):
-        self.state = None
+        super().setUp()
         self.truth = []
-        rospy.Subscriber("/gps_waypoint_navigator/state", String, self._on_state)
         rospy.Subscriber("/ground_truth/odom", Odometry,
                          lambda m: self.truth.append((m.pose.pose.position.x, m.pose.pose.position.y)))
-
-    def _on_state(self, msg):
-        self.state = json.loads(msg.data)
-
-    def wait_for(self, cond, wall_timeout_s, what):
-
-        end = time.monotonic() + wall_timeout_s
-        while not cond() and not rospy.is_shutdown() and time.monotonic() < end:
-            rospy.rostime.wallsleep(0.2)
-        self.assertTrue(cond(), f"timed out waiting for {what} (last navigator state {self.state})")
 
     def test_route_completes(self):
         path = rospy.get_param("~waypoints_file")
         report_file = rospy.get_param("~report_file")
         if os.path.exists(report_file):
             os.remove(report_file)           # a report of an earlier run must not pass this one
-        self.wait_for(lambda: self.state is not None and self.state["state"] == "finished", 420, "the route")
-        s = self.state
+        s = self.wait_until_finished(420)
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")
         # straight-on waypoints are driven through (counted among the succeeded)
         self.assertEqual(s["passed"], int(rospy.get_param("~expected_passed", 0)), f"summary {s}")

@@ -2,34 +2,21 @@
 """rostest node: a 3-waypoint map route completes on the shipped SLAM map with AMCL (navigator state + report)."""
 import json
 import os
-import time
-import unittest
 
 import rospy
 import rostest
-from std_msgs.msg import String
+
+from navigator_watch import NavigatorWatch
 
 
-class MapNavigationTest(unittest.TestCase):
-    def setUp(self):
-        self.state = None
-        rospy.Subscriber("/map_waypoint_navigator/state", String, self._on_state)
-
-    def _on_state(self, msg):
-        self.state = json.loads(msg.data)
-
-    def wait_for(self, cond, wall_timeout_s, what):
-        end = time.monotonic() + wall_timeout_s
-        while not cond() and not rospy.is_shutdown() and time.monotonic() < end:
-            rospy.rostime.wallsleep(0.2)
-        self.assertTrue(cond(), f"timed out waiting for {what} (last navigator state {self.state})")
+class MapNavigationTest(NavigatorWatch):
+    STATE_TOPIC = "/map_waypoint_navigator/state"
 
     def test_route_completes(self):
         report_file = rospy.get_param("~report_file")
         if os.path.exists(report_file):
             os.remove(report_file)           # a report of an earlier run must not pass this one
-        self.wait_for(lambda: self.state is not None and self.state["state"] == "finished", 380, "the route")
-        s = self.state
+        s = self.wait_until_finished(380)
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")
         self.wait_for(lambda: os.path.exists(report_file), 60, report_file)
         rospy.rostime.wallsleep(0.5)
