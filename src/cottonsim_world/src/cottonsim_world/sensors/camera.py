@@ -36,7 +36,7 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.fast.raster import (_back_project, _compose, _count_cloud, _draw_plants,
+from cottonsim_world.sensors.fast.raster import (_compose, _count_cloud, _draw_plants,
                                                    _fill_cloud_xyzrgb, tile_texture)
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
@@ -324,27 +324,21 @@ class CameraModel:
         """Back-project a frame: xyz (N, 3) float32 in the optical frame [m], rgb (N, 3) uint8.
 
         Keeps pixels with cloud_min_m <= depth <= cloud_max_m, every
-        ``cloud_stride``-th pixel in u and v, in row-major pixel order.
+        ``cloud_stride``-th pixel in u and v, in row-major pixel order
+        (the columns of ``point_cloud_xyzrgb``).
         """
-        cfg = self.config
-        if frame.depth_m.shape != (cfg.height, cfg.width):
-            raise ValueError(f"frame depth has shape {frame.depth_m.shape}, camera is {cfg.height}x{cfg.width}")
-        if frame.rgb.shape != (cfg.height, cfg.width, 3):
-            raise ValueError(f"frame rgb has shape {frame.rgb.shape}, camera is {cfg.height}x{cfg.width}x3")
-        depth = np.ascontiguousarray(frame.depth_m, dtype=np.float32)
-        rgb = np.ascontiguousarray(frame.rgb, dtype=np.uint8)
-        return _back_project(depth, rgb, self._ray_x, self._ray_y, int(cfg.cloud_stride),
-                             np.float32(cfg.cloud_min_m), np.float32(cfg.cloud_max_m))
+        packed, colours = self.point_cloud_xyzrgb(frame)
+        return np.ascontiguousarray(packed[:, :3]), colours
 
     def point_cloud_xyzrgb(self, frame: CameraFrame) -> Tuple[np.ndarray, np.ndarray]:
-        """The same cloud as ``point_cloud``, packed as PointCloud2 wants it, and its colours.
+        """The frame's cloud packed as PointCloud2 wants it, and its colours.
 
         Returns packed (N, 4) float32: columns x, y, z [m] (optical frame)
         and, in the fourth, the bits of PCL's packed colour 0x00RRGGBB (read
         it with ``.view(np.uint32)``), so that ``packed.tobytes()`` is the
         message's data for fields x, y, z, rgb at offsets 0, 4, 8, 12
-        (little-endian, point_step 16); and rgb (N, 3) uint8 as
-        ``point_cloud`` returns it. One compiled pass fills both.
+        (little-endian, point_step 16); and rgb (N, 3) uint8. One compiled
+        pass fills both (after one that counts the kept pixels).
         """
         cfg = self.config
         if frame.depth_m.shape != (cfg.height, cfg.width) or frame.rgb.shape != (cfg.height, cfg.width, 3):

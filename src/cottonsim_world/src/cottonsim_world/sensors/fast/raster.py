@@ -30,8 +30,8 @@ How a frame is made (``FastRasterCamera.render``):
    bilinear-sampled soil texture, tiled by ``tile_texture``, weights in
    1/256 steps; sky gradient over the ray elevation). The thread buffers
    are cleared on the way.
-4. ``_back_project`` / ``_fill_cloud_xyzrgb``: the depth point cloud, the
-   latter straight into PointCloud2's x, y, z, rgb byte layout.
+4. ``_count_cloud`` + ``_fill_cloud_xyzrgb``: the depth point cloud (count,
+   then fill), straight into PointCloud2's x, y, z, rgb byte layout.
 
 Sampling convention: pixel (col, row) is the point u = col, v = row of the
 pinhole model u = fx x / z + cx, v = fy y / z + cy with the intrinsics of
@@ -370,43 +370,8 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
 
 
 @njit(cache=True)
-def _back_project(depth, rgb, ray_x, ray_y, stride, min_m, max_m):  # pragma: no cover
-    """Point cloud of a depth image: xyz (N, 3) float32 [m] in the optical frame, rgb (N, 3) uint8.
-
-    Keeps every stride-th pixel in u and v whose depth lies in [min_m,
-    max_m] (NaN fails), in row-major order; x = ray_x[col] * z, y =
-    ray_y[row] * z with ray_x = (u - cx) / fx, ray_y = (v - cy) / fy
-    (float32, as numpy computes them). Two passes (count, then fill), no
-    temporary masks or index arrays.
-    """
-    height, width = depth.shape
-    n = 0
-    for y in range(0, height, stride):
-        for x in range(0, width, stride):
-            z = depth[y, x]
-            if z >= min_m and z <= max_m:
-                n += 1
-    xyz = np.empty((n, 3), np.float32)
-    colour = np.empty((n, 3), np.uint8)
-    i = 0
-    for y in range(0, height, stride):
-        ry = ray_y[y]
-        for x in range(0, width, stride):
-            z = depth[y, x]
-            if z >= min_m and z <= max_m:
-                xyz[i, 0] = ray_x[x] * z
-                xyz[i, 1] = ry * z
-                xyz[i, 2] = z
-                colour[i, 0] = rgb[y, x, 0]
-                colour[i, 1] = rgb[y, x, 1]
-                colour[i, 2] = rgb[y, x, 2]
-                i += 1
-    return xyz, colour
-
-
-@njit(cache=True)
 def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
-    """Pixels kept by ``_back_project``'s rule (every stride-th, depth in [min_m, max_m])."""
+    """Pixels the cloud keeps: every stride-th in u and v whose depth lies in [min_m, max_m] (NaN fails)."""
     height, width = depth.shape
     n = 0
     for y in range(0, height, stride):
@@ -419,7 +384,11 @@ def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
 
 @njit(cache=True)
 def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, out_u, out_rgb):  # pragma: no cover
-    """``_back_project`` straight into PointCloud2's x, y, z, rgb layout (16 bytes a point).
+    """The depth cloud straight into PointCloud2's x, y, z, rgb layout (16 bytes a point).
+
+    The ``_count_cloud`` pixels in row-major order: x = ray_x[col] * z,
+    y = ray_y[row] * z with ray_x = (u - cx) / fx, ray_y = (v - cy) / fy
+    (float32, as numpy computes them), in the optical frame [m].
 
     out_f (N, 4) float32 and out_u (N, 4) uint32 are two views of the same
     memory: x, y, z go to out_f[:, :3], PCL's packed colour 0x00RRGGBB to
