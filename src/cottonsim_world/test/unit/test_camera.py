@@ -8,19 +8,7 @@ import pytest
 from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene, standin_plant_model
-
-
-def optical_pose(x, y, z, yaw, pitch_down=0.0):
-    """world_T_optical of a camera at (x, y, z) looking along yaw, tilted down by pitch_down."""
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    cp, sp = math.cos(pitch_down), math.sin(pitch_down)
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    body_r_optical = np.array([[0, 0, 1], [-1, 0, 0], [0, -1, 0]], float)
-    t = np.eye(4)
-    t[:3, :3] = rz @ ry @ body_r_optical
-    t[:3, 3] = (x, y, z)
-    return t
+from world_camera_poses import optical_pose
 
 
 def quad_model(half_width, height, rgba=(0.2, 0.6, 0.2, 1.0)):

@@ -17,17 +17,7 @@ from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, Semantic
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
 from cottonsim_world.sensors.scene import SensorScene
-
-
-def optical_pose(x, y, z, yaw, pitch_down=0.0):
-    """world_T_optical of a camera at (x, y, z) looking along yaw, tilted down by pitch_down."""
-    cy, sy, cp, sp = math.cos(yaw), math.sin(yaw), math.cos(pitch_down), math.sin(pitch_down)
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    t = np.eye(4)
-    t[:3, :3] = rz @ ry @ np.array([[0, 0, 1], [-1, 0, 0], [0, -1, 0]], float)
-    t[:3, 3] = (x, y, z)
-    return t
+from world_camera_poses import optical_pose
 
 
 @pytest.fixture(scope="module")
