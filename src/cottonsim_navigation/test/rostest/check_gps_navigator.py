@@ -3,9 +3,7 @@
 
 ~expected_passed (int, 0): how many waypoints the navigator must report as driven through.
 """
-import json
 import math
-import os
 
 import numpy as np
 import rospy
@@ -29,8 +27,7 @@ class GpsNavigatorTest(NavigatorWatch):
     def test_route_completes(self):
         path = rospy.get_param("~waypoints_file")
         report_file = rospy.get_param("~report_file")
-        if os.path.exists(report_file):
-            os.remove(report_file)           # a report of an earlier run must not pass this one
+        self.forget_old_report(report_file)
         s = self.wait_until_finished(420)
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")
         # straight-on waypoints are driven through (counted among the succeeded)
@@ -48,10 +45,7 @@ class GpsNavigatorTest(NavigatorWatch):
             wx, wy, _ = HectorGeodesy().geodetic_to_world(w.lat, w.lon, 0.0)
             self.assertLess(np.hypot(traj[:, 0] - wx, traj[:, 1] - wy).min(), 0.25)
         # the recorder's report
-        self.wait_for(lambda: os.path.exists(report_file), 60, report_file)
-        rospy.rostime.wallsleep(0.5)
-        with open(report_file) as fh:
-            report = json.load(fh)
+        report = self.wait_for_report(report_file)
         self.assertEqual(report["mode"], "gps")
         self.assertTrue(report["complete"])
         self.assertEqual(report["waypoints"], 3)

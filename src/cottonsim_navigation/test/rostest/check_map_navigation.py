@@ -1,7 +1,5 @@
 #!/usr/bin/env python3
 """rostest node: a 3-waypoint map route completes on the shipped SLAM map with AMCL (navigator state + report)."""
-import json
-import os
 
 import rospy
 import rostest
@@ -14,14 +12,10 @@ class MapNavigationTest(NavigatorWatch):
 
     def test_route_completes(self):
         report_file = rospy.get_param("~report_file")
-        if os.path.exists(report_file):
-            os.remove(report_file)           # a report of an earlier run must not pass this one
+        self.forget_old_report(report_file)
         s = self.wait_until_finished(380)
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")
-        self.wait_for(lambda: os.path.exists(report_file), 60, report_file)
-        rospy.rostime.wallsleep(0.5)
-        with open(report_file) as fh:
-            report = json.load(fh)
+        report = self.wait_for_report(report_file)
         self.assertEqual(report["mode"], "map")
         self.assertTrue(report["complete"])
         self.assertEqual(report["waypoints"], 3)
