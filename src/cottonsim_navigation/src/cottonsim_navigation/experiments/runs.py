@@ -25,6 +25,7 @@ from typing import Callable, Dict, Mapping, Optional, Sequence
 
 import yaml
 
+from ..evaluation.experiment import summary_line
 from . import row_spacing as rs
 from .launcher import LaunchSpec, run_launch
 from .seeds import aggregate_reports
@@ -167,7 +168,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
         if record_bag and report is not None and os.path.isfile(os.path.join(run_dir, "run.bag")):
             entry["offline"] = _offline_check(ws, route["mode"], run_dir, waypoints, sim_yaml, report)
         runs.append(entry)
-        print("  " + (_headline(report) if report else f"no report (see {run_dir}/launch.log)"), flush=True)
+        print("  " + (summary_line(report) if report else f"no report (see {run_dir}/launch.log)"), flush=True)
     reports = [r["report"] for r in runs if r["report"] is not None]
     summary = {"experiment": experiment, "mode": route["mode"], "seeds": list(seeds), "machine": machine,
                "waypoints_file": waypoints, "runs_with_report": len(reports), "runs": runs,
@@ -175,15 +176,6 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
                "all_complete": len(reports) == len(seeds) and all(r.get("complete", False) for r in reports)}
     _write_json(os.path.join(out_dir, "summary.json"), summary)
     return summary
-
-
-def _headline(report: Mapping) -> str:
-    def g(key, scale=1.0, fmt=".3f"):
-        v = report.get(key)
-        return "-" if v is None else format(v * scale, fmt)
-    return (f"CR {g('cr_percent', fmt='.1f')} %, AE {g('ae_m')} m, RMSE {g('rmse_m')} m, contacts "
-            f"{report.get('plant_contacts')}, cross-track {g('cross_track_mean_m', 100, '.1f')} cm, "
-            f"sim {g('sim_duration_s', 1 / 60, '.1f')} min, RTF {g('real_time_factor', fmt='.2f')}")
 
 
 # Figures compared between the online report and the one recomputed from the bag [same units].
