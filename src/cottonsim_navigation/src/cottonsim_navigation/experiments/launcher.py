@@ -132,17 +132,17 @@ def run_launch(spec: LaunchSpec, show_progress: bool = True,
             timed_out = True
             log.write(f"\n[launcher] wall-clock limit {spec.wall_timeout_s:.0f} s reached: stopping\n")
         except KeyboardInterrupt:
-            _stop(proc)
+            stop_process_group(proc)
             raise
         finally:
-            _stop(proc)
+            stop_process_group(proc)
             reader.join(timeout=10.0)
     if show_progress and sys.stdout.isatty():
         sys.stdout.write("\n")
     return LaunchResult(proc.returncode, timed_out, time.monotonic() - started, spec.log_path)
 
 
-def _stop(proc: subprocess.Popen) -> None:
+def stop_process_group(proc: subprocess.Popen) -> None:
     """SIGINT, then SIGTERM, then SIGKILL to the child's process group, waiting between."""
     for sig, wait_s in ((signal.SIGINT, 30.0), (signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
         if proc.poll() is not None:

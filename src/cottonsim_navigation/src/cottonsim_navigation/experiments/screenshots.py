@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass
 from typing import Dict, List, Mapping, Sequence, Tuple
 
-from .launcher import _stop, free_port
+from .launcher import free_port, stop_process_group
 
 # name -> (launches [(package, launch file, args)], rviz config (package, path), seconds to wait [wall])
 BRINGUPS: Dict[str, Tuple[Tuple[Tuple[str, str, Mapping[str, object]], ...], Tuple[str, str], float]] = {
@@ -76,7 +76,7 @@ def take_screenshots(root: str, names: Sequence[str], out_dir: str, size: str = 
             results.append(_one(root, name, out_dir, display, wait_scale))
             print(f"screenshot {name}: {'ok' if results[-1].ok else 'FAILED'} {results[-1].detail}", flush=True)
     finally:
-        _stop(xvfb)
+        stop_process_group(xvfb)
     return results
 
 
@@ -109,7 +109,7 @@ def _one(root: str, name: str, out_dir: str, display: str, wait_scale: float) ->
                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         finally:
             for p in reversed(procs):
-                _stop(p)
+                stop_process_group(p)
     if grab.returncode != 0:
         return ScreenshotResult(name, png, False, f"import failed: {grab.stdout.strip()[-200:]}")
     if image_is_blank(png):
