@@ -32,6 +32,8 @@ class MappingSupervisorNode:
           {"state": "finished", ...} triggers the save (unparsable messages are warned about and ignored)
       ~done_topic (default /route_driver/done)  std_msgs/Bool  the route driver's end flag; true triggers the
           save, false (route not finished, e.g. its time-out) too, with a warning
+    Publications
+      ~saved  std_msgs/String (latched)  the written map YAML path once the map is saved (tests, scripts)
     Service clients
       ~map_service (default /dynamic_map)  nav_msgs/GetMap  the SLAM node's current map
     Parameters (private)
@@ -39,7 +41,7 @@ class MappingSupervisorNode:
       ~crop_margin_m (float, 1.0): margin kept around the observed cells [m]
       ~settle_s (float, 2.0): sim time waited after "finished" before the map is fetched (last scans) [s]
       ~occupied_thresh (float, 65), ~free_thresh (float, 19.6): map_saver's thresholds on OccupancyGrid values
-      ~shutdown_when_done (bool, true): end the node after saving
+      ~shutdown_when_done (bool, true): end the node after saving (false: keep running until shut down)
     """
 
     def __init__(self):
@@ -55,6 +57,7 @@ class MappingSupervisorNode:
                                            free_thresh=typed_param("~free_thresh", 19.6))
         self.finished = False
         self.saved = False
+        self.saved_pub = rospy.Publisher("~saved", String, queue_size=1, latch=True)
         self.done_topic = typed_param("~done_topic", "/route_driver/done")
         rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=5)
         if self.done_topic:
@@ -87,6 +90,8 @@ class MappingSupervisorNode:
         rospy.loginfo("mapping_supervisor: %d x %d map (cropped from %d x %d) saved to %s, %s; %d occupied cells",
                       cropped.shape[1], cropped.shape[0], grid.shape[1], grid.shape[0], pgm, yaml_path,
                       int(np.count_nonzero(cropped >= 65)))
+        self.saved = True
+        self.saved_pub.publish(String(data=os.path.abspath(yaml_path)))
         return True
 
     def spin(self) -> int:
@@ -107,6 +112,8 @@ class MappingSupervisorNode:
             ok = False
         if self.shutdown_when_done:
             rospy.signal_shutdown("map saved" if ok else "map not saved")
+        else:
+            rospy.spin()      # stay up (a required node): the launch goes on and ~saved stays latched
         return 0 if ok else 1
 
 

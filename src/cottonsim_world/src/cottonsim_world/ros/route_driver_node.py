@@ -19,6 +19,8 @@ Parameters
   ~results_dir (str, ''): where <run>/summary.json and trajectory.csv go ('' = none)
   ~run (str, 'drive'): run name
   ~timeout_s (float, 1800): sim-time limit of the drive [s]
+  ~max_waypoints (int, 0): drive only the first N waypoints of the route (0 = the whole route);
+      reduced runs such as the mapping bringup's rostest
 """
 from __future__ import annotations
 
@@ -56,6 +58,11 @@ class RouteDriverNode:
         farm_cfg = FarmConfig.from_dict(dict(rospy.get_param("~farm", {}) or {}))
         self.farm = generate_farm(farm_cfg)
         route = route_in_frame(self.farm, self.farm.spawn)[:, :2]
+        max_waypoints = rospy.get_param("~max_waypoints", 0)
+        if not isinstance(max_waypoints, int) or isinstance(max_waypoints, bool) or max_waypoints < 0:
+            raise ValueError(f"~max_waypoints must be an integer >= 0 (0 = whole route), got {max_waypoints!r}")
+        if max_waypoints:
+            route = route[:max_waypoints]
         path = np.vstack([[0.0, 0.0], route])
         self.follower = PurePursuit(path, PurePursuitConfig(
             cruise_speed_m_s=float(rospy.get_param("~cruise_speed", 0.5)),
@@ -135,4 +142,9 @@ class RouteDriverNode:
 
 def main():
     rospy.init_node("route_driver")
-    RouteDriverNode().run()
+    try:
+        node = RouteDriverNode()
+    except ValueError as exc:
+        rospy.logfatal(f"route_driver: {exc}")
+        raise SystemExit(2)
+    node.run()
