@@ -2,6 +2,7 @@
 import json
 import math
 import os
+import pathlib
 
 import pytest
 import yaml
@@ -231,3 +232,21 @@ def test_progress_parser_follows_the_navigator_log():
     with pytest.raises(ValueError, match="wall_timeout_s"):
         LaunchSpec("cottonsim_navigation", "x.launch", wall_timeout_s=0.0)
     assert LaunchSpec("p", "f.launch", {"a": 1}).command(12345) == ["roslaunch", "-p", "12345", "p", "f.launch", "a:=1"]
+
+
+def test_screenshot_bringups_resolve_their_launch_arguments():
+    """$(find pkg) in a bringup's arguments becomes the workspace folder (roslaunch gets a list, no shell)."""
+    from cottonsim_navigation.experiments.screenshots import BRINGUPS, image_is_blank, resolve_find
+    assert resolve_find("/ws", "$(find cottonsim_world)/config/sim_in_lane.yaml") == \
+        "/ws/src/cottonsim_world/config/sim_in_lane.yaml"
+    assert resolve_find("/ws", 1.5) == "1.5"
+    root = str(pathlib.Path(__file__).resolve().parents[4])
+    for name, (launches, (rviz_pkg, rviz_rel), _) in BRINGUPS.items():
+        assert os.path.isfile(os.path.join(root, "src", rviz_pkg, rviz_rel)), name
+        for pkg, launch_file, args in launches:
+            assert os.path.isfile(os.path.join(root, "src", pkg, "launch", launch_file)), name
+            for value in args.values():
+                resolved = resolve_find(root, value)
+                if resolved.endswith(".yaml"):
+                    assert os.path.isfile(resolved), (name, resolved)
+    assert image_is_blank(os.path.join(root, "does_not_exist.png"))

@@ -10,6 +10,7 @@ it were fine.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -32,7 +33,9 @@ BRINGUPS: Dict[str, Tuple[Tuple[Tuple[str, str, Mapping[str, object]], ...], Tup
     "mapping": ((("cottonsim_navigation", "mapping.launch",
                   {"real_time_factor": 1.0, "map_file": "/tmp/cottonsim_screenshot_runs/farm_slam"}),),
                 ("cottonsim_navigation", "rviz/mapping.rviz"), 120.0),
-    "perception": ((("cottonsim_perception", "perception_demo.launch", {"results_dir": "/tmp/cottonsim_screenshot_runs"}),),
+    "perception": ((("cottonsim_perception", "perception_demo.launch",
+                     {"results_dir": "/tmp/cottonsim_screenshot_runs", "drive": "false",
+                      "config": "$(find cottonsim_world)/config/sim_in_lane.yaml"}),),
                    ("cottonsim_perception", "rviz/perception.rviz"), 60.0),
 }
 
@@ -47,6 +50,12 @@ class ScreenshotResult:
 
 def _package_dir(root: str, package: str) -> str:
     return os.path.join(root, "src", package)
+
+
+def resolve_find(root: str, value: object) -> str:
+    """A launch argument with every ``$(find pkg)`` replaced by the package's folder in the workspace
+    (arguments go to roslaunch as a list, no shell expands them)."""
+    return re.sub(r"\$\(find ([A-Za-z0-9_]+)\)", lambda m: _package_dir(root, m.group(1)), str(value))
 
 
 def image_is_blank(path: str, min_std: float = 4.0) -> bool:
@@ -91,7 +100,7 @@ def _one(root: str, name: str, out_dir: str, display: str, wait_scale: float) ->
         try:
             for k, (pkg, launch_file, args) in enumerate(launches):
                 cmd = ["roslaunch", "-p", str(port)] + ([] if k == 0 else ["--wait"]) + [pkg, launch_file] + \
-                      [f"{a}:={v}" for a, v in args.items()]
+                      [f"{a}:={resolve_find(root, v)}" for a, v in args.items()]
                 procs.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT,
                                               start_new_session=True))
                 time.sleep(3.0)
