@@ -10,7 +10,6 @@ targets (IoU >= 0.7, rotation <= 0.5 deg) are measured by the full mapping
 run (docs/map_experiment.md), not here.
 """
 import os
-import time
 import unittest
 
 import rospy
@@ -22,17 +21,10 @@ from cottonsim_navigation.evaluation.map_quality import MapQualityConfig, evalua
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, load_map_yaml, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
+from wall_wait import wait_until
 
 FARM = generate_farm(FarmConfig())       # mapping.launch's default simulator settings: the paper's farm
 
-
-def wait_until(predicate, timeout_s):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end and not rospy.is_shutdown():
-        if predicate():
-            return True
-        time.sleep(0.1)
-    return predicate()
 
 
 class MappingBringupTest(unittest.TestCase):

@@ -23,6 +23,7 @@ from nav_msgs.srv import GetPlan, GetPlanRequest
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy, world_to_frame
 from cottonsim_world.farm.generator import generate_farm
+from wall_wait import wait_until
 
 FARM = generate_farm(FarmConfig())
 HOME = FARM.spawn
@@ -36,14 +37,6 @@ def pose_stamped(x, y, yaw, frame="map"):
     ps.pose.orientation.z, ps.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
     return ps
 
-
-def wait_until(predicate, timeout_s):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end and not rospy.is_shutdown():
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return predicate()
 
 
 class MoveBaseTest(unittest.TestCase):
