@@ -5,6 +5,7 @@ Run:  cd /work/main && source scripts/env.sh && OMP_NUM_THREADS=1 python benchma
 Prints the median of several runs in ms, wall and (in brackets) CPU time of this process
 (the first, JIT-compiling call is excluded).
 """
+import dataclasses
 import math
 import os
 import statistics
@@ -13,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
 
@@ -20,7 +22,9 @@ from cottonsim_navigation.core.geometry import Pose2D  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402
 from cottonsim_navigation.planning.global_planners.navfn import NavfnPlanner  # noqa: E402
-from cottonsim_navigation.planning.local_planners.dwa import DWAPlanner  # noqa: E402
+from cottonsim_navigation.planning.local_planners.dwa import DWAConfig, DWAPlanner  # noqa: E402
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/config"
 
 
 class Timing(float):
@@ -93,31 +97,32 @@ def main():
     t_local = timed(local_update)
     print(f"local costmap update (5x5 m, {len(cloud)} points mark+clear + inflation): {t_local:7.2f} ms")
 
-    dwa = DWAPlanner()
     path = np.column_stack([np.linspace(0, 4, 81), 0.3 * np.sin(np.linspace(0, 3, 81))])
     lcm2 = make_local_costmap()
     lcm2.obstacle_layer.add_observation(np.array([[1.5, 0.8, 0.3], [1.5, -0.8, 0.3]]), (0, 0, 0.5))
     lcm2.update_map(pose)
+    # the DWA as move_base loads it: config/dwa.yaml, then the GPS experiment's overrides on top
+    for label, files in (("move_base default", ("dwa.yaml",)),
+                         ("GPS experiment", ("dwa.yaml", "gps_navigation_move_base.yaml"))):
+        dwa = DWAPlanner(dwa_config_from_yaml(*files))
 
-    def dwa_cycle():
-        dwa.set_plan(path)
-        dwa.compute_velocity(pose, (0.3, 0.0), lcm2)
-    t_dwa = timed(dwa_cycle, repeats=21)
-    print(f"DWA cycle ({dwa.config.vx_samples}x{dwa.config.vth_samples} samples, sim_time "
-          f"{dwa.config.sim_time} s):         {t_dwa:7.2f} ms")
+        def dwa_cycle():
+            dwa.set_plan(path)
+            dwa.compute_velocity(pose, (0.3, 0.0), lcm2)
+        t_dwa = timed(dwa_cycle, repeats=21)
+        print(f"DWA cycle, {label} ({dwa.config.vx_samples}x{dwa.config.vth_samples} samples, sim_time "
+              f"{dwa.config.sim_time} s, <= {dwa.config.max_vel_x} m/s): {t_dwa:7.2f} ms")
 
-    # the GPS experiment's DWA (config/gps_navigation_move_base.yaml): faster, finer speed samples
-    from cottonsim_navigation.planning.local_planners.dwa import DWAConfig
-    dwa_gps = DWAPlanner(DWAConfig(max_vel_x=0.7, min_vel_trans=0.05, vx_samples=11, xy_goal_tolerance=0.08,
-                                   latch_xy_goal_tolerance=True))
 
-    def dwa_gps_cycle():
-        dwa_gps.set_plan(path)
-        dwa_gps.compute_velocity(pose, (0.3, 0.0), lcm2)
-    t_gps = timed(dwa_gps_cycle, repeats=21)
-    print(f"DWA cycle, GPS experiment ({dwa_gps.config.vx_samples}x{dwa_gps.config.vth_samples} samples, "
-          f"<= {dwa_gps.config.max_vel_x} m/s): {t_gps:7.2f} ms")
-
+def dwa_config_from_yaml(*names: str) -> DWAConfig:
+    """DWAConfig from the DWAPlannerROS sections of config files (later files override earlier ones)."""
+    fields = {f.name for f in dataclasses.fields(DWAConfig)}
+    values = {}
+    for name in names:
+        with open(CONFIG_DIR / name) as fh:
+            section = (yaml.safe_load(fh) or {}).get("DWAPlannerROS", {}) or {}
+        values.update({k: v for k, v in section.items() if k in fields})
+    return DWAConfig(**values)
 
 if __name__ == "__main__":
     main()
