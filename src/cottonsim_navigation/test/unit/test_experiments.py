@@ -110,6 +110,11 @@ def test_deep_merge_and_sim_config_file(tmp_path):
     src.write_text(yaml.safe_dump(base))
     out = write_sim_config(str(src), {"farm": {"seed": 5}}, str(tmp_path / "x" / "sim.yaml"))
     assert yaml.safe_load(open(out))["farm"]["seed"] == 5
+    src.write_text(yaml.safe_dump(base))
+    for bad, name in (({"farm": {"row_spacing_m": -1.0}}, "row_spacing_m"), ({"lidarr": {}}, "lidarr")):
+        with pytest.raises(ValueError, match=name):        # refused before anything is written
+            write_sim_config(str(src), bad, str(tmp_path / "bad.yaml"))
+        assert not (tmp_path / "bad.yaml").exists()
     src.write_text("- not a mapping\n")
     with pytest.raises(ValueError, match="mapping"):
         write_sim_config(str(src), {}, str(tmp_path / "y.yaml"))

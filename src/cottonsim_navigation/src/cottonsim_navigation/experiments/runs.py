@@ -68,15 +68,25 @@ def deep_merge(base: Mapping, override: Mapping) -> Dict:
 
 
 def write_sim_config(base_path: str, overrides: Mapping, out_path: str) -> str:
-    """Write base sim settings (YAML) with ``overrides`` merged in; returns ``out_path``."""
+    """Write base sim settings (YAML) with ``overrides`` merged in; returns ``out_path``.
+
+    The merged settings are checked with the simulator's own parser first, so a misspelt or invalid
+    override fails here with the simulator's message (ValueError) instead of in a launched bridge."""
+    from cottonsim_world.config_io import simulator_config_from_dict
+
     with open(base_path, "r", encoding="utf-8") as fh:
         base = yaml.safe_load(fh) or {}
     if not isinstance(base, Mapping):
         raise ValueError(f"{base_path}: simulator settings must be a YAML mapping")
+    merged = deep_merge(base, overrides)
+    try:
+        simulator_config_from_dict(dict(merged))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"simulator settings {base_path} + overrides {dict(overrides)}: {exc}") from exc
     os.makedirs(os.path.dirname(os.path.abspath(out_path)), exist_ok=True)
     with open(out_path, "w", encoding="utf-8") as fh:
         fh.write(f"# {os.path.basename(base_path)} with the experiment's overrides {dict(overrides)}\n")
-        yaml.safe_dump(deep_merge(base, overrides), fh, sort_keys=False)
+        yaml.safe_dump(merged, fh, sort_keys=False)
     return out_path
 
 
