@@ -7,12 +7,16 @@ Profiles (the issue's two aims):
   nav   - navigation sensors only: front camera 320x240 at 10 Hz, VLP-16 10 Hz, IMU, GPS
   none  - physics, IMU, GPS and odometry only
 
-The robot drives an arc through the farm's headland while the clock runs.
+Where the robot is (--places; the sensors' cost depends on it):
+  headland - from the spawn pose ("Home", world (-6.0, 1.0), facing the rows 8 m ahead) the robot
+             drives an arc (0.5 m/s, 0.15 rad/s) through the headland;
+  lane     - the robot is spawned inside lane 3 (world x = -6.83, y = 10.0, facing +y: a row of
+             plants 0.9 m to each side, 12 m of lane ahead) and drives straight along it at 0.5 m/s.
 Prints sim seconds, wall and CPU seconds, the real-time factor and ms per update of each sensor
 (wall, and process CPU summed over threads: on a loaded machine, NUMBA_NUM_THREADS=1 and the CPU
 figures are the load-independent measure of the work).
 
-  OMP_NUM_THREADS=2 python benchmarks/bench_sim.py [--profiles all,nav,none] [--seconds 5]
+  OMP_NUM_THREADS=2 python benchmarks/bench_sim.py [--profiles all,nav,none] [--places headland,lane] [--seconds 5]
 
 On a shared machine wall time is noisy; instruction counts are not. --callgrind
 switches callgrind's instrumentation on for the timed loop only (start-up and
@@ -22,6 +26,8 @@ warm-up excluded), so the count per simulated second can be read off:
       --profiles none --seconds 1 --callgrind        # "Collected : N" = instructions
 """
 import argparse
+import dataclasses
+import math
 import os
 import pathlib
 import platform
@@ -29,6 +35,8 @@ import subprocess
 import time
 
 from cottonsim_world.config_io import simulator_config_from_dict
+from cottonsim_world.farm.generator import generate_farm
+from cottonsim_world.farm.model import Pose2D
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.simulator import Simulator
 
@@ -45,14 +53,29 @@ PROFILES = {
 }
 
 
+PLACES = ("headland", "lane")
+LANE_INDEX, LANE_START_Y_M = 3, 10.0
+
+
+def _place(config, place: str):
+    """The farm with the robot spawned where ``place`` says, and the (v [m/s], w [rad/s]) it drives."""
+    farm = generate_farm(config.farm)
+    if place == "headland":
+        return farm, (0.5, 0.15)
+    lane = farm.lanes[LANE_INDEX]
+    return dataclasses.replace(farm, spawn=Pose2D(lane.x_m, LANE_START_Y_M, math.pi / 2)), (0.5, 0.0)
+
+
 def _callgrind(switch: str) -> None:
     """Turn callgrind's instrumentation of this process on or off (no-op outside valgrind)."""
     subprocess.run(["callgrind_control", "-i", switch, str(os.getpid())], stdout=subprocess.DEVNULL,
                    stderr=subprocess.DEVNULL, check=False)
 
 
-def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False):
-    sim = Simulator(simulator_config_from_dict(PROFILES[profile]), UrdfModel.from_file(URDF))
+def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, place: str = "headland"):
+    config = simulator_config_from_dict(PROFILES[profile])
+    farm, (v_m_s, w_rad_s) = _place(config, place)
+    sim = Simulator(config, UrdfModel.from_file(URDF), farm=farm)
     for cam in sim.cameras:
         sim.set_camera_cloud_wanted(cam, clouds and profile == "all")
     sim.step_for(0.2)                      # warm-up (first renders, JIT)
@@ -60,7 +83,7 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False):
         _callgrind("on")
     t0_sim, t0, c0 = sim.time_s, time.perf_counter(), time.process_time()
     while sim.time_s - t0_sim < seconds - 1e-9:
-        sim.command_velocity(0.5, 0.15)
+        sim.command_velocity(v_m_s, w_rad_s)
         sim.step()
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     if callgrind:
@@ -76,6 +99,7 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False):
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profiles", default="all,nav,none")
+    parser.add_argument("--places", default="headland,lane", help=f"where the robot drives, of {PLACES}")
     parser.add_argument("--seconds", type=float, default=5.0, help="sim seconds per profile")
     parser.add_argument("--no-clouds", action="store_true", help="skip the cameras' point clouds")
     parser.add_argument("--callgrind", action="store_true",
@@ -83,15 +107,22 @@ def main():
     args = parser.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; "
           f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
+    places = args.places.split(",")
+    for place in places:
+        if place not in PLACES:
+            parser.error(f"--places: unknown place {place!r}, known: {PLACES}")
     for profile in args.profiles.split(","):
-        sim_s, wall, cpu, timing, physics_ms, step_s = run(profile, args.seconds, not args.no_clouds,
-                                                            args.callgrind)
-        print(f"\n[{profile}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s): "
-              f"real-time factor {sim_s / wall:.2f} (cpu {sim_s / cpu:.2f})")
-        print(f"  physics step {physics_ms:.3f} ms (step {step_s * 1e3:.1f} ms)")
-        for name, (ms, cpu_ms) in timing.items():
-            print(f"  {name:22s} {ms:8.2f} ms per update (cpu {cpu_ms:.2f} ms)")
-
+        if profile not in PROFILES:
+            parser.error(f"--profiles: unknown profile {profile!r}, known: {sorted(PROFILES)}")
+    for place in places:
+        for profile in args.profiles.split(","):
+            sim_s, wall, cpu, timing, physics_ms, step_s = run(profile, args.seconds, not args.no_clouds,
+                                                                args.callgrind, place)
+            print(f"\n[{profile} @ {place}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s): "
+                  f"real-time factor {sim_s / wall:.2f} (cpu {sim_s / cpu:.2f})")
+            print(f"  physics step {physics_ms:.3f} ms (step {step_s * 1e3:.1f} ms)")
+            for name, (ms, cpu_ms) in timing.items():
+                print(f"  {name:22s} {ms:8.2f} ms per update (cpu {cpu_ms:.2f} ms)")
 
 if __name__ == "__main__":
     main()

@@ -17,8 +17,8 @@ needs it:
 
 ``TriangleGrid`` (LiDAR)
     All triangles in world coordinates (same global ids) binned into a
-    uniform 3-D grid of cubic cells (a triangle is listed in every cell its
-    axis-aligned bounding box touches), as compressed rows: the triangles
+    uniform 3-D grid of cubic cells (a triangle is listed in every cell it
+    meets, by a separating-axis test), as compressed rows: the triangles
     of cell c are ``items[offsets[c]:offsets[c + 1]]``. Rays walk the grid
     cell by cell (3-D DDA) and test only the triangles listed there.
 
@@ -397,15 +397,64 @@ BRICK = 4                       # fine cells per brick edge (a brick holds BRICK
 _BRICK_CELLS = BRICK ** 3
 
 
+_SAT_MARGIN = 1e-4              # relative growth of a cell in the overlap test (float32 corners, rounding)
+
+
+@njit(cache=True, inline="always")
+def _axis_separates(a0, a1, a2, q0, q1, q2, r0, r1, r2, half):  # pragma: no cover
+    """Whether axis a = (a0, a1, a2) separates the triangle q, r (corners relative to a cell's centre,
+    q = corner 0, r = the other two as rows) from the cube of half edge ``half`` centred at 0."""
+    p0 = a0 * q0 + a1 * q1 + a2 * q2
+    p1 = a0 * r0[0] + a1 * r1[0] + a2 * r2[0]
+    p2 = a0 * r0[1] + a1 * r1[1] + a2 * r2[1]
+    extent = half * (abs(a0) + abs(a1) + abs(a2))
+    return min(p0, p1, p2) > extent or max(p0, p1, p2) < -extent
+
+
+@njit(cache=True)
+def _triangle_meets_cell(tri, i, cx, cy, cz, half):  # pragma: no cover
+    """Separating-axis test of triangle i of tri (G, 3, 3) against the cube centred at (cx, cy, cz).
+
+    The triangle's box is known to meet the cube (the caller loops over the
+    cells of that box), so only the 9 edge-cross axes and the face normal
+    are tested (Akenine-Moeller's triangle-box overlap test). Conservative:
+    ``half`` is already grown by the caller's margin.
+    """
+    vx0, vy0, vz0 = tri[i, 0, 0] - cx, tri[i, 0, 1] - cy, tri[i, 0, 2] - cz
+    vx1, vy1, vz1 = tri[i, 1, 0] - cx, tri[i, 1, 1] - cy, tri[i, 1, 2] - cz
+    vx2, vy2, vz2 = tri[i, 2, 0] - cx, tri[i, 2, 1] - cy, tri[i, 2, 2] - cz
+    ex = (vx1 - vx0, vx2 - vx1, vx0 - vx2)
+    ey = (vy1 - vy0, vy2 - vy1, vy0 - vy2)
+    ez = (vz1 - vz0, vz2 - vz1, vz0 - vz2)
+    rx, ry, rz = (vx1, vx2), (vy1, vy2), (vz1, vz2)
+    for k in range(3):
+        # unit axis x cross edge k = (0, -ez, ey); y cross = (ez, 0, -ex); z cross = (-ey, ex, 0)
+        if _axis_separates(0.0, -ez[k], ey[k], vx0, vy0, vz0, rx, ry, rz, half):
+            return False
+        if _axis_separates(ez[k], 0.0, -ex[k], vx0, vy0, vz0, rx, ry, rz, half):
+            return False
+        if _axis_separates(-ey[k], ex[k], 0.0, vx0, vy0, vz0, rx, ry, rz, half):
+            return False
+    nx = ey[0] * ez[1] - ez[0] * ey[1]
+    ny = ez[0] * ex[1] - ex[0] * ez[1]
+    nz = ex[0] * ey[1] - ey[0] * ex[1]
+    return abs(nx * vx0 + ny * vy0 + nz * vz0) <= half * (abs(nx) + abs(ny) + abs(nz))
+
+
 @njit(cache=True)
 def _bin_triangles(tri, lo, cell_m, dims, bdims):  # pragma: no cover - compiled
-    """Bricked compressed-row lists of the triangles whose bounding box touches each cell.
+    """Bricked compressed-row lists of the triangles that meet each cell.
 
-    Returns brick_of (coarse cells,) int32 (brick id or -1 if empty),
-    offsets (bricks * BRICK**3 + 1,) int64 and items (N,) int32.
+    A triangle is listed in the cells of its bounding box that it really
+    meets (``_triangle_meets_cell`` against the cell grown by
+    ``_SAT_MARGIN``): a third fewer entries than listing the whole box,
+    and so fewer ray-triangle tests. Returns brick_of (coarse cells,)
+    int32 (brick id or -1 if empty), offsets (bricks * BRICK**3 + 1,)
+    int64 and items (N,) int32.
     """
     g = tri.shape[0]
     box = np.empty((g, 6), dtype=np.int64)
+    half = 0.5 * cell_m * (1.0 + _SAT_MARGIN)
     n_coarse = bdims[0] * bdims[1] * bdims[2]
     brick_of = np.full(n_coarse, -1, dtype=np.int32)
     for i in range(g):
@@ -414,35 +463,40 @@ def _bin_triangles(tri, lo, cell_m, dims, bdims):  # pragma: no cover - compiled
             mx = max(tri[i, 0, a], tri[i, 1, a], tri[i, 2, a])
             box[i, a] = min(max(int(math.floor((mn - lo[a]) / cell_m)), 0), dims[a] - 1)
             box[i, 3 + a] = min(max(int(math.floor((mx - lo[a]) / cell_m)), 0), dims[a] - 1)
-        for iz in range(box[i, 2] // BRICK, box[i, 5] // BRICK + 1):
-            for iy in range(box[i, 1] // BRICK, box[i, 4] // BRICK + 1):
-                for ix in range(box[i, 0] // BRICK, box[i, 3] // BRICK + 1):
-                    brick_of[(iz * bdims[1] + iy) * bdims[0] + ix] = 0
-    n_bricks = 0
-    for c in range(n_coarse):
-        if brick_of[c] == 0:
-            brick_of[c] = n_bricks
-            n_bricks += 1
-    counts = np.zeros(n_bricks * _BRICK_CELLS + 1, dtype=np.int64)
-    for i in range(g):
-        for iz in range(box[i, 2], box[i, 5] + 1):
-            for iy in range(box[i, 1], box[i, 4] + 1):
-                for ix in range(box[i, 0], box[i, 3] + 1):
-                    b = brick_of[((iz // BRICK) * bdims[1] + iy // BRICK) * bdims[0] + ix // BRICK]
-                    local = ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
-                    counts[b * _BRICK_CELLS + local + 1] += 1
-    offsets = np.cumsum(counts)
-    fill = offsets[:-1].copy()
-    items = np.empty(offsets[-1], dtype=np.int32)
-    for i in range(g):
-        for iz in range(box[i, 2], box[i, 5] + 1):
-            for iy in range(box[i, 1], box[i, 4] + 1):
-                for ix in range(box[i, 0], box[i, 3] + 1):
-                    b = brick_of[((iz // BRICK) * bdims[1] + iy // BRICK) * bdims[0] + ix // BRICK]
-                    c = b * _BRICK_CELLS + ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
-                    items[fill[c]] = i
-                    fill[c] += 1
-    return brick_of, offsets, items
+    # pass 0 marks the bricks in use, pass 1 counts the entries per cell, pass 2 fills them
+    counts = np.zeros(1, dtype=np.int64)
+    fill = np.zeros(1, dtype=np.int64)
+    items = np.empty(0, dtype=np.int32)
+    for stage in range(3):
+        for i in range(g):
+            for iz in range(box[i, 2], box[i, 5] + 1):
+                for iy in range(box[i, 1], box[i, 4] + 1):
+                    for ix in range(box[i, 0], box[i, 3] + 1):
+                        if not _triangle_meets_cell(tri, i, lo[0] + (ix + 0.5) * cell_m, lo[1] + (iy + 0.5) * cell_m,
+                                                    lo[2] + (iz + 0.5) * cell_m, half):
+                            continue
+                        coarse = ((iz // BRICK) * bdims[1] + iy // BRICK) * bdims[0] + ix // BRICK
+                        if stage == 0:
+                            brick_of[coarse] = 0
+                            continue
+                        c = brick_of[coarse] * _BRICK_CELLS + ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
+                        if stage == 1:
+                            counts[c + 1] += 1
+                        else:
+                            items[fill[c]] = i
+                            fill[c] += 1
+        if stage == 0:
+            n_bricks = 0
+            for c in range(n_coarse):
+                if brick_of[c] == 0:
+                    brick_of[c] = n_bricks
+                    n_bricks += 1
+            counts = np.zeros(n_bricks * _BRICK_CELLS + 1, dtype=np.int64)
+        elif stage == 1:
+            offsets = np.cumsum(counts)
+            fill = offsets[:-1].copy()
+            items = np.empty(offsets[-1], dtype=np.int32)
+    return brick_of, np.cumsum(counts), items
 
 
 class TriangleGrid:
