@@ -35,7 +35,7 @@ import numpy as np
 from cottonsim_world.estimation.odometry_ekf import FilteredOdometry, OdometryEkf, OdometryEkfConfig
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
-from cottonsim_world.farm.model import Farm
+from cottonsim_world.farm.model import Farm, Pose2D
 from cottonsim_world.geodesy import GpsNoiseConfig, GpsNoiseModel, HectorGeodesy
 from cottonsim_world.physics.husky_params import DriveLimits, HuskyParams
 from cottonsim_world.physics.imu_model import ImuConfig, ImuMeasurement, ImuModel
@@ -310,6 +310,18 @@ class Simulator:
         clamped = self.arm.command(positions_rad)
         self._arm_idle = False
         return clamped
+
+    def teleport_robot(self, x_m: float, y_m: float, yaw_rad: float) -> None:
+        """Move the robot (ground truth) to (x_m, y_m, yaw_rad) in the world frame, at rest: a kidnap.
+
+        The Husky is re-spawned there (wheels stopped, the last /cmd_vel forgotten); wheel odometry
+        and the EKF integrate wheel speeds only, so they do not see the jump. ValueError for a
+        non-finite pose.
+        """
+        pose = (x_m, y_m, yaw_rad)
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pose):
+            raise ValueError(f"teleport pose (x_m, y_m, yaw_rad) must be 3 finite numbers, got {pose!r}")
+        self.physics.spawn_robot(Pose2D(float(x_m), float(y_m), float(yaw_rad)))
 
     def set_sensor_active(self, name: str, active: bool) -> None:
         """Switch a sensor's updates on/off (e.g. nobody subscribes). Names: see ``sensor_names``."""
