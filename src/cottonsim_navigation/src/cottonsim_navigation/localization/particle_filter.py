@@ -265,6 +265,22 @@ class ParticleFilter:
     def n(self) -> int:
         return int(self.particles.shape[0])
 
+    def roughen(self, std_xy_m: float, std_yaw_rad: float) -> None:
+        """Add N(0, std) noise to every particle (x, y and yaw; weights kept).
+
+        Repeated filter updates on scans of a standing robot have no motion noise to keep the set
+        diverse: resampling would collapse it onto a few copies. A little jitter keeps it exploring.
+        """
+        for name, v in (("std_xy_m", std_xy_m), ("std_yaw_rad", std_yaw_rad)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if self.n == 0:
+            return
+        noise = self.rng.standard_normal((self.n, 3)) * np.array([std_xy_m, std_xy_m, std_yaw_rad])
+        parts = self.particles + noise
+        parts[:, 2] = normalize_angle(parts[:, 2])
+        self.particles = parts
+
     # --- measurement ---------------------------------------------------------------
     def update_weights(self, likelihood) -> float:
         """Multiply the weights by per-particle likelihoods (N,), renormalise; returns w_avg.

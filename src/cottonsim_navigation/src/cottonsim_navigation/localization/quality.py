@@ -28,6 +28,15 @@ then turns true and the caller should spread the particles again
 globally). This complements AMCL's random-particle recovery (alpha_slow /
 alpha_fast), which on a 1.8 m-periodic farm needs many updates to hit the true
 pose by chance.
+
+Standing still: AMCL updates only after the robot moved, but a kidnapped
+robot may stand (the navigator stops it while AMCL is not localised). The
+:class:`StationaryUpdatePolicy` asks for filter updates without motion, at
+most every ``stationary_update_period_s``: while localised when the scan does
+not fit the map at the current estimate (so a kidnap of a standing robot is
+noticed), and while re-localising after a kidnap (then the particles are
+roughened first, see ``ParticleFilter.roughen``, so repeated updates on the
+scans of a standing robot do not collapse the set).
 """
 from __future__ import annotations
 
@@ -52,7 +61,11 @@ class LocalizationQualityConfig:
     switch_after: consecutive filter updates that must agree before the state changes (>= 1, default 2);
     relocalize_after: consecutive tight-but-poor-fit updates that count as a kidnap (>= 0, 0 = never; default 3);
     relocalize_std_xy_m [m], relocalize_std_yaw_rad [rad]: spread of the particles re-drawn around the
-        estimate after a kidnap (defaults 2.0 m, 0.3 rad).
+        estimate after a kidnap (defaults 2.0 m, 0.3 rad);
+    stationary_update_period_s [s]: the shortest interval between filter updates asked for while the
+        robot stands (see StationaryUpdatePolicy); 0 = never (ROS amcl's behaviour); default 0.5;
+    roughen_std_xy_m [m], roughen_std_yaw_rad [rad]: jitter added to the particles before each such
+        update while re-localising (defaults 0.03 m, 0.01 rad).
     """
 
     max_std_xy_m: float = 0.15
@@ -63,6 +76,9 @@ class LocalizationQualityConfig:
     relocalize_after: int = 3
     relocalize_std_xy_m: float = 2.0
     relocalize_std_yaw_rad: float = 0.3
+    stationary_update_period_s: float = 0.5
+    roughen_std_xy_m: float = 0.03
+    roughen_std_yaw_rad: float = 0.01
 
     def __post_init__(self) -> None:
         for name in ("max_std_xy_m", "max_std_yaw_rad", "hit_distance_m", "relocalize_std_xy_m",
@@ -70,6 +86,10 @@ class LocalizationQualityConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        for name in ("stationary_update_period_s", "roughen_std_xy_m", "roughen_std_yaw_rad"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
         v = self.min_hit_fraction
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= 1.0):
             raise ValueError(f"min_hit_fraction must lie in [0, 1], got {v!r}")
@@ -177,3 +197,67 @@ class LocalizationMonitor:
                 self.localized = ok
                 self._streak = 0
         return self.localized
+
+
+def set_covariance(particles: np.ndarray, weights: Optional[np.ndarray] = None) -> np.ndarray:
+    """3x3 covariance (x, y, yaw) of the whole weighted set [m^2, rad^2]: the x-y block of all particles
+    (not only the heaviest cluster) and the circular yaw variance -2 ln R; cross terms with yaw are 0."""
+    p = np.asarray(particles, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] == 0:
+        raise ValueError(f"particles must be a non-empty (N, 3) array, got shape {p.shape}")
+    w = np.full(p.shape[0], 1.0 / p.shape[0]) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (p.shape[0],) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be N finite values >= 0 with a positive sum")
+    w = w / w.sum()
+    d = p[:, :2] - w @ p[:, :2]
+    cov = np.zeros((3, 3))
+    cov[:2, :2] = (d * w[:, None]).T @ d
+    r = math.hypot(float(w @ np.cos(p[:, 2])), float(w @ np.sin(p[:, 2])))
+    cov[2, 2] = -2.0 * math.log(r) if r > 1e-12 else math.pi ** 2
+    return cov
+
+
+class StationaryUpdatePolicy:
+    """When to run AMCL's filter although the robot has not moved (see the module docstring).
+
+    Call :meth:`decide` for every scan; it returns ``(update, roughen)``. ``relocalizing`` is set by
+    :meth:`start_relocalizing` (after a detected kidnap) and cleared once the monitor is localised again.
+    """
+
+    def __init__(self, config: LocalizationQualityConfig = LocalizationQualityConfig()) -> None:
+        if not isinstance(config, LocalizationQualityConfig):
+            raise ValueError(f"config must be a LocalizationQualityConfig, got {type(config).__name__}")
+        self.config = config
+        self.relocalizing = False
+        self._last_s: Optional[float] = None
+
+    def start_relocalizing(self) -> None:
+        self.relocalizing = True
+
+    def stop_relocalizing(self) -> None:
+        self.relocalizing = False
+
+    def due(self, now_s: float) -> bool:
+        """The period since the last asked-for update has passed (sim time [s]; a jump back resets it)."""
+        period = self.config.stationary_update_period_s
+        if period <= 0 or not math.isfinite(now_s):
+            return False
+        return self._last_s is None or now_s < self._last_s or now_s - self._last_s >= period
+
+    def decide(self, now_s: float, localized: bool, hit_fraction_now: Optional[float] = None):
+        """(update, roughen) for this scan.
+
+        localized: the monitor's verdict; hit_fraction_now: the scan fit at the current estimate (only
+        needed while localised; None = not computed, no update).
+        """
+        if localized:
+            self.relocalizing = False
+        if not self.due(now_s):
+            return False, False
+        if self.relocalizing:
+            self._last_s = now_s
+            return True, True
+        if localized and hit_fraction_now is not None and hit_fraction_now < self.config.min_hit_fraction:
+            self._last_s = now_s
+            return True, False
+        return False, False

@@ -7,6 +7,7 @@ messages and TF to the cores' types and back. The laser scan helper
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 from typing import Dict, Optional, Tuple
@@ -21,16 +22,19 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Bool
 from std_srvs.srv import Empty, EmptyResponse
 
-from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
+from cottonsim_navigation.core.geometry import Pose2D, compose, yaw_to_quaternion
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
+from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
-                                                       particle_spread, scan_hit_fraction)
+                                                       StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
+                                                       set_covariance)
 from cottonsim_navigation.localization.sensor_models import Scan
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 from cottonsim_world.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
 
+FREE_SPACE_MODES = ("off", "relocalizing", "always")
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
 
@@ -100,7 +104,9 @@ class AmclNode:
       initialpose       geometry_msgs/PoseWithCovarianceStamped  re-initialise (rviz "2D Pose Estimate");
           covariance entries [0], [7], [35] (zero -> the configured initial covariance)
     Publications
-      amcl_pose         geometry_msgs/PoseWithCovarianceStamped  after each filter update (frame map)
+      amcl_pose         geometry_msgs/PoseWithCovarianceStamped  after each filter update (frame map); while
+          not localised its x-y / yaw covariance is (at least) that of the whole particle set, so a re-spread
+          filter never reports a tight pose
       particlecloud     geometry_msgs/PoseArray  after each filter update
       ~localized        std_msgs/Bool (latched)  true while the particle set is tight and the scan fits the
           map at the estimate (see localization/quality.py); false after (re)initialisation, a kidnap, or
@@ -120,7 +126,14 @@ class AmclNode:
       ~localized_max_std_yaw_rad 0.1, ~localized_hit_distance_m 0.2, ~localized_min_hit_fraction 0.6,
       ~localized_switch_after 2, ~localized_relocalize_after 3 (0 = off), ~localized_relocalize_std_xy_m 2.0,
       ~localized_relocalize_std_yaw_rad 0.3: after that many updates with a tight set but a poor scan fit
-      (a kidnap) the particles are re-drawn around the estimate with that spread);
+      (a kidnap) the particles are re-drawn around the estimate with that spread;
+      ~localized_stationary_update_period_s 0.5 (0 = off): filter updates without motion at most this often,
+      while localised with a poor scan fit at the estimate (a standing robot's kidnap) and while re-localising
+      after a kidnap, then with jitter ~localized_roughen_std_xy_m 0.03, ~localized_roughen_std_yaw_rad 0.01);
+      ~free_space_mode ("relocalizing"): the free-space check of the beams (localization/free_space_model.py)
+      "off", "relocalizing" (only while not localised) or "always"; FreeSpaceConfig fields with prefix
+      ~free_space_ (~free_space_tolerance_m 0.2, ~free_space_check_length_m 1.0,
+      ~free_space_sample_spacing_m 0.1, ~free_space_decay_length_m 1.0);
       ~scan_topic (/scan_360), ~use_map_topic (true), ~first_map_only (false), ~transform_tolerance (1.0 s),
       ~tf_broadcast (true), ~global_frame_id (map), ~odom_frame_id (odom), ~base_frame_id (base_link),
       ~seed (-1 = random).
@@ -139,6 +152,10 @@ class AmclNode:
                 overrides[field] = typed_param(ros_name, 0.0)
         self.config = config_from_params(AmclConfig, overrides=overrides)
         self.quality_config = config_from_params(LocalizationQualityConfig, prefix="~localized_")
+        self.free_space_mode = typed_param("~free_space_mode", "relocalizing")
+        if self.free_space_mode not in FREE_SPACE_MODES:
+            raise ValueError(f"~free_space_mode must be one of {FREE_SPACE_MODES}, got {self.free_space_mode!r}")
+        self.free_space_config = config_from_params(FreeSpaceConfig, prefix="~free_space_")
         self.scan_topic = typed_param("~scan_topic", "/scan_360")
         self.use_map_topic = typed_param("~use_map_topic", True)
         self.first_map_only = typed_param("~first_map_only", False)
@@ -152,6 +169,7 @@ class AmclNode:
 
         self.amcl = Amcl(self.config, rng)
         self.monitor = LocalizationMonitor(self.quality_config)
+        self.stationary = StationaryUpdatePolicy(self.quality_config)
         self._lock = threading.Lock()
         self._have_map = False
         self._last_tf_stamp: Optional[rospy.Time] = None
@@ -197,6 +215,9 @@ class AmclNode:
             return
         with self._lock:
             self.amcl.set_map(grid, spec)
+            if self.free_space_mode != "off":
+                self.amcl.field = FreeSpaceCheckedField(self.amcl.field, self.free_space_config)
+            self.stationary.stop_relocalizing()
             # a new map invalidates the particles: start again from the configured initial pose
             self.amcl.initialise(self.config.initial_pose)
             self.monitor.reset()
@@ -230,6 +251,7 @@ class AmclNode:
                 return
             self.amcl.initialise(pose, cov)
             self.monitor.reset()
+            self.stationary.stop_relocalizing()
         self.localized_pub.publish(Bool(data=False))
         rospy.loginfo("amcl: re-initialised at (%.2f, %.2f, %.2f)", *pose)
 
@@ -238,6 +260,7 @@ class AmclNode:
             if self._have_map:
                 self.amcl.global_localization()
                 self.monitor.reset()
+                self.stationary.start_relocalizing()    # may be standing: update without motion too
                 rospy.loginfo("amcl: global localisation, %d particles over the free space", self.amcl.filter.n)
             else:
                 rospy.logwarn("amcl: global_localization before a map; nothing done")
@@ -260,6 +283,7 @@ class AmclNode:
         if odom is None:
             return
         with self._lock:
+            self._before_update(msg.header.stamp.to_sec(), odom, scan)
             result = self.amcl.update(odom, scan)
             if result.updated:
                 std_xy, std_yaw = particle_spread(self.amcl.particles, self.amcl.filter.weights)
@@ -273,8 +297,16 @@ class AmclNode:
                     self.amcl.initialise((pose.x_m, pose.y_m, pose.yaw_rad),
                                          self.quality_config.relocalize_covariance())
                     self.monitor.reset()
+                    self.stationary.start_relocalizing()
                     now = False
                 particles = self.amcl.particles.copy()
+                if not now:        # not localised: report the spread of the whole set, not of one cluster
+                    whole = set_covariance(particles, None if kidnapped else self.amcl.filter.weights)
+                    cov = result.covariance.copy()
+                    if np.trace(whole[:2, :2]) > np.trace(cov[:2, :2]):
+                        cov[:2, :2] = whole[:2, :2]
+                    cov[2, 2] = max(cov[2, 2], whole[2, 2])
+                    result = dataclasses.replace(result, covariance=cov)
             self._map_to_odom = result.map_to_odom
         stamp = msg.header.stamp
         if result.updated:
@@ -293,6 +325,26 @@ class AmclNode:
                               "localised" if now else "NOT localised", std_xy, std_yaw, hits)
                 self.localized_pub.publish(Bool(data=now))
         self._publish_tf(stamp)
+
+    def _before_update(self, now_s: float, odom: Pose2D, scan: Scan) -> None:
+        """Free-space check on/off; a filter update without motion when the stationary policy asks."""
+        field = self.amcl.field
+        if isinstance(field, FreeSpaceCheckedField):
+            field.enabled = self.free_space_mode == "always" or not self.monitor.localized
+        hits = None
+        if self.monitor.localized and self._map_to_odom is not None and self.stationary.due(now_s):
+            here = compose(self._map_to_odom, odom)
+            hits = scan_hit_fraction(field, (here.x_m, here.y_m, here.yaw_rad), scan,
+                                     self.quality_config.hit_distance_m)
+        update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits)
+        if roughen:
+            self.amcl.filter.roughen(self.quality_config.roughen_std_xy_m, self.quality_config.roughen_std_yaw_rad)
+        if update:
+            if hits is not None:
+                rospy.loginfo_throttle(5.0, "amcl: the scan fits the map poorly at the estimate (%.2f < %.2f); "
+                                            "updating although the robot stands" %
+                                       (hits, self.quality_config.min_hit_fraction))
+            self.amcl.request_update()
 
     def _publish_pose(self, result, stamp):
         out = PoseWithCovarianceStamped()
