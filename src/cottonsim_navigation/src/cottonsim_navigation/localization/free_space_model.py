@@ -157,6 +157,25 @@ class FreeSpaceCheckedField:
                                     c.sample_spacing_m, c.n_samples, c.far_sample_spacing_m, c.max_crossed_m,
                                     c.decay_length_m)
 
+    def crossed_lengths(self, pose, scan: Scan) -> np.ndarray:
+        """Crossed obstacle length [m] (capped at max_crossed_m) of each beam the field uses, robot at
+        ``pose`` (x_m, y_m, yaw_rad); same order as ``select_beams``."""
+        p = np.asarray(pose, dtype=float).reshape(1, 3)
+        pts = self.field.select_beams(scan)
+        lx, ly, _ = scan.laser_pose
+        c = self.free_space_config
+        spec = self.field.spec
+        out = np.zeros(pts.shape[0])
+        for j, (vx, vy) in enumerate(pts - np.array([lx, ly])):
+            r = math.hypot(vx, vy)
+            if r <= 1e-9:
+                continue
+            out[j] = -_crossed_log_factors(p, float(lx), float(ly), np.array([vx / r]), np.array([vy / r]),
+                                           np.array([r]), self._occupied, spec.origin_x_m, spec.origin_y_m,
+                                           spec.resolution_m, c.tolerance_m, c.sample_spacing_m, c.n_samples,
+                                           c.far_sample_spacing_m, c.max_crossed_m, 1.0)[0]
+        return out
+
     def weights(self, particles: np.ndarray, scan: Scan) -> np.ndarray:
         """The wrapped field's weights, times exp(crossed_log_factors) while ``enabled``."""
         w = self.field.weights(particles, scan)

@@ -127,13 +127,15 @@ class AmclNode:
       ~localized_switch_after 2, ~localized_relocalize_after 3 (0 = off), ~localized_relocalize_std_xy_m 2.0,
       ~localized_relocalize_std_yaw_rad 0.3: after that many updates with a tight set but a poor scan fit
       (a kidnap) the particles are re-drawn around the estimate with that spread;
-      ~localized_stationary_update_period_s 0.5 (0 = off): filter updates without motion at most this often,
+      ~localized_max_crossed_m 0.5 (with the free-space check a beam crossing that much mapped obstacle is a
+      miss of the scan fit); ~localized_stationary_update_period_s 0.5 (0 = off): filter updates without motion at most this often,
       while localised with a poor scan fit at the estimate (a standing robot's kidnap) and while re-localising
       after a kidnap, then with jitter ~localized_roughen_std_xy_m 0.03, ~localized_roughen_std_yaw_rad 0.01);
       ~free_space_mode ("relocalizing"): the free-space check of the beams (localization/free_space_model.py)
       "off", "relocalizing" (only while not localised) or "always"; FreeSpaceConfig fields with prefix
       ~free_space_ (~free_space_tolerance_m 0.2, ~free_space_check_length_m 1.0,
-      ~free_space_sample_spacing_m 0.1, ~free_space_decay_length_m 1.0);
+      ~free_space_sample_spacing_m 0.1, ~free_space_far_sample_spacing_m 0.35, ~free_space_max_crossed_m 1.0,
+      ~free_space_decay_length_m 1.0);
       ~scan_topic (/scan_360), ~use_map_topic (true), ~first_map_only (false), ~transform_tolerance (1.0 s),
       ~tf_broadcast (true), ~global_frame_id (map), ~odom_frame_id (odom), ~base_frame_id (base_link),
       ~seed (-1 = random).
@@ -289,7 +291,7 @@ class AmclNode:
                 std_xy, std_yaw = particle_spread(self.amcl.particles, self.amcl.filter.weights)
                 pose = result.pose
                 hits = scan_hit_fraction(self.amcl.field, (pose.x_m, pose.y_m, pose.yaw_rad), scan,
-                                         self.quality_config.hit_distance_m)
+                                         self.quality_config.hit_distance_m, self.quality_config.max_crossed_m)
                 was = self.monitor.localized
                 now = self.monitor.update(std_xy, std_yaw, hits)
                 kidnapped = self.monitor.kidnapped
@@ -335,7 +337,8 @@ class AmclNode:
         if self.monitor.localized and self._map_to_odom is not None and self.stationary.due(now_s):
             here = compose(self._map_to_odom, odom)
             hits = scan_hit_fraction(field, (here.x_m, here.y_m, here.yaw_rad), scan,
-                                     self.quality_config.hit_distance_m)
+                                     self.quality_config.hit_distance_m,
+                                     self.quality_config.max_crossed_m)
         update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits)
         if roughen:
             self.amcl.filter.roughen(self.quality_config.roughen_std_xy_m, self.quality_config.roughen_std_yaw_rad)

@@ -103,3 +103,16 @@ def test_request_update_runs_the_filter_without_motion():
     amcl.request_update()
     assert amcl.update((0.0, 0.0, 0.0), scan).updated
     assert not amcl.update((0.0, 0.0, 0.0), scan).updated
+
+
+def test_scan_fit_counts_beams_through_the_hedge_as_misses():
+    from cottonsim_navigation.localization.quality import scan_hit_fraction
+    spec, occ = hedge_map()
+    field = FreeSpaceCheckedField(LikelihoodField(occ, spec))
+    scan = Scan(np.full(5, 2.0), np.linspace(-0.1, 0.1, 5))     # beams end on the hedge's face
+    # 0.6 m further ahead the end points lie inside the hedge: the likelihood field calls them hits ...
+    assert scan_hit_fraction(field, (0.6, 0.0, 0.0), scan, 0.2) == pytest.approx(1.0)
+    # ... but each beam would have crossed ~0.4 m of hedge (points 2.35 .. 2.05 m): misses
+    assert np.all(field.crossed_lengths((0.6, 0.0, 0.0), scan) == pytest.approx(0.4))
+    assert scan_hit_fraction(field, (0.6, 0.0, 0.0), scan, 0.2, max_crossed_m=0.3) == pytest.approx(0.0)
+    assert scan_hit_fraction(field, (0.0, 0.0, 0.0), scan, 0.2, max_crossed_m=0.3) == pytest.approx(1.0)
