@@ -102,7 +102,9 @@ class AmclNode:
           original's /scan (+/-45 deg) is too narrow along crop rows (AMCL stalls at ~0.26 m error)
       map               nav_msgs/OccupancyGrid  latched (when ~use_map_topic); else service static_map
       initialpose       geometry_msgs/PoseWithCovarianceStamped  re-initialise (rviz "2D Pose Estimate");
-          covariance entries [0], [7], [35] (zero -> the configured initial covariance)
+          covariance entries [0], [7], [35] (zero -> the configured initial covariance); the filter then
+          updates without motion too (stationary policy) until localised, so a robot held by a paused
+          navigator can be re-localised by hand
     Publications
       amcl_pose         geometry_msgs/PoseWithCovarianceStamped  after each filter update (frame map); while
           not localised its x-y / yaw covariance is (at least) that of the whole particle set, so a re-spread
@@ -253,7 +255,7 @@ class AmclNode:
                 return
             self.amcl.initialise(pose, cov)
             self.monitor.reset()
-            self.stationary.stop_relocalizing()
+            self.stationary.start_relocalizing()    # the robot may stand (a paused navigator): update anyway
         self.localized_pub.publish(Bool(data=False))
         rospy.loginfo("amcl: re-initialised at (%.2f, %.2f, %.2f)", *pose)
 
