@@ -61,7 +61,13 @@ class LocalizationQualityConfig:
     switch_after: consecutive filter updates that must agree before the state changes (>= 1, default 2);
     relocalize_after: consecutive tight-but-poor-fit updates that count as a kidnap (>= 0, 0 = never; default 3);
     relocalize_std_xy_m [m], relocalize_std_yaw_rad [rad]: spread of the particles re-drawn around the
-        estimate after a kidnap (defaults 2.0 m, 0.3 rad);
+        estimate after a kidnap (defaults 2.0 m, 0.3 rad); relocalize_std_xy_m is the spread along the
+        estimate's heading;
+    relocalize_std_across_m [m]: the spread across the estimate's heading; 0 (default) = the same as
+        relocalize_std_xy_m (a round spread). In a row crop farm driven along the rows, a smaller value keeps
+        the re-drawn set in the lane it was in: the lanes (1.8 m apart) look alike to the laser, so a
+        round 2 m spread lets the standing filter settle on a neighbouring lane (a kidnap across the rows
+        is not recoverable from the scan either way; see docs/map_experiment.md, "Kidnap");
     max_crossed_m [m]: with the free-space check, a beam that crosses this much mapped obstacle on its way
         is a miss too (default 0.5; measured in front of the rows: ~10-15 % of the true pose's beams,
         50-70 % of a pose 3 m closer to the rows);
@@ -79,6 +85,7 @@ class LocalizationQualityConfig:
     relocalize_after: int = 3
     relocalize_std_xy_m: float = 2.0
     relocalize_std_yaw_rad: float = 0.3
+    relocalize_std_across_m: float = 0.0
     max_crossed_m: float = 0.5
     stationary_update_period_s: float = 0.5
     roughen_std_xy_m: float = 0.03
@@ -90,7 +97,8 @@ class LocalizationQualityConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        for name in ("stationary_update_period_s", "roughen_std_xy_m", "roughen_std_yaw_rad"):
+        for name in ("stationary_update_period_s", "roughen_std_xy_m", "roughen_std_yaw_rad",
+                     "relocalize_std_across_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -103,10 +111,19 @@ class LocalizationQualityConfig:
                 or self.relocalize_after < 0:
             raise ValueError(f"relocalize_after must be an integer >= 0, got {self.relocalize_after!r}")
 
-    def relocalize_covariance(self) -> np.ndarray:
-        """3x3 covariance (x, y, yaw) of the re-spread after a kidnap [m^2, rad^2]."""
-        return np.diag([self.relocalize_std_xy_m ** 2, self.relocalize_std_xy_m ** 2,
-                        self.relocalize_std_yaw_rad ** 2])
+    def relocalize_covariance(self, yaw_rad: float = 0.0) -> np.ndarray:
+        """3x3 covariance (x, y, yaw) of the re-spread after a kidnap [m^2, rad^2], the estimate's heading
+        being ``yaw_rad``: relocalize_std_xy_m along it, relocalize_std_across_m (0: the same) across it."""
+        if isinstance(yaw_rad, bool) or not isinstance(yaw_rad, (int, float)) or not math.isfinite(yaw_rad):
+            raise ValueError(f"yaw_rad must be a finite number, got {yaw_rad!r}")
+        along = self.relocalize_std_xy_m
+        across = self.relocalize_std_across_m if self.relocalize_std_across_m > 0 else along
+        c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+        rot = np.array([[c, -s], [s, c]])
+        cov = np.zeros((3, 3))
+        cov[:2, :2] = rot @ np.diag([along ** 2, across ** 2]) @ rot.T
+        cov[2, 2] = self.relocalize_std_yaw_rad ** 2
+        return cov
 
 
 def particle_spread(particles: np.ndarray, weights: Optional[np.ndarray] = None):
@@ -184,6 +201,11 @@ class LocalizationMonitor:
         self._poor_fit_streak = 0
 
     @property
+    def suspect(self) -> bool:
+        """The last update had a tight set with a poor scan fit (a kidnap may be building up)."""
+        return self._poor_fit_streak > 0
+
+    @property
     def kidnapped(self) -> bool:
         """The set has been tight with a poor scan fit for ``relocalize_after`` updates (see module doc)."""
         n = self.config.relocalize_after
@@ -257,11 +279,14 @@ class StationaryUpdatePolicy:
             return False
         return self._last_s is None or now_s < self._last_s or now_s - self._last_s >= period
 
-    def decide(self, now_s: float, localized: bool, hit_fraction_now: Optional[float] = None):
+    def decide(self, now_s: float, localized: bool, hit_fraction_now: Optional[float] = None,
+               suspect: bool = False):
         """(update, roughen) for this scan.
 
         localized: the monitor's verdict; hit_fraction_now: the scan fit at the current estimate (only
-        needed while localised; None = not computed, no update).
+        needed while localised; None = not computed, no update); suspect: the monitor suspects a kidnap
+        (:attr:`LocalizationMonitor.suspect`): updates go on although the verdict already turned "not
+        localised", until the kidnap is confirmed (and the set re-spread) or the fit recovers.
         """
         if localized:
             self.relocalizing = False
@@ -271,6 +296,9 @@ class StationaryUpdatePolicy:
             self._last_s = now_s
             return True, True
         if localized and hit_fraction_now is not None and hit_fraction_now < self.config.min_hit_fraction:
+            self._last_s = now_s
+            return True, False
+        if suspect and not localized:
             self._last_s = now_s
             return True, False
         return False, False

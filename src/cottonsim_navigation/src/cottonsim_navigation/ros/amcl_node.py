@@ -127,8 +127,10 @@ class AmclNode:
       LocalizationQualityConfig fields with prefix ~localized_ (~localized_max_std_xy_m 0.15,
       ~localized_max_std_yaw_rad 0.1, ~localized_hit_distance_m 0.2, ~localized_min_hit_fraction 0.6,
       ~localized_switch_after 2, ~localized_relocalize_after 3 (0 = off), ~localized_relocalize_std_xy_m 2.0,
-      ~localized_relocalize_std_yaw_rad 0.3: after that many updates with a tight set but a poor scan fit
-      (a kidnap) the particles are re-drawn around the estimate with that spread;
+      ~localized_relocalize_std_yaw_rad 0.3, ~localized_relocalize_std_across_m 0 (= round): after that many
+      updates with a tight set but a poor scan fit (a kidnap) the particles are re-drawn around the estimate
+      with that spread (std_xy along the estimate's heading, std_across across it); while such a kidnap is
+      suspected the standing robot's scans keep being used;
       ~localized_max_crossed_m 0.5 (with the free-space check a beam crossing that much mapped obstacle is a
       miss of the scan fit); ~localized_stationary_update_period_s 0.5 (0 = off): filter updates without motion at most this often,
       while localised with a poor scan fit at the estimate (a standing robot's kidnap) and while re-localising
@@ -299,7 +301,7 @@ class AmclNode:
                 kidnapped = self.monitor.kidnapped
                 if kidnapped:      # confidently wrong: spread the particles around the estimate again
                     self.amcl.initialise((pose.x_m, pose.y_m, pose.yaw_rad),
-                                         self.quality_config.relocalize_covariance())
+                                         self.quality_config.relocalize_covariance(pose.yaw_rad))
                     self.monitor.reset()
                     self.stationary.start_relocalizing()
                     now = False
@@ -320,10 +322,12 @@ class AmclNode:
                                         "scan fit %.2f" % (result.pose.x_m, result.pose.y_m, result.pose.yaw_rad,
                                                            result.n_particles, std_xy, std_yaw, hits))
             if kidnapped:
+                q = self.quality_config
                 rospy.logwarn("amcl: the scan has not fitted the map for %d updates although the particles "
-                              "agree: kidnapped? Re-spreading them around (%.2f, %.2f) (std %.1f m, %.2f rad)",
-                              self.quality_config.relocalize_after, result.pose.x_m, result.pose.y_m,
-                              self.quality_config.relocalize_std_xy_m, self.quality_config.relocalize_std_yaw_rad)
+                              "agree: kidnapped? Re-spreading them around (%.2f, %.2f) (std %.1f m along, %.1f m "
+                              "across the heading, %.2f rad)", q.relocalize_after, result.pose.x_m,
+                              result.pose.y_m, q.relocalize_std_xy_m,
+                              q.relocalize_std_across_m or q.relocalize_std_xy_m, q.relocalize_std_yaw_rad)
             if now != was:
                 rospy.loginfo("amcl: %s (spread %.3f m, %.3f rad, scan fit %.2f)",
                               "localised" if now else "NOT localised", std_xy, std_yaw, hits)
@@ -341,7 +345,7 @@ class AmclNode:
             hits = scan_hit_fraction(field, (here.x_m, here.y_m, here.yaw_rad), scan,
                                      self.quality_config.hit_distance_m,
                                      self.quality_config.max_crossed_m)
-        update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits)
+        update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits, self.monitor.suspect)
         if roughen:
             self.amcl.filter.roughen(self.quality_config.roughen_std_xy_m, self.quality_config.roughen_std_yaw_rad)
         if update:

@@ -45,7 +45,7 @@ def test_monitor_hysteresis_and_kidnap():
     assert mon.update(0.05, 0.02, 0.1) is True           # one poor fit: still localised
     assert not mon.kidnapped
     assert mon.update(0.05, 0.02, 0.1) is False          # two: not localised
-    assert not mon.kidnapped
+    assert not mon.kidnapped and mon.suspect              # ... and a kidnap is suspected
     mon.update(0.05, 0.02, 0.1)
     assert mon.kidnapped                                  # tight but wrong three times
     mon.reset()
@@ -98,6 +98,31 @@ def test_stationary_policy_asks_for_updates_only_when_needed():
     # a clock jump back (sim restarted) does not block the updates
     pol.start_relocalizing()
     assert pol.decide(0.1, False) == (True, True)
+    # not localised any more but a kidnap is suspected (tight set, poor fit): updates go on (no jitter) so
+    # that the standing robot's kidnap is confirmed
+    sus = StationaryUpdatePolicy(LocalizationQualityConfig(stationary_update_period_s=0.5))
+    assert sus.decide(7.0, False, None, suspect=True) == (True, False)
+    assert sus.decide(7.2, False, None, suspect=True) == (False, False)
+    assert sus.decide(7.6, False, None, suspect=False) == (False, False)
     off = StationaryUpdatePolicy(LocalizationQualityConfig(stationary_update_period_s=0.0))
     off.start_relocalizing()
     assert off.decide(10.0, False) == (False, False)
+
+
+def test_relocalize_covariance_along_and_across_the_heading():
+    cfg = LocalizationQualityConfig(relocalize_std_xy_m=2.0, relocalize_std_across_m=0.5, relocalize_std_yaw_rad=0.3)
+    # heading along +x: x is "along" (2 m), y "across" (0.5 m)
+    assert np.allclose(cfg.relocalize_covariance(0.0), np.diag([4.0, 0.25, 0.09]))
+    # heading along +y: swapped
+    assert np.allclose(cfg.relocalize_covariance(math.pi / 2), np.diag([0.25, 4.0, 0.09]))
+    # 45 deg: variance along the heading direction u is u^T C u = 4, across 0.25
+    c = cfg.relocalize_covariance(math.pi / 4)[:2, :2]
+    u, v = np.array([1.0, 1.0]) / math.sqrt(2), np.array([-1.0, 1.0]) / math.sqrt(2)
+    assert u @ c @ u == pytest.approx(4.0) and v @ c @ v == pytest.approx(0.25)
+    # 0 = round (the old behaviour), whatever the heading
+    assert np.allclose(LocalizationQualityConfig(relocalize_std_xy_m=2.0).relocalize_covariance(1.0)[:2, :2],
+                       4.0 * np.eye(2))
+    with pytest.raises(ValueError, match="relocalize_std_across_m"):
+        LocalizationQualityConfig(relocalize_std_across_m=-1.0)
+    with pytest.raises(ValueError, match="yaw_rad"):
+        cfg.relocalize_covariance(float("nan"))
