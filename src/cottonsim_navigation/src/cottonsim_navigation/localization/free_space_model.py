@@ -21,7 +21,7 @@ beams.
 The last ``check_length_m`` (1 m) before ``range - tolerance_m`` is checked
 at points ``sample_spacing_m`` (0.1 m) apart: that is where the pose one pitch
 off crosses the first plant. The rest of the beam back to the sensor is
-checked coarsely (``far_sample_spacing_m``, 0.35 m): a pose metres off (a
+checked coarsely (``far_sample_spacing_m``, 0.5 m): a pose metres off (a
 kidnap towards the rows) would see through whole rows. A beam counts at most
 ``max_crossed_m`` (1 m), so where the lidar sees between the stems at the
 truth too, one beam cannot veto a pose.
@@ -52,7 +52,7 @@ class FreeSpaceConfig:
         crossed obstacle counts per beam (one bad beam cannot veto a pose);
     sample_spacing_m [m]: distance between the checked points on that stretch; default 0.1;
     far_sample_spacing_m [m]: spacing of the checked points on the rest of the beam, back to the sensor
-        (coarse: sees a pose metres off whose beams would cross whole rows); 0 = not checked; default 0.35;
+        (coarse: sees a pose metres off whose beams would cross whole rows); 0 = not checked; default 0.5 (0.35: ~1.4x the CPU time);
     max_crossed_m [m]: crossed length counted per beam at most (one bad beam cannot veto a pose); default 1.0;
     decay_length_m [m]: crossed obstacle length that lowers a beam's likelihood by a factor e; default 1.0.
     """
@@ -60,7 +60,7 @@ class FreeSpaceConfig:
     tolerance_m: float = 0.2
     check_length_m: float = 1.0
     sample_spacing_m: float = 0.1
-    far_sample_spacing_m: float = 0.35
+    far_sample_spacing_m: float = 0.5
     max_crossed_m: float = 1.0
     decay_length_m: float = 1.0
 
@@ -97,18 +97,29 @@ def _crossed_log_factors(particles, lx, ly, beam_c, beam_s, beam_r, occupied, ox
             dc = c * beam_c[j] - s * beam_s[j]
             ds = s * beam_c[j] + c * beam_s[j]
             t = beam_r[j] - tolerance - 0.5 * spacing
+            # the sample point in cell units, stepped back towards the sensor incrementally
+            gx = (x0 + t * dc - ox) * inv
+            gy = (y0 + t * ds - oy) * inv
             crossed = 0.0
             k = 0
+            step = spacing
+            sx = spacing * dc * inv
+            sy = spacing * ds * inv
             while t > 0.0 and crossed < max_crossed:
-                near = k < n_samples
-                if not near and far_spacing <= 0.0:
-                    break
-                mx = int(math.floor((x0 + t * dc - ox) * inv))
-                my = int(math.floor((y0 + t * ds - oy) * inv))
-                step = spacing if near else far_spacing
-                if 0 <= mx < w and 0 <= my < h and occupied[my, mx]:
-                    crossed += step
+                if k == n_samples:
+                    if far_spacing <= 0.0:
+                        break
+                    step = far_spacing
+                    sx = far_spacing * dc * inv
+                    sy = far_spacing * ds * inv
+                if gx >= 0.0 and gy >= 0.0:          # int() truncates: the floor for these
+                    mx = int(gx)
+                    my = int(gy)
+                    if mx < w and my < h and occupied[my, mx]:
+                        crossed += step
                 t -= step
+                gx -= sx
+                gy -= sy
                 k += 1
             total += min(crossed, max_crossed)
         out[i] = -total / decay

@@ -138,7 +138,7 @@ class AmclNode:
       ~free_space_mode ("relocalizing"): the free-space check of the beams (localization/free_space_model.py)
       "off", "relocalizing" (only while not localised) or "always"; FreeSpaceConfig fields with prefix
       ~free_space_ (~free_space_tolerance_m 0.2, ~free_space_check_length_m 1.0,
-      ~free_space_sample_spacing_m 0.1, ~free_space_far_sample_spacing_m 0.35, ~free_space_max_crossed_m 1.0,
+      ~free_space_sample_spacing_m 0.1, ~free_space_far_sample_spacing_m 0.5, ~free_space_max_crossed_m 1.0,
       ~free_space_decay_length_m 1.0);
       ~scan_topic (/scan_360), ~use_map_topic (true), ~first_map_only (false), ~transform_tolerance (1.0 s),
       ~tf_broadcast (true), ~global_frame_id (map), ~odom_frame_id (odom), ~base_frame_id (base_link),
