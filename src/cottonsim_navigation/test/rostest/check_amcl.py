@@ -2,13 +2,15 @@
 """rostest node for amcl: convergence from a 0.5 m initial error, the ~localized signal, kidnap recovery.
 
 The kidnap (param ~kidnap, default true) is a real one: the simulator's /sim/set_robot_pose service carries
-the standing robot 3 m forward, from the open field 2.95 m before the rows to the entry of its lane; odometry
-does not see it. AMCL must notice on its own (the robot stands: ~localized false within 15 s of sim time),
+the standing robot 3 m forward, from the open field 4.95 m before the rows (the spawn) to 1.95 m before them;
+odometry does not see it. AMCL must notice on its own (the robot stands: ~localized false within 15 s of sim time),
 never publish a tight /amcl_pose far from the truth meanwhile, and re-localise within 0.15 m while the robot
-turns on the spot. Why this kidnap: it is observable (the row ends beside the robot fix the position along
-the lane; the lane is kept by the re-spread's small spread across the heading, amcl_farm.yaml). A kidnap
-3 m back (away from the rows) leaves a scan that sees almost nothing (5.95 m before the rows), one across
-the rows is ambiguous (the lanes look alike): see docs/map_experiment.md, "Kidnap".
+turns on the spot. Why this kidnap: it is observable: the row ends in front of the robot fix its distance to the
+rows both ways (a pose further back puts their end points into the open field, one closer would see through
+the first plants: the free-space check), the lane is kept by the re-spread's small spread across the
+heading (amcl_farm.yaml). A kidnap away from the rows into the open field leaves a scan that sees almost
+nothing, one along a lane changes nothing the laser sees, one across the rows is ambiguous (the lanes look
+alike): see docs/map_experiment.md, "Kidnap".
 
 The node plays map_server: it publishes the farm generator's ground-truth
 occupancy rasterised in the Home frame (the map route's convention: map origin =
@@ -153,14 +155,14 @@ class AmclTest(unittest.TestCase):
 
         # back out of the lane into the open field before the kidnap: inside a lane the neighbouring lanes
         # (1.8 m apart) look the same, in front of the rows the row ends and the farm's east edge do not
-        self.drive(-0.5, 0.0, distance_m=4.0)
+        self.drive(-0.5, 0.0, distance_m=6.0)      # back at the spawn, 4.95 m before the rows
         e_pos, _ = self.error()
         rospy.loginfo("amcl test: back in the open field, error %.3f m", e_pos)
         self.assertLess(e_pos, 0.1)
         if not rospy.get_param("~kidnap", True):
             return
 
-        # the kidnap: the standing robot is carried 3 m forward into its lane's entry; odometry does not see it
+        # the kidnap: the standing robot is carried 3 m forward, 1.95 m before the rows; odometry does not see it
         rospy.wait_for_service("/sim/set_robot_pose", 30.0)
         p = self.truth.pose.pose
         wyaw = yaw_of(p.orientation)
