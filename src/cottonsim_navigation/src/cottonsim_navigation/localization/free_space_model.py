@@ -133,6 +133,9 @@ class FreeSpaceCheckedField:
     ``config``, ...). ``enabled`` (default true) switches the check on and off at run time.
     """
 
+    CHUNK = 256                 # particles checked per round (see weights)
+    negligible_ratio = 1e-9     # a weight below this times the best one is negligible
+
     def __init__(self, field: LikelihoodField, config: FreeSpaceConfig = FreeSpaceConfig()) -> None:
         if not isinstance(field, LikelihoodField):
             raise ValueError(f"field must be a LikelihoodField, got {type(field).__name__}")
@@ -188,9 +191,35 @@ class FreeSpaceCheckedField:
         return out
 
     def weights(self, particles: np.ndarray, scan: Scan) -> np.ndarray:
-        """The wrapped field's weights, times exp(crossed_log_factors) while ``enabled``."""
+        """The wrapped field's weights, times exp(crossed_log_factors) while ``enabled``.
+
+        The factor is <= 1, so a particle whose field weight is below ``negligible_ratio`` times the best
+        checked particle's final weight stays negligible whatever its factor: the particles are checked in
+        order of their field weight, in chunks, until the rest are that small; the rest keep their field
+        weight times the smallest factor found (they are negligible either way). This saves most of the
+        check's cost right after a re-spread, when the likelihood field already rules out most particles.
+        """
         w = self.field.weights(particles, scan)
         if not self.enabled:
             return w
-        # (>= e^-(beams * max_crossed_m / decay_length_m): no underflow for any sane setting)
-        return w * np.exp(self.crossed_log_factors(particles, scan))
+        parts = np.asarray(particles, dtype=float)
+        order = np.argsort(-w, kind="stable")
+        out = w.copy()
+        best = 0.0
+        lowest = 1.0
+        chunk = self.CHUNK
+        start = 0
+        while start < order.size:
+            if start > 0 and w[order[start]] < best * self.negligible_ratio:
+                break
+            idx = order[start:start + chunk]
+            # (>= e^-(beams * max_crossed_m / decay_length_m): no underflow for any sane setting)
+            f = np.exp(self.crossed_log_factors(parts[idx], scan))
+            out[idx] = w[idx] * f
+            best = max(best, float(out[idx].max()))
+            lowest = min(lowest, float(f.min()))
+            start += chunk
+        if start < order.size:
+            rest = order[start:]
+            out[rest] = w[rest] * lowest
+        return out

@@ -116,3 +116,25 @@ def test_scan_fit_counts_beams_through_the_hedge_as_misses():
     assert np.all(field.crossed_lengths((0.6, 0.0, 0.0), scan) == pytest.approx(0.4))
     assert scan_hit_fraction(field, (0.6, 0.0, 0.0), scan, 0.2, max_crossed_m=0.3) == pytest.approx(0.0)
     assert scan_hit_fraction(field, (0.0, 0.0, 0.0), scan, 0.2, max_crossed_m=0.3) == pytest.approx(1.0)
+
+
+def test_weights_skip_only_negligible_particles():
+    # a spread set (a re-spread after a kidnap) in front of the hedge: the chunked check must give the
+    # full product (likelihood field x free-space factor) for every particle that matters
+    spec, occ = hedge_map()
+    lf = LikelihoodField(occ, spec, LikelihoodFieldConfig(model="likelihood_field_prob"))
+    field = FreeSpaceCheckedField(lf)
+    field.CHUNK = 64
+    rng = np.random.default_rng(3)
+    scan = simulate_scan(occ, spec, (0.0, 0.5, 0.0), np.linspace(-1.2, 1.2, 61), range_max_m=10.0)
+    parts = np.column_stack([rng.normal(0.0, 1.0, 2000), rng.normal(0.5, 1.0, 2000), rng.normal(0, 0.3, 2000)])
+    full = lf.weights(parts, scan) * np.exp(field.crossed_log_factors(parts, scan))
+    checked = []
+    original = field.crossed_log_factors
+    field.crossed_log_factors = lambda p, sc: (checked.append(len(p)), original(p, sc))[1]
+    got = field.weights(parts, scan)
+    big = full >= full.max() * 1e-6
+    assert sum(checked) < 2000                    # some were skipped...
+    assert np.allclose(got[big], full[big], rtol=1e-12, atol=0.0)   # ... none that matter
+    assert np.all(got[~big] <= full.max() * 1e-6)
+    assert np.all(got <= lf.weights(parts, scan) + 1e-300)         # the factor never raises a weight
