@@ -412,7 +412,8 @@ class Simulator:
             m = self.imu.measure(now, state.orientation_xyzw, state.angular_velocity_body_rad_s,
                                  state.linear_acceleration_body_m_s2)
             if math.isfinite(m.angular_velocity_rad_s[2]):
-                self.ekf.update_imu(float(m.angular_velocity_rad_s[2]), float(m.angular_velocity_covariance[8]))
+                self.ekf.update_imu(float(m.angular_velocity_rad_s[2]), float(m.angular_velocity_covariance[8]),
+                                    accel_body_m_s2=m.linear_acceleration_m_s2, orientation_xyzw=m.orientation_xyzw)
             return ImuReading(now, IMU_FRAME, self._in_imu_axes(m))
         if name == "gps":
             dt = now - self._last_gps_s
