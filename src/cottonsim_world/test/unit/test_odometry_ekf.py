@@ -170,3 +170,24 @@ def test_slip_config_validation():
                         ("slip_check", "yes")):
         with pytest.raises(ValueError, match=name):
             OdometryEkfConfig(**{name: value})
+
+
+def test_slip_ends_when_the_wheels_stop_and_the_imu_speed_cannot_run_away():
+    # pinned for 10 s with a -0.1 m/s^2 accelerometer bias: integrated alone the IMU speed would reach
+    # -1 m/s; then the wheels stop (the navigator cancelled its goal): the robot stands, and so must the
+    # filter, the slip being over
+    ekf = OdometryEkf()
+    drive_then_pin(ekf, seed=4, duration_s=4.0)
+    assert ekf.slipping
+    dt = 0.02
+    for _ in range(500):
+        assert ekf.update_imu(0.0, 0.01 ** 2, accel_body_m_s2=(-0.1, 0.0, G)) is None
+        ekf.predict(dt)
+        ekf.update_wheel_odometry(0.5, 0.0, (0.03 ** 2, 0.03 ** 2))
+    assert ekf.slipping and 0.0 <= ekf.imu_speed_m_s <= 0.5     # bounded by the wheels, never backwards
+    x = ekf.state[0]
+    for _ in range(250):                                   # 5 s, wheels stopped, the bias still there
+        ekf.update_imu(0.0, 0.01 ** 2, accel_body_m_s2=(-0.1, 0.0, G))
+        ekf.predict(dt)
+        ekf.update_wheel_odometry(0.0, 0.0, (0.03 ** 2, 0.03 ** 2))
+    assert not ekf.slipping and abs(ekf.state[0] - x) < 0.05

@@ -20,7 +20,9 @@ wheels spin on while it stands, and wheel odometry runs away. The filter
 keeps a second forward speed, ``v_imu``, integrated from the IMU's forward
 acceleration (its specific force with gravity removed using its attitude)
 and pulled towards the wheel speed with time constant ``slip_blend_time_s``
-while the two agree. When they differ by more than
+while the two agree; while slipping it is kept between 0 and the wheel speed
+(a robot moves no faster than its wheels turn, nor against them), which
+bounds its drift and ends the slip once the wheels stop. When they differ by more than
 ``slip_speed_threshold_m_s`` the wheels are slipping: ``v_imu`` is then
 integrated from the IMU alone and fused as the forward speed (variance
 ``slip_speed_variance_m2_s2``) instead of the wheels', whose yaw rate is
@@ -314,6 +316,13 @@ class OdometryEkf:
             elif self.slipping and abs(diff) < 0.5 * c.slip_speed_threshold_m_s:
                 self.slipping = False
             if self.slipping:        # the IMU's speed instead of the spinning wheels'
+                # a slipping robot moves no faster than its wheels turn and not against them: this bounds
+                # the IMU speed's drift (accelerometer bias, the IMU's lever arm while turning), and once
+                # the wheels stop the slip is over
+                self._v_imu = min(max(self._v_imu, min(0.0, v)), max(0.0, v))
+                if abs(v - self._v_imu) < 0.5 * c.slip_speed_threshold_m_s:
+                    self.slipping = False
+            if self.slipping:
                 self._update((VX, VYAW), (self._v_imu, float(w_rad_s)),
                              (c.slip_speed_variance_m2_s2, var_w * c.slip_yaw_rate_variance_scale))
                 return None
