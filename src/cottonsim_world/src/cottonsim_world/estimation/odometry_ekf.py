@@ -343,7 +343,7 @@ class OdometryEkf:
             self._bad_number("yaw", yaw) if yaw is not None else None)
         if bad:
             return self._reject(f"IMU rejected: {bad}")
-        if accel_body_m_s2 is not None:
+        if accel_body_m_s2 is not None and self.config.slip_check:
             try:
                 ax = forward_acceleration(accel_body_m_s2, orientation_xyzw, self.config.gravity_m_s2)
             except ValueError as exc:
