@@ -1,6 +1,11 @@
 #!/usr/bin/env python3
 """rostest node: a kidnap mid-route pauses the map waypoint navigator (goal held, robot stopped) until AMCL is
-localised again; then the same goal is resumed and the route completes (see map_navigation_kidnap.test)."""
+localised again; then the same goal is resumed and the route completes.
+
+~kidnap: "sideways" (map_navigation_kidnap.test: 1 m before the rows, 3 m east, out of the farm; AMCL cannot
+tell where it is, the operator's /initialpose after 20 s re-localises it) or "toward_rows"
+(map_navigation_kidnap_recover.test: 3 m before the rows, 3 m forward to the lane's entry; AMCL must
+re-localise by itself, no operator)."""
 import math
 import threading
 
@@ -78,21 +83,26 @@ class MapNavigationKidnapTest(NavigatorWatch):
 
     def test_kidnap_pauses_and_resumes_the_route(self):
         report_file = rospy.get_param("~report_file")
+        mode = rospy.get_param("~kidnap", "sideways")
+        self.assertIn(mode, ("sideways", "toward_rows"))
+        sideways = mode == "sideways"
+        before_rows_m = KIDNAP_BEFORE_ROWS_M if sideways else KIDNAP_DISTANCE_M
         self.forget_old_report(report_file)
-        # on the way to goal 2 (lane 1), 1 m before the rows: AMCL must have been localised by then
+        # on the way to goal 2 (lane 1) before the rows: AMCL must have been localised by then
         self.wait_for(lambda: self.truth is not None and self.state is not None and self.state["index"] == 2
-                      and self.truth.pose.pose.position.y >= ROW_START_Y_M - KIDNAP_BEFORE_ROWS_M, 300.0,
-                      "the robot on its way to goal 2, 1 m before the rows")
+                      and self.truth.pose.pose.position.y >= ROW_START_Y_M - before_rows_m, 300.0,
+                      f"the robot on its way to goal 2, {before_rows_m} m before the rows")
         self.assertTrue(self.localized_seen_true, "AMCL never reported localised before the kidnap")
         self.assertEqual(self.state["state"], "navigating", self.state)
         rospy.wait_for_service("/sim/set_robot_pose", 30.0)
         p = self.truth.pose.pose
+        dx, dy = (KIDNAP_DISTANCE_M, 0.0) if sideways else (0.0, KIDNAP_DISTANCE_M)
         resp = rospy.ServiceProxy("/sim/set_robot_pose", SetRobotPose)(
-            p.position.x + KIDNAP_DISTANCE_M, p.position.y, yaw_of(p.orientation))
+            p.position.x + dx, p.position.y + dy, yaw_of(p.orientation))
         self.assertTrue(resp.success, resp.message)
         t_kidnap = rospy.Time.now()
-        rospy.loginfo("kidnap test: robot carried %.1f m east from (%.2f, %.2f)", KIDNAP_DISTANCE_M,
-                      p.position.x, p.position.y)
+        rospy.loginfo("kidnap test: robot carried %.1f m %s from (%.2f, %.2f)", KIDNAP_DISTANCE_M,
+                      "east" if sideways else "toward the rows", p.position.x, p.position.y)
 
         self.wait_for(lambda: self.localized is False, 30.0, "AMCL to notice the kidnap (~localized false)")
         rospy.loginfo("kidnap test: AMCL noticed after %.1f s (sim)", (rospy.Time.now() - t_kidnap).to_sec())
@@ -104,6 +114,7 @@ class MapNavigationKidnapTest(NavigatorWatch):
         while not rospy.is_shutdown() and rospy.Time.now() < end and not self.localized:
             rospy.rostime.wallsleep(0.2)
         if not self.localized:
+            self.assertTrue(sideways, "AMCL did not re-localise by itself within %.0f s" % OPERATOR_AFTER_S)
             p = self.truth.pose.pose
             x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_of(p.orientation))
             msg = PoseWithCovarianceStamped()
@@ -118,6 +129,7 @@ class MapNavigationKidnapTest(NavigatorWatch):
                           "(%.2f, %.2f, %.2f)", OPERATOR_AFTER_S, x, y, yaw)
             self.assertEqual(self.state["state"], "paused", "the navigator drove on while AMCL was lost")
         else:
+            self.assertFalse(sideways, "AMCL claims to be localised after a kidnap it cannot resolve")
             rospy.loginfo("kidnap test: AMCL re-localised by itself after %.1f s (sim)",
                           (rospy.Time.now() - t_kidnap).to_sec())
         self.wait_for(lambda: self.localized, 60.0, "AMCL localised again")
