@@ -281,6 +281,22 @@ class ParticleFilter:
         parts[:, 2] = normalize_angle(parts[:, 2])
         self.particles = parts
 
+    def redraw_fraction(self, mean, covariance, fraction: float) -> int:
+        """Replace ``fraction`` (0..1) of the particles, chosen at random, by samples of N(mean, covariance)
+        and make the weights uniform; returns how many were replaced. A re-spread after a kidnap can so mix
+        two shapes (e.g. narrow across the rows and round)."""
+        if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 <= fraction <= 1.0:
+            raise ValueError(f"fraction must lie in [0, 1], got {fraction!r}")
+        k = int(round(fraction * self.n))
+        if k == 0:
+            return 0
+        keep = self.particles.copy()
+        self.init_gaussian(mean, covariance, n=k)            # validates mean and covariance
+        idx = self.rng.choice(keep.shape[0], size=k, replace=False)
+        keep[idx] = self.particles
+        self.set_particles(keep)
+        return k
+
     # --- measurement ---------------------------------------------------------------
     def update_weights(self, likelihood) -> float:
         """Multiply the weights by per-particle likelihoods (N,), renormalise; returns w_avg.

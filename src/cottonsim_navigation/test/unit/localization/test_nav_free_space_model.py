@@ -138,3 +138,18 @@ def test_weights_skip_only_negligible_particles():
     assert np.allclose(got[big], full[big], rtol=1e-12, atol=0.0)   # ... none that matter
     assert np.all(got[~big] <= full.max() * 1e-6)
     assert np.all(got <= lf.weights(parts, scan) + 1e-300)         # the factor never raises a weight
+
+
+def test_redraw_fraction_mixes_two_spreads():
+    pf = ParticleFilter(ParticleFilterConfig(min_particles=100, max_particles=1000), np.random.default_rng(5))
+    pf.init_gaussian((0.0, 0.0, 0.0), np.diag([4.0, 0.01, 0.01]))         # narrow across (y)
+    assert np.std(pf.particles[:, 1]) < 0.2
+    assert pf.redraw_fraction((0.0, 0.0, 0.0), np.diag([4.0, 4.0, 0.01]), 0.5) == 500
+    wide = np.abs(pf.particles[:, 1]) > 0.5                                 # only round ones get there
+    assert 0.35 * 1000 < wide.sum() < 0.5 * 1000                            # P(|y| > 0.5 | std 2) = 0.80
+    assert np.allclose(pf.weights, 1e-3) and pf.n == 1000
+    assert pf.redraw_fraction((0.0, 0.0, 0.0), np.eye(3), 0.0) == 0
+    with pytest.raises(ValueError, match="fraction"):
+        pf.redraw_fraction((0.0, 0.0, 0.0), np.eye(3), 1.5)
+    with pytest.raises(ValueError, match="covariance"):
+        pf.redraw_fraction((0.0, 0.0, 0.0), np.eye(2), 0.5)

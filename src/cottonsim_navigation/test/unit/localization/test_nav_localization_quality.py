@@ -124,5 +124,7 @@ def test_relocalize_covariance_along_and_across_the_heading():
                        4.0 * np.eye(2))
     with pytest.raises(ValueError, match="relocalize_std_across_m"):
         LocalizationQualityConfig(relocalize_std_across_m=-1.0)
+    with pytest.raises(ValueError, match="relocalize_round_fraction"):
+        LocalizationQualityConfig(relocalize_round_fraction=1.2)
     with pytest.raises(ValueError, match="yaw_rad"):
         cfg.relocalize_covariance(float("nan"))
