@@ -382,8 +382,14 @@ class WaypointNavigatorBase:
         return f"goal {f.index + 1}/{len(self.waypoints)} {getattr(f.goals[f.index], 'label', '')}".rstrip()
 
     def _pause(self):
-        """Localisation lost: cancel and hold the active goal (once), then wait."""
+        """Localisation lost: cancel and hold the active goal (once), then wait (reminding every 30 s)."""
         if self._paused_since is not None:
+            waited_s = (rospy.Time.now() - self._paused_since).to_sec()
+            if waited_s >= 30.0:
+                rospy.logwarn_throttle(30.0, "%s: still waiting for localisation (%.0f s, %s held); if it cannot "
+                                             "re-localise by itself, give it the robot's pose (/initialpose, "
+                                             "rviz '2D Pose Estimate')" % (self.NAME, waited_s,
+                                                                           self._describe_current()))
             return
         self._paused_since = rospy.Time.now()
         f = self.follower
