@@ -80,13 +80,48 @@ class FreeSpaceConfig:
 
 
 @njit(cache=True, nogil=True)
-def _crossed_log_factors(particles, lx, ly, beam_c, beam_s, beam_r, occupied, ox, oy, res, tolerance, spacing,
-                         n_samples, far_spacing, max_crossed, decay):
-    """Per particle: -sum_j L_j / decay, L_j = crossed length of beam j (sampled, capped at max_crossed)."""
-    n = particles.shape[0]
+def _beam_crossed(x0, y0, dc, ds, r, occupied, ox, oy, inv, tolerance, spacing, n_samples, far_spacing,
+                  max_crossed):
+    """Crossed obstacle length [m] of one beam from (x0, y0) along (dc, ds) ending at range r (sampled:
+    n_samples points ``spacing`` apart before r - tolerance, then every ``far_spacing`` back to the sensor),
+    capped at max_crossed."""
     h, w = occupied.shape
+    t = r - tolerance - 0.5 * spacing
+    # the sample point in cell units, stepped back towards the sensor incrementally
+    gx = (x0 + t * dc - ox) * inv
+    gy = (y0 + t * ds - oy) * inv
+    crossed = 0.0
+    k = 0
+    step = spacing
+    sx = spacing * dc * inv
+    sy = spacing * ds * inv
+    while t > 0.0 and crossed < max_crossed:
+        if k == n_samples:
+            if far_spacing <= 0.0:
+                break
+            step = far_spacing
+            sx = far_spacing * dc * inv
+            sy = far_spacing * ds * inv
+        if gx >= 0.0 and gy >= 0.0:          # int() truncates: the floor for these
+            mx = int(gx)
+            my = int(gy)
+            if mx < w and my < h and occupied[my, mx]:
+                crossed += step
+        t -= step
+        gx -= sx
+        gy -= sy
+        k += 1
+    return min(crossed, max_crossed)
+
+
+@njit(cache=True, nogil=True)
+def _crossed_log_factors(particles, lx, ly, beam_c, beam_s, beam_r, occupied, ox, oy, res, tolerance, spacing,
+                         n_samples, far_spacing, max_crossed, decay, per_beam):
+    """Per particle: -sum_j L_j / decay, L_j = crossed length of beam j (sampled, capped at max_crossed);
+    with ``per_beam`` (one particle) the L_j of each beam instead."""
+    n = particles.shape[0]
     inv = 1.0 / res
-    out = np.empty(n)
+    out = np.empty(beam_c.shape[0] if per_beam else n)
     for i in range(n):
         c = math.cos(particles[i, 2])
         s = math.sin(particles[i, 2])
@@ -94,35 +129,14 @@ def _crossed_log_factors(particles, lx, ly, beam_c, beam_s, beam_r, occupied, ox
         y0 = particles[i, 1] + s * lx + c * ly
         total = 0.0
         for j in range(beam_c.shape[0]):
-            dc = c * beam_c[j] - s * beam_s[j]
-            ds = s * beam_c[j] + c * beam_s[j]
-            t = beam_r[j] - tolerance - 0.5 * spacing
-            # the sample point in cell units, stepped back towards the sensor incrementally
-            gx = (x0 + t * dc - ox) * inv
-            gy = (y0 + t * ds - oy) * inv
-            crossed = 0.0
-            k = 0
-            step = spacing
-            sx = spacing * dc * inv
-            sy = spacing * ds * inv
-            while t > 0.0 and crossed < max_crossed:
-                if k == n_samples:
-                    if far_spacing <= 0.0:
-                        break
-                    step = far_spacing
-                    sx = far_spacing * dc * inv
-                    sy = far_spacing * ds * inv
-                if gx >= 0.0 and gy >= 0.0:          # int() truncates: the floor for these
-                    mx = int(gx)
-                    my = int(gy)
-                    if mx < w and my < h and occupied[my, mx]:
-                        crossed += step
-                t -= step
-                gx -= sx
-                gy -= sy
-                k += 1
-            total += min(crossed, max_crossed)
-        out[i] = -total / decay
+            crossed = _beam_crossed(x0, y0, c * beam_c[j] - s * beam_s[j], s * beam_c[j] + c * beam_s[j],
+                                    beam_r[j], occupied, ox, oy, inv, tolerance, spacing, n_samples,
+                                    far_spacing, max_crossed)
+            if per_beam:
+                out[j] = crossed
+            total += crossed
+        if not per_beam:
+            out[i] = -total / decay
     return out
 
 
@@ -169,25 +183,27 @@ class FreeSpaceCheckedField:
                                     np.ascontiguousarray(vy / r), np.ascontiguousarray(r), self._occupied,
                                     spec.origin_x_m, spec.origin_y_m, spec.resolution_m, c.tolerance_m,
                                     c.sample_spacing_m, c.n_samples, c.far_sample_spacing_m, c.max_crossed_m,
-                                    c.decay_length_m)
+                                    c.decay_length_m, False)
 
     def crossed_lengths(self, pose, scan: Scan) -> np.ndarray:
         """Crossed obstacle length [m] (capped at max_crossed_m) of each beam the field uses, robot at
-        ``pose`` (x_m, y_m, yaw_rad); same order as ``select_beams``."""
-        p = np.asarray(pose, dtype=float).reshape(1, 3)
+        ``pose`` (x_m, y_m, yaw_rad); same order as ``select_beams`` (0 for a zero-length beam)."""
+        p = np.ascontiguousarray(np.asarray(pose, dtype=float).reshape(1, 3))
         pts = self.field.select_beams(scan)
         lx, ly, _ = scan.laser_pose
+        vx, vy = pts[:, 0] - lx, pts[:, 1] - ly
+        r = np.hypot(vx, vy)
+        keep = r > 1e-9
         c = self.free_space_config
         spec = self.field.spec
         out = np.zeros(pts.shape[0])
-        for j, (vx, vy) in enumerate(pts - np.array([lx, ly])):
-            r = math.hypot(vx, vy)
-            if r <= 1e-9:
-                continue
-            out[j] = -_crossed_log_factors(p, float(lx), float(ly), np.array([vx / r]), np.array([vy / r]),
-                                           np.array([r]), self._occupied, spec.origin_x_m, spec.origin_y_m,
-                                           spec.resolution_m, c.tolerance_m, c.sample_spacing_m, c.n_samples,
-                                           c.far_sample_spacing_m, c.max_crossed_m, 1.0)[0]
+        if np.any(keep):
+            out[keep] = _crossed_log_factors(p, float(lx), float(ly), np.ascontiguousarray(vx[keep] / r[keep]),
+                                             np.ascontiguousarray(vy[keep] / r[keep]),
+                                             np.ascontiguousarray(r[keep]), self._occupied, spec.origin_x_m,
+                                             spec.origin_y_m, spec.resolution_m, c.tolerance_m,
+                                             c.sample_spacing_m, c.n_samples, c.far_sample_spacing_m,
+                                             c.max_crossed_m, 1.0, True)
         return out
 
     def weights(self, particles: np.ndarray, scan: Scan) -> np.ndarray:
