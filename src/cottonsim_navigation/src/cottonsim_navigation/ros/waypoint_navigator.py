@@ -48,7 +48,7 @@ from cottonsim_navigation.core.geometry import yaw_to_quaternion
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
 from cottonsim_navigation.waypoints.goals import pass_through_flags
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
-                                                     WaypointFollower)
+                                                     LocalisationGate, WaypointFollower)
 from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
 
 _STATUS_NAMES = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", "SUCCEEDED", "ABORTED",
@@ -158,8 +158,7 @@ class WaypointNavigatorBase:
         self._result = None             # (seq, GoalStatus) of a finished goal
         self._goal_sent_at = None
         self._battery_low = False
-        self._localized: Optional[bool] = None      # the localiser's last verdict (None: none heard)
-        self._ever_localized = False
+        self._gate = LocalisationGate()                # the localiser's verdicts
         self._paused_since: Optional[rospy.Time] = None
         self.follower: Optional[WaypointFollower] = None
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
@@ -185,13 +184,12 @@ class WaypointNavigatorBase:
 
     def _on_localized(self, msg: Bool):
         with self._lock:
-            self._localized = bool(msg.data)
-            self._ever_localized = self._ever_localized or self._localized
+            self._gate.report(bool(msg.data))
 
     def localisation_lost(self) -> bool:
         """The localiser was localised once and now says it is not (kidnap, re-initialisation)."""
         with self._lock:
-            return self._ever_localized and self._localized is False
+            return self._gate.lost
 
     def _on_transition(self, seq: int, gh):
         """actionlib transition callback, bound to the goal's sequence number when it was sent."""

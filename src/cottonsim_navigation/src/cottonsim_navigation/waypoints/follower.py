@@ -207,3 +207,26 @@ class WaypointFollower:
         self.state = FollowerState.FINISHED
         if not self.summary.stopped_reason:
             self.summary.stopped_reason = reason
+
+
+class LocalisationGate:
+    """Is the localiser lost? True once it has reported "localised" and then reports "not localised".
+
+    The first "localised" is not waited for: AMCL reports it only after the robot has moved, so a
+    navigator starts on the initial pose and pauses only when a localised filter loses its pose (a
+    kidnap, a re-initialisation). Feed every verdict to :meth:`report`.
+    """
+
+    def __init__(self) -> None:
+        self.last: Optional[bool] = None
+        self.ever_localized = False
+
+    def report(self, localized: bool) -> None:
+        if not isinstance(localized, (bool, int)):
+            raise ValueError(f"localized must be a bool, got {localized!r}")
+        self.last = bool(localized)
+        self.ever_localized = self.ever_localized or self.last
+
+    @property
+    def lost(self) -> bool:
+        return self.ever_localized and self.last is False

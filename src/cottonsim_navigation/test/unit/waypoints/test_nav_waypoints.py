@@ -4,7 +4,7 @@ import math
 import pytest
 
 from cottonsim_navigation.waypoints.files import (WaypointFileError, load_gps_waypoints, load_map_waypoints)
-from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
+from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult, LocalisationGate,
                                                      WaypointFollower)
 
 
@@ -160,3 +160,20 @@ def test_gps_lanes_file(tmp_path):
         p.write_text(text)
         with pytest.raises(WaypointFileError, match=what):
             load_gps_lanes(p)
+
+
+def test_localisation_gate_is_lost_only_after_having_been_localised():
+    g = LocalisationGate()
+    assert not g.lost                               # nothing heard
+    g.report(False)
+    assert not g.lost                               # not localised yet at the start: not "lost"
+    g.report(True)
+    assert not g.lost
+    g.report(False)
+    assert g.lost                                   # a kidnap
+    g.report(False)
+    assert g.lost
+    g.report(True)
+    assert not g.lost and g.ever_localized          # localised again
+    with pytest.raises(ValueError, match="localized"):
+        g.report("yes")
