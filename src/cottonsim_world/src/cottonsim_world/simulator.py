@@ -35,7 +35,7 @@ import numpy as np
 from cottonsim_world.estimation.odometry_ekf import FilteredOdometry, OdometryEkf, OdometryEkfConfig
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
-from cottonsim_world.farm.model import Farm
+from cottonsim_world.farm.model import Farm, Pose2D
 from cottonsim_world.geodesy import GpsNoiseConfig, GpsNoiseModel, HectorGeodesy
 from cottonsim_world.physics.husky_params import DriveLimits, HuskyParams
 from cottonsim_world.physics.imu_model import ImuConfig, ImuMeasurement, ImuModel
@@ -311,6 +311,18 @@ class Simulator:
         self._arm_idle = False
         return clamped
 
+    def teleport_robot(self, x_m: float, y_m: float, yaw_rad: float) -> None:
+        """Move the robot (ground truth) to (x_m, y_m, yaw_rad) in the world frame, at rest: a kidnap.
+
+        The Husky is re-spawned there (wheels stopped, the last /cmd_vel forgotten); wheel odometry
+        and the EKF integrate wheel speeds only, so they do not see the jump. ValueError for a
+        non-finite pose.
+        """
+        pose = (x_m, y_m, yaw_rad)
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pose):
+            raise ValueError(f"teleport pose (x_m, y_m, yaw_rad) must be 3 finite numbers, got {pose!r}")
+        self.physics.spawn_robot(Pose2D(float(x_m), float(y_m), float(yaw_rad)))
+
     def set_sensor_active(self, name: str, active: bool) -> None:
         """Switch a sensor's updates on/off (e.g. nobody subscribes). Names: see ``sensor_names``."""
         if name not in self._schedules:
@@ -400,7 +412,8 @@ class Simulator:
             m = self.imu.measure(now, state.orientation_xyzw, state.angular_velocity_body_rad_s,
                                  state.linear_acceleration_body_m_s2)
             if math.isfinite(m.angular_velocity_rad_s[2]):
-                self.ekf.update_imu(float(m.angular_velocity_rad_s[2]), float(m.angular_velocity_covariance[8]))
+                self.ekf.update_imu(float(m.angular_velocity_rad_s[2]), float(m.angular_velocity_covariance[8]),
+                                    accel_body_m_s2=m.linear_acceleration_m_s2, orientation_xyzw=m.orientation_xyzw)
             return ImuReading(now, IMU_FRAME, self._in_imu_axes(m))
         if name == "gps":
             dt = now - self._last_gps_s

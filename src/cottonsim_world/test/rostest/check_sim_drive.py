@@ -6,6 +6,7 @@ import unittest
 import rospy
 import rostest
 from cottonsim_msgs.msg import PlantContacts
+from cottonsim_msgs.srv import SetRobotPose
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
@@ -101,6 +102,27 @@ class SimDriveTest(unittest.TestCase):
         self.assertTrue(self.contacts.plants_touched)
         rows = {pid // 20 for pid in self.contacts.plants_touched}
         self.assertEqual(rows, {2}, f"touched plants of rows {rows}")
+
+    def test_teleport_moves_the_truth_not_the_odometry(self):
+        # (runs after test_straight_then_into_a_row: unittest orders by name)
+        rospy.wait_for_service("/sim/set_robot_pose", 30.0)
+        teleport = rospy.ServiceProxy("/sim/set_robot_pose", SetRobotPose)
+        rospy.sleep(0.5)
+        ox0, oy0, _ = self.pose(self.odom)
+        resp = teleport(-8.0, -1.0, 0.3)              # the open field south-east of Home, 3 m from it
+        self.assertTrue(resp.success, resp.message)
+        rospy.sleep(1.0)
+        x, y, th = self.pose(self.truth)
+        self.assertAlmostEqual(x, -8.0, delta=0.03)
+        self.assertAlmostEqual(y, -1.0, delta=0.03)
+        self.assertAlmostEqual(th, 0.3, delta=0.03)
+        ox1, oy1, _ = self.pose(self.odom)
+        self.assertLess(math.hypot(ox1 - ox0, oy1 - oy0), 0.03, "odometry saw the teleport")
+        bad = teleport(float("nan"), 0.0, 0.0)
+        self.assertFalse(bad.success)
+        self.assertIn("finite", bad.message)
+        x2, y2, _ = self.pose(self.truth)
+        self.assertLess(math.hypot(x2 - x, y2 - y), 0.01, "a refused teleport moved the robot")
 
 
 if __name__ == "__main__":

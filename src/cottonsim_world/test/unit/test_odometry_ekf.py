@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_world.estimation.odometry_ekf import OdometryEkf, OdometryEkfConfig
+from cottonsim_world.estimation.odometry_ekf import OdometryEkf, OdometryEkfConfig, forward_acceleration
 
 
 def truth_circle(v, w, t):
@@ -92,3 +92,102 @@ def test_transform_output():
 def test_config_validation():
     with pytest.raises(ValueError, match="process_noise_diag"):
         OdometryEkfConfig(process_noise_diag=(0.1, 0.1, 0.1, 0.1))
+
+
+G = 9.8
+
+
+def drive_then_pin(ekf, seed, pinned_after_s=3.0, duration_s=8.0, dt=0.02, v=0.5, pitch_rad=0.0):
+    """Straight drive: wheels and IMU agree while the robot accelerates to v and cruises; at pinned_after_s
+    a plant stops it within 0.1 s (IMU: -v/0.1 m/s^2) while the wheels keep reporting v. The IMU reads the
+    specific force (gravity included) with the robot pitched by pitch_rad (nose down > 0). Returns the
+    true distance driven and the EKF's x."""
+    rng = np.random.default_rng(seed)
+    q = (0.0, math.sin(pitch_rad / 2), 0.0, math.cos(pitch_rad / 2))
+    true_v, true_x = 0.0, 0.0
+    for k in range(int(round(duration_s / dt))):
+        t = k * dt
+        if t < pinned_after_s:
+            a = min(1.0, (v - true_v) / dt)            # 1 m/s^2 up to v
+        elif true_v > 0:
+            a = -min(v / 0.1, true_v / dt)             # the plant stops it
+        else:
+            a = 0.0
+        true_v += a * dt
+        true_x += true_v * dt
+        wheel_v = true_v if t < pinned_after_s else v  # pinned: the wheels spin on
+        # specific force in body axes of a robot pitched nose down about y: the upward g leaks into -x
+        f = (a - G * math.sin(pitch_rad) + 0.02 * rng.standard_normal(), 0.0, G * math.cos(pitch_rad))
+        assert ekf.update_imu(0.01 * rng.standard_normal(), 0.01 ** 2, accel_body_m_s2=f, orientation_xyzw=q) is None
+        assert ekf.predict(dt) is None
+        assert ekf.update_wheel_odometry(wheel_v + 0.01 * rng.standard_normal(), 0.01 * rng.standard_normal(),
+                                         (0.03 ** 2, 0.03 ** 2)) is None
+    return true_x, float(ekf.state[0])
+
+
+def test_forward_acceleration_removes_gravity():
+    assert forward_acceleration((0.3, 0.0, G), None, G) == pytest.approx(0.3)
+    # pitched 10 deg nose down (+y rotation): standing still, the specific force shows -g sin(10 deg) in x
+    p = math.radians(10.0)
+    q = (0.0, math.sin(p / 2), 0.0, math.cos(p / 2))
+    assert forward_acceleration((-G * math.sin(p), 0.0, G * math.cos(p)), q, G) == pytest.approx(0.0, abs=1e-12)
+    assert forward_acceleration((-G * math.sin(p) + 0.5, 0.0, G * math.cos(p)), q, G) == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="finite"):
+        forward_acceleration((float("nan"), 0.0, G), None, G)
+    with pytest.raises(ValueError, match="zero quaternion"):
+        forward_acceleration((0.0, 0.0, G), (0.0, 0.0, 0.0, 0.0), G)
+
+
+@pytest.mark.parametrize("pitch_deg", [0.0, 5.0])
+def test_pinned_robot_stops_in_the_filter_although_the_wheels_spin(pitch_deg):
+    pitch = math.radians(pitch_deg)
+    ekf = OdometryEkf()
+    true_x, x = drive_then_pin(ekf, seed=1, pitch_rad=pitch)
+    blind = OdometryEkf(OdometryEkfConfig(slip_check=False))
+    _, x_blind = drive_then_pin(blind, seed=1, pitch_rad=pitch)
+    # 5 s pinned at 0.5 m/s: the wheels alone run 2.5 m away; the slip check keeps the error small
+    assert x_blind - true_x > 2.0
+    assert abs(x - true_x) < 0.2, (x, true_x)
+    assert ekf.slipping and ekf.slip_events == 1
+    assert abs(ekf.state[3]) < 0.1                        # the filter's forward speed: standing
+
+
+def test_no_slip_no_change():
+    # the same drive without the plant: never slipping, the same estimate as without the check
+    ekf = OdometryEkf()
+    true_x, x = drive_then_pin(ekf, seed=2, pinned_after_s=99.0)
+    blind = OdometryEkf(OdometryEkfConfig(slip_check=False))
+    _, x_blind = drive_then_pin(blind, seed=2, pinned_after_s=99.0)
+    assert ekf.slip_events == 0 and not ekf.slipping
+    assert x == pytest.approx(x_blind, abs=1e-9) and abs(x - true_x) < 0.1
+    # a bad IMU sample is refused and does not feed the check
+    assert "IMU rejected" in ekf.update_imu(0.0, 0.01, accel_body_m_s2=(0.0, float("inf"), G))
+
+
+def test_slip_config_validation():
+    for name, value in (("slip_speed_threshold_m_s", 0.0), ("slip_blend_time_s", float("nan")),
+                        ("slip_speed_variance_m2_s2", -1.0), ("slip_yaw_rate_variance_scale", 0.5),
+                        ("slip_check", "yes")):
+        with pytest.raises(ValueError, match=name):
+            OdometryEkfConfig(**{name: value})
+
+
+def test_slip_ends_when_the_wheels_stop_and_the_imu_speed_cannot_run_away():
+    # pinned for 10 s with a -0.1 m/s^2 accelerometer bias: integrated alone the IMU speed would reach
+    # -1 m/s; then the wheels stop (the navigator cancelled its goal): the robot stands, and so must the
+    # filter, the slip being over
+    ekf = OdometryEkf()
+    drive_then_pin(ekf, seed=4, duration_s=4.0)
+    assert ekf.slipping
+    dt = 0.02
+    for _ in range(500):
+        assert ekf.update_imu(0.0, 0.01 ** 2, accel_body_m_s2=(-0.1, 0.0, G)) is None
+        ekf.predict(dt)
+        ekf.update_wheel_odometry(0.5, 0.0, (0.03 ** 2, 0.03 ** 2))
+    assert ekf.slipping and 0.0 <= ekf.imu_speed_m_s <= 0.5     # bounded by the wheels, never backwards
+    x = ekf.state[0]
+    for _ in range(250):                                   # 5 s, wheels stopped, the bias still there
+        ekf.update_imu(0.0, 0.01 ** 2, accel_body_m_s2=(-0.1, 0.0, G))
+        ekf.predict(dt)
+        ekf.update_wheel_odometry(0.0, 0.0, (0.03 ** 2, 0.03 ** 2))
+    assert not ekf.slipping and abs(ekf.state[0] - x) < 0.05

@@ -115,3 +115,30 @@ def test_shipped_config_files_parse():
     for path in [root / "config" / "sim.yaml", root / "test" / "rostest" / "sim_ci.yaml"]:
         config = simulator_config_from_dict(yaml.safe_load(path.read_text()) or {})
         assert isinstance(config, SimulatorConfig), path
+
+
+def test_teleport_moves_the_truth_but_not_the_odometry(urdf):
+    sim = Simulator(small_config(), urdf)
+    run(sim, 1.0)                                     # drive a little: odometry and truth move together
+    sim.step_for(0.5)                                 # /cmd_vel times out: the robot stops
+    before = [r for r in sim.step_for(0.1)]
+    odom0 = [r for r in before if isinstance(r, OdometryReading)][-1].filtered
+    truth0 = [r for r in before if isinstance(r, GroundTruthReading)][-1].state
+    target = (truth0.position_m[0] - 3.0, truth0.position_m[1] + 0.5, 0.4)
+    sim.teleport_robot(*target)
+    after = sim.step_for(0.5)
+    truth1 = [r for r in after if isinstance(r, GroundTruthReading)][-1].state
+    odom1 = [r for r in after if isinstance(r, OdometryReading)][-1].filtered
+    assert truth1.position_m[:2] == pytest.approx(target[:2], abs=0.02)
+    r = quaternion_to_matrix(truth1.orientation_xyzw)
+    assert math.atan2(r[1, 0], r[0, 0]) == pytest.approx(target[2], abs=0.02)
+    # the kidnap: odometry did not see the 3 m jump
+    assert math.hypot(odom1.x_m - odom0.x_m, odom1.y_m - odom0.y_m) < 0.02
+    # the robot still drives after the teleport, and odometry follows that motion again
+    run(sim, sim.time_s + 1.0)
+    truth2 = [r for r in sim.step_for(0.02) if isinstance(r, GroundTruthReading)][-1].state
+    assert np.linalg.norm(truth2.position_m[:2] - truth1.position_m[:2]) > 0.2
+    for bad in ((math.nan, 0.0, 0.0), (0.0, math.inf, 0.0), (0.0, 0.0, "north")):
+        with pytest.raises(ValueError, match="teleport pose"):
+            sim.teleport_robot(*bad)
+    sim.close()

@@ -186,6 +186,10 @@ class Amcl:
         self.filter.init_uniform(self._free)
         self._after_reinit()
 
+    def request_update(self) -> None:
+        """Run a filter update on the next scan even if odometry has not moved (re-localising while standing)."""
+        self._force_update = True
+
     def _after_reinit(self) -> None:
         self._force_update = True
         self._updates = 0

@@ -265,6 +265,38 @@ class ParticleFilter:
     def n(self) -> int:
         return int(self.particles.shape[0])
 
+    def roughen(self, std_xy_m: float, std_yaw_rad: float) -> None:
+        """Add N(0, std) noise to every particle (x, y and yaw; weights kept).
+
+        Repeated filter updates on scans of a standing robot have no motion noise to keep the set
+        diverse: resampling would collapse it onto a few copies. A little jitter keeps it exploring.
+        """
+        for name, v in (("std_xy_m", std_xy_m), ("std_yaw_rad", std_yaw_rad)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if self.n == 0:
+            return
+        noise = self.rng.standard_normal((self.n, 3)) * np.array([std_xy_m, std_xy_m, std_yaw_rad])
+        parts = self.particles + noise
+        parts[:, 2] = normalize_angle(parts[:, 2])
+        self.particles = parts
+
+    def redraw_fraction(self, mean, covariance, fraction: float) -> int:
+        """Replace ``fraction`` (0..1) of the particles, chosen at random, by samples of N(mean, covariance)
+        and make the weights uniform; returns how many were replaced. A re-spread after a kidnap can so mix
+        two shapes (e.g. narrow across the rows and round)."""
+        if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 <= fraction <= 1.0:
+            raise ValueError(f"fraction must lie in [0, 1], got {fraction!r}")
+        k = int(round(fraction * self.n))
+        if k == 0:
+            return 0
+        keep = self.particles.copy()
+        self.init_gaussian(mean, covariance, n=k)            # validates mean and covariance
+        idx = self.rng.choice(keep.shape[0], size=k, replace=False)
+        keep[idx] = self.particles
+        self.set_particles(keep)
+        return k
+
     # --- measurement ---------------------------------------------------------------
     def update_weights(self, likelihood) -> float:
         """Multiply the weights by per-particle likelihoods (N,), renormalise; returns w_avg.

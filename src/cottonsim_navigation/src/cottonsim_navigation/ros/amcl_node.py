@@ -7,6 +7,7 @@ messages and TF to the cores' types and back. The laser scan helper
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 from typing import Dict, Optional, Tuple
@@ -21,16 +22,19 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Bool
 from std_srvs.srv import Empty, EmptyResponse
 
-from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
+from cottonsim_navigation.core.geometry import Pose2D, compose, yaw_to_quaternion
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
+from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
-                                                       particle_spread, scan_hit_fraction)
+                                                       StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
+                                                       set_covariance)
 from cottonsim_navigation.localization.sensor_models import Scan
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 from cottonsim_world.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
 
+FREE_SPACE_MODES = ("off", "relocalizing", "always")
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
 
@@ -98,9 +102,13 @@ class AmclNode:
           original's /scan (+/-45 deg) is too narrow along crop rows (AMCL stalls at ~0.26 m error)
       map               nav_msgs/OccupancyGrid  latched (when ~use_map_topic); else service static_map
       initialpose       geometry_msgs/PoseWithCovarianceStamped  re-initialise (rviz "2D Pose Estimate");
-          covariance entries [0], [7], [35] (zero -> the configured initial covariance)
+          covariance entries [0], [7], [35] (zero -> the configured initial covariance); the filter then
+          updates without motion too (stationary policy) until localised, so a robot held by a paused
+          navigator can be re-localised by hand
     Publications
-      amcl_pose         geometry_msgs/PoseWithCovarianceStamped  after each filter update (frame map)
+      amcl_pose         geometry_msgs/PoseWithCovarianceStamped  after each filter update (frame map); while
+          not localised its x-y / yaw covariance is (at least) that of the whole particle set, so a re-spread
+          filter never reports a tight pose
       particlecloud     geometry_msgs/PoseArray  after each filter update
       ~localized        std_msgs/Bool (latched)  true while the particle set is tight and the scan fits the
           map at the estimate (see localization/quality.py); false after (re)initialisation, a kidnap, or
@@ -119,8 +127,20 @@ class AmclNode:
       LocalizationQualityConfig fields with prefix ~localized_ (~localized_max_std_xy_m 0.15,
       ~localized_max_std_yaw_rad 0.1, ~localized_hit_distance_m 0.2, ~localized_min_hit_fraction 0.6,
       ~localized_switch_after 2, ~localized_relocalize_after 3 (0 = off), ~localized_relocalize_std_xy_m 2.0,
-      ~localized_relocalize_std_yaw_rad 0.3: after that many updates with a tight set but a poor scan fit
-      (a kidnap) the particles are re-drawn around the estimate with that spread);
+      ~localized_relocalize_std_yaw_rad 0.3, ~localized_relocalize_std_across_m 0 (= round),
+      ~localized_relocalize_round_fraction 0 (share of the re-drawn particles with the round spread): after that many
+      updates with a tight set but a poor scan fit (a kidnap) the particles are re-drawn around the estimate
+      with that spread (std_xy along the estimate's heading, std_across across it); while such a kidnap is
+      suspected the standing robot's scans keep being used;
+      ~localized_max_crossed_m 0.5 (with the free-space check a beam crossing that much mapped obstacle is a
+      miss of the scan fit); ~localized_stationary_update_period_s 0.5 (0 = off): filter updates without motion at most this often,
+      while localised with a poor scan fit at the estimate (a standing robot's kidnap) and while re-localising
+      after a kidnap, then with jitter ~localized_roughen_std_xy_m 0.03, ~localized_roughen_std_yaw_rad 0.01);
+      ~free_space_mode ("relocalizing"): the free-space check of the beams (localization/free_space_model.py)
+      "off", "relocalizing" (only while not localised) or "always"; FreeSpaceConfig fields with prefix
+      ~free_space_ (~free_space_tolerance_m 0.2, ~free_space_check_length_m 1.0,
+      ~free_space_sample_spacing_m 0.1, ~free_space_far_sample_spacing_m 0.5, ~free_space_max_crossed_m 1.0,
+      ~free_space_decay_length_m 1.0);
       ~scan_topic (/scan_360), ~use_map_topic (true), ~first_map_only (false), ~transform_tolerance (1.0 s),
       ~tf_broadcast (true), ~global_frame_id (map), ~odom_frame_id (odom), ~base_frame_id (base_link),
       ~seed (-1 = random).
@@ -139,6 +159,10 @@ class AmclNode:
                 overrides[field] = typed_param(ros_name, 0.0)
         self.config = config_from_params(AmclConfig, overrides=overrides)
         self.quality_config = config_from_params(LocalizationQualityConfig, prefix="~localized_")
+        self.free_space_mode = typed_param("~free_space_mode", "relocalizing")
+        if self.free_space_mode not in FREE_SPACE_MODES:
+            raise ValueError(f"~free_space_mode must be one of {FREE_SPACE_MODES}, got {self.free_space_mode!r}")
+        self.free_space_config = config_from_params(FreeSpaceConfig, prefix="~free_space_")
         self.scan_topic = typed_param("~scan_topic", "/scan_360")
         self.use_map_topic = typed_param("~use_map_topic", True)
         self.first_map_only = typed_param("~first_map_only", False)
@@ -152,6 +176,7 @@ class AmclNode:
 
         self.amcl = Amcl(self.config, rng)
         self.monitor = LocalizationMonitor(self.quality_config)
+        self.stationary = StationaryUpdatePolicy(self.quality_config)
         self._lock = threading.Lock()
         self._have_map = False
         self._last_tf_stamp: Optional[rospy.Time] = None
@@ -197,6 +222,9 @@ class AmclNode:
             return
         with self._lock:
             self.amcl.set_map(grid, spec)
+            if self.free_space_mode != "off":
+                self.amcl.field = FreeSpaceCheckedField(self.amcl.field, self.free_space_config)
+            self.stationary.stop_relocalizing()
             # a new map invalidates the particles: start again from the configured initial pose
             self.amcl.initialise(self.config.initial_pose)
             self.monitor.reset()
@@ -230,6 +258,7 @@ class AmclNode:
                 return
             self.amcl.initialise(pose, cov)
             self.monitor.reset()
+            self.stationary.start_relocalizing()    # the robot may stand (a paused navigator): update anyway
         self.localized_pub.publish(Bool(data=False))
         rospy.loginfo("amcl: re-initialised at (%.2f, %.2f, %.2f)", *pose)
 
@@ -238,6 +267,7 @@ class AmclNode:
             if self._have_map:
                 self.amcl.global_localization()
                 self.monitor.reset()
+                self.stationary.start_relocalizing()    # may be standing: update without motion too
                 rospy.loginfo("amcl: global localisation, %d particles over the free space", self.amcl.filter.n)
             else:
                 rospy.logwarn("amcl: global_localization before a map; nothing done")
@@ -260,21 +290,34 @@ class AmclNode:
         if odom is None:
             return
         with self._lock:
+            self._before_update(msg.header.stamp.to_sec(), odom, scan)
             result = self.amcl.update(odom, scan)
             if result.updated:
                 std_xy, std_yaw = particle_spread(self.amcl.particles, self.amcl.filter.weights)
                 pose = result.pose
                 hits = scan_hit_fraction(self.amcl.field, (pose.x_m, pose.y_m, pose.yaw_rad), scan,
-                                         self.quality_config.hit_distance_m)
+                                         self.quality_config.hit_distance_m, self.quality_config.max_crossed_m)
                 was = self.monitor.localized
                 now = self.monitor.update(std_xy, std_yaw, hits)
                 kidnapped = self.monitor.kidnapped
                 if kidnapped:      # confidently wrong: spread the particles around the estimate again
-                    self.amcl.initialise((pose.x_m, pose.y_m, pose.yaw_rad),
-                                         self.quality_config.relocalize_covariance())
+                    q = self.quality_config
+                    self.amcl.initialise((pose.x_m, pose.y_m, pose.yaw_rad), q.relocalize_covariance(pose.yaw_rad))
+                    if q.relocalize_round_fraction > 0:
+                        round_cov = dataclasses.replace(q, relocalize_std_across_m=0.0).relocalize_covariance()
+                        self.amcl.filter.redraw_fraction((pose.x_m, pose.y_m, pose.yaw_rad), round_cov,
+                                                         q.relocalize_round_fraction)
                     self.monitor.reset()
+                    self.stationary.start_relocalizing()
                     now = False
                 particles = self.amcl.particles.copy()
+                if not now:        # not localised: report the spread of the whole set, not of one cluster
+                    whole = set_covariance(particles, None if kidnapped else self.amcl.filter.weights)
+                    cov = result.covariance.copy()
+                    if np.trace(whole[:2, :2]) > np.trace(cov[:2, :2]):
+                        cov[:2, :2] = whole[:2, :2]
+                    cov[2, 2] = max(cov[2, 2], whole[2, 2])
+                    result = dataclasses.replace(result, covariance=cov)
             self._map_to_odom = result.map_to_odom
         stamp = msg.header.stamp
         if result.updated:
@@ -284,15 +327,38 @@ class AmclNode:
                                         "scan fit %.2f" % (result.pose.x_m, result.pose.y_m, result.pose.yaw_rad,
                                                            result.n_particles, std_xy, std_yaw, hits))
             if kidnapped:
+                q = self.quality_config
                 rospy.logwarn("amcl: the scan has not fitted the map for %d updates although the particles "
-                              "agree: kidnapped? Re-spreading them around (%.2f, %.2f) (std %.1f m, %.2f rad)",
-                              self.quality_config.relocalize_after, result.pose.x_m, result.pose.y_m,
-                              self.quality_config.relocalize_std_xy_m, self.quality_config.relocalize_std_yaw_rad)
+                              "agree: kidnapped? Re-spreading them around (%.2f, %.2f) (std %.1f m along, %.1f m "
+                              "across the heading, %.2f rad)", q.relocalize_after, result.pose.x_m,
+                              result.pose.y_m, q.relocalize_std_xy_m,
+                              q.relocalize_std_across_m or q.relocalize_std_xy_m, q.relocalize_std_yaw_rad)
             if now != was:
                 rospy.loginfo("amcl: %s (spread %.3f m, %.3f rad, scan fit %.2f)",
                               "localised" if now else "NOT localised", std_xy, std_yaw, hits)
                 self.localized_pub.publish(Bool(data=now))
         self._publish_tf(stamp)
+
+    def _before_update(self, now_s: float, odom: Pose2D, scan: Scan) -> None:
+        """Free-space check on/off; a filter update without motion when the stationary policy asks."""
+        field = self.amcl.field
+        if isinstance(field, FreeSpaceCheckedField):
+            field.enabled = self.free_space_mode == "always" or not self.monitor.localized
+        hits = None
+        if self.monitor.localized and self._map_to_odom is not None and self.stationary.due(now_s):
+            here = compose(self._map_to_odom, odom)
+            hits = scan_hit_fraction(field, (here.x_m, here.y_m, here.yaw_rad), scan,
+                                     self.quality_config.hit_distance_m,
+                                     self.quality_config.max_crossed_m)
+        update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits, self.monitor.suspect)
+        if roughen:
+            self.amcl.filter.roughen(self.quality_config.roughen_std_xy_m, self.quality_config.roughen_std_yaw_rad)
+        if update:
+            if hits is not None:
+                rospy.loginfo_throttle(5.0, "amcl: the scan fits the map poorly at the estimate (%.2f < %.2f); "
+                                            "updating although the robot stands" %
+                                       (hits, self.quality_config.min_hit_fraction))
+            self.amcl.request_update()
 
     def _publish_pose(self, result, stamp):
         out = PoseWithCovarianceStamped()

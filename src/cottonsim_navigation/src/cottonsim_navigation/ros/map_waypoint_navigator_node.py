@@ -26,10 +26,13 @@ class MapWaypointNavigatorNode(WaypointNavigatorBase):
       ~goal_yaw (str, "toward_next"): "toward_next" = each goal faces the next waypoint (the file's
         yaw is ignored; the original's file has yaw 1 rad on return passes, a defect), "file" = use
         the file's yaw_rad
+      ~localized_topic (str, "/amcl/localized"): AMCL's verdict; while it is false (after having been
+        true: a kidnap) the route pauses with the goal held and the robot stopped, see the base class
     Home = the robot's map pose when the route starts (with AMCL on the saved map: the spawn pose).
     """
 
     NAME = "map_waypoint_navigator"
+    DEFAULT_LOCALIZED_TOPIC = "/amcl/localized"
 
     def __init__(self):
         self.goal_yaw = str(rospy.get_param("~goal_yaw", "toward_next"))

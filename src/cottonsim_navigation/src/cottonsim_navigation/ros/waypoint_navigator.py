@@ -14,10 +14,17 @@ accepted only for the goal it belongs to, so a late result of a cancelled
 goal can never be taken for the current one (the original's stale-status
 defect).
 
+Lost localisation (``~localized_topic``, e.g. AMCL's ``/amcl/localized``): once
+the localiser has reported "localised" and then reports "not localised" (a
+kidnap), the active goal is cancelled (move_base stops the robot) and held,
+not counted as aborted; when it reports "localised" again the same goal is
+sent again. The route is never cut short by a lost localisation.
+
 State (std_msgs/String on ~state, latched): a JSON object
-``{"state": waiting|navigating|returning_home|finished, "index": i (1-based goal), "total": N,
+``{"state": waiting|navigating|returning_home|paused|finished, "index": i (1-based goal), "total": N,
 "label": ..., "goal": [x, y, yaw], "succeeded": n, "passed": n (of the succeeded, driven through),
-"aborted": n, "skipped": n, "returned_home": bool, "home_reached": bool|null, "reason": ...}``.
+"aborted": n, "skipped": n, "returned_home": bool, "home_reached": bool|null, "holds": n (goals held
+while localisation was lost), "reason": ...}``.
 """
 from __future__ import annotations
 
@@ -35,13 +42,13 @@ import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from sensor_msgs.msg import BatteryState
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 
 from cottonsim_navigation.core.geometry import yaw_to_quaternion
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
 from cottonsim_navigation.waypoints.goals import pass_through_flags
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
-                                                     WaypointFollower)
+                                                     LocalisationGate, WaypointFollower)
 from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
 
 _STATUS_NAMES = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", "SUCCEEDED", "ABORTED",
@@ -59,6 +66,10 @@ class WaypointNavigatorBase:
       /battery/state (sensor_msgs/BatteryState, ~battery_topic): percentage in [0, 1];
         at or below ~return_home_percentage the active goal is cancelled, Home is sent
         and the navigator stops once it is reached. NaN percentages are ignored.
+      ~localized_topic (std_msgs/Bool, default per navigator, "" = none): the localiser's verdict;
+        after it was true once, false pauses the route (the active goal is cancelled, the robot stops, the
+        goal is held) until it is true again, then the same goal is sent again. The first true is not
+        waited for: the route starts on the initial pose (AMCL reports localised only after some motion).
     Publications
       ~state (std_msgs/String, latched): JSON state, see the module docstring.
     Action client
@@ -83,6 +94,7 @@ class WaypointNavigatorBase:
     """
 
     NAME = "waypoint_navigator"
+    DEFAULT_LOCALIZED_TOPIC = ""
 
     # ------------------------------------------------------------------ hooks for subclasses
     def load_route(self, path: str) -> list:
@@ -110,6 +122,7 @@ class WaypointNavigatorBase:
         self.goal_timeout_s = float(rospy.get_param("~goal_timeout_s", 300.0))
         self.loop_hz = float(rospy.get_param("~loop_hz", 10.0))
         self.pass_through_max_turn_rad = float(rospy.get_param("~pass_through_max_turn_rad", math.radians(20.0)))
+        self.localized_topic = str(rospy.get_param("~localized_topic", self.DEFAULT_LOCALIZED_TOPIC))
         try:
             self.follower_config = FollowerConfig(
                 on_failure=on_failure, pass_through_radius_m=float(rospy.get_param("~pass_through_radius_m", 0.0)))
@@ -145,6 +158,8 @@ class WaypointNavigatorBase:
         self._result = None             # (seq, GoalStatus) of a finished goal
         self._goal_sent_at = None
         self._battery_low = False
+        self._gate = LocalisationGate()                # the localiser's verdicts
+        self._paused_since: Optional[rospy.Time] = None
         self.follower: Optional[WaypointFollower] = None
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
@@ -152,6 +167,9 @@ class WaypointNavigatorBase:
         self.client = actionlib.ActionClient(self.action_ns, MoveBaseAction)
         self._goal_handle = None
         rospy.Subscriber(self.battery_topic, BatteryState, self._on_battery, queue_size=5)
+        if self.localized_topic:
+            rospy.Subscriber(self.localized_topic, Bool, self._on_localized, queue_size=5)
+            rospy.loginfo("%s: pausing the route while %s reports not localised", self.NAME, self.localized_topic)
 
     # ------------------------------------------------------------------ inputs
     def _on_battery(self, msg: BatteryState):
@@ -163,6 +181,15 @@ class WaypointNavigatorBase:
             rospy.logwarn("%s: battery at %.1f %% (<= %.1f %%): returning Home", self.NAME, pct * 100.0,
                           self.return_home_percentage)
             self._battery_low = True
+
+    def _on_localized(self, msg: Bool):
+        with self._lock:
+            self._gate.report(bool(msg.data))
+
+    def localisation_lost(self) -> bool:
+        """The localiser was localised once and now says it is not (kidnap, re-initialisation)."""
+        with self._lock:
+            return self._gate.lost
 
     def _on_transition(self, seq: int, gh):
         """actionlib transition callback, bound to the goal's sequence number when it was sent."""
@@ -197,7 +224,7 @@ class WaypointNavigatorBase:
                "succeeded": s.succeeded if s else 0, "passed": s.passed if s else 0,
                "aborted": s.aborted if s else 0,
                "skipped": s.skipped if s else 0, "returned_home": s.returned_home if s else False,
-               "home_reached": s.home_reached if s else None,
+               "home_reached": s.home_reached if s else None, "holds": s.holds if s else 0,
                "reason": reason or (s.stopped_reason if s else "")}
         self.state_pub.publish(String(data=json.dumps(msg)))
 
@@ -321,6 +348,15 @@ class WaypointNavigatorBase:
                 rospy.logwarn("%s: goal %s ended %s", self.NAME, "Home" if f.going_home else f.index + 1,
                               _STATUS_NAMES.get(status, status))
             f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED)
+        if f.finished:
+            return
+        if self.localisation_lost():
+            self._pause()
+            return
+        if self._paused_since is not None:
+            rospy.loginfo("%s: localised again after %.1f s (sim): resuming %s", self.NAME,
+                          (rospy.Time.now() - self._paused_since).to_sec(), self._describe_current())
+            self._paused_since = None
         elif f.current_is_pass_through and self._passed_current():
             rospy.loginfo("%s: goal %d passed (within %.2f m); on to the next", self.NAME, f.index,
                           self.follower_config.pass_through_radius_m)
@@ -334,6 +370,35 @@ class WaypointNavigatorBase:
         goal = f.next_goal(localisation_ready=True)
         if goal is not None:
             self._send(goal)
+
+    def _describe_current(self) -> str:
+        f = self.follower
+        if f.index >= len(f.goals):
+            return "the route"
+        if f.going_home:
+            return "the way Home"
+        return f"goal {f.index + 1}/{len(self.waypoints)} {getattr(f.goals[f.index], 'label', '')}".rstrip()
+
+    def _pause(self):
+        """Localisation lost: cancel and hold the active goal (once), then wait (reminding every 30 s)."""
+        if self._paused_since is not None:
+            waited_s = (rospy.Time.now() - self._paused_since).to_sec()
+            if waited_s >= 30.0:
+                rospy.logwarn_throttle(30.0, "%s: still waiting for localisation (%.0f s, %s held); if it cannot "
+                                             "re-localise by itself, give it the robot's pose (/initialpose, "
+                                             "rviz '2D Pose Estimate')" % (self.NAME, waited_s,
+                                                                           self._describe_current()))
+            return
+        self._paused_since = rospy.Time.now()
+        f = self.follower
+        held = f.state is FollowerState.ACTIVE
+        if held:
+            self._cancel_active()          # move_base stops the robot
+            f.hold()
+        goal = f.goals[f.index] if f.index < len(f.goals) else None
+        rospy.logwarn("%s: localisation lost (%s is false): %s %s, robot stopped; waiting to be localised again",
+                      self.NAME, self.localized_topic, self._describe_current(), "held" if held else "not sent yet")
+        self.publish_state("paused", reason="localisation lost", goal=goal)
 
 
 def run_node(node_class, name: str):

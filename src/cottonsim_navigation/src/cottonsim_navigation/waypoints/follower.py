@@ -9,6 +9,8 @@ what to send next. Usage::
     f.report_result(GoalResult.SUCCEEDED)
     f.battery_low()                               # paper: at 40 % go Home and stop
     f.passed(distance_m)                          # pass-through waypoints: True = counted, send the next
+    f.hold()                                      # localisation lost: the active goal is withdrawn, not
+                                                  # counted; next_goal(True) gives the same goal again
 
 Pass-through (``FollowerConfig.pass_through_radius_m`` > 0 and the goal
 flagged in ``pass_through``): a waypoint where the route goes on straight
@@ -18,7 +20,12 @@ sent at once, so the robot drives through it instead of braking to a stop
 is the trajectory's closest approach, which the robot still makes a moment
 later on its way to the next goal.
 
-States: WAITING (localisation not ready), READY (a goal may be sent),
+Holding (``hold``): when localisation is lost mid-route (a kidnap) the ROS
+layer cancels the active goal so the robot stops; the goal is neither
+succeeded nor aborted, and the next ``next_goal(localisation_ready=True)``
+returns the same goal again (the route is resumed, never cut short).
+
+States: WAITING (localisation not ready, or a held goal), READY (a goal may be sent),
 ACTIVE (a goal is out), FINISHED. Goals are any objects (map poses or GPS
 waypoints); Home must be of the same kind.
 """
@@ -71,6 +78,7 @@ class FollowerSummary:
     returned_home: bool = False
     home_reached: Optional[bool] = None
     stopped_reason: str = ""
+    holds: int = 0                 # goals withdrawn while localisation was lost (then sent again)
     results: List[str] = field(default_factory=list)    # per attempted goal, in order
 
 
@@ -165,6 +173,19 @@ class WaypointFollower:
         self.report_result(GoalResult.SUCCEEDED)
         return True
 
+    def hold(self) -> bool:
+        """Withdraw the active goal without a result (localisation lost); True when one was active.
+
+        The index stays, so ``next_goal(localisation_ready=True)`` returns the
+        same goal (or Home) once the caller is ready again. Nothing happens
+        when no goal is active (READY / WAITING / FINISHED).
+        """
+        if self.state is not FollowerState.ACTIVE:
+            return False
+        self.state = FollowerState.WAITING
+        self.summary.holds += 1
+        return True
+
     def battery_low(self) -> None:
         """Replace the remaining goals by Home; the follower stops once Home is reached.
 
@@ -186,3 +207,26 @@ class WaypointFollower:
         self.state = FollowerState.FINISHED
         if not self.summary.stopped_reason:
             self.summary.stopped_reason = reason
+
+
+class LocalisationGate:
+    """Is the localiser lost? True once it has reported "localised" and then reports "not localised".
+
+    The first "localised" is not waited for: AMCL reports it only after the robot has moved, so a
+    navigator starts on the initial pose and pauses only when a localised filter loses its pose (a
+    kidnap, a re-initialisation). Feed every verdict to :meth:`report`.
+    """
+
+    def __init__(self) -> None:
+        self.last: Optional[bool] = None
+        self.ever_localized = False
+
+    def report(self, localized: bool) -> None:
+        if not isinstance(localized, (bool, int)):
+            raise ValueError(f"localized must be a bool, got {localized!r}")
+        self.last = bool(localized)
+        self.ever_localized = self.ever_localized or self.last
+
+    @property
+    def lost(self) -> bool:
+        return self.ever_localized and self.last is False

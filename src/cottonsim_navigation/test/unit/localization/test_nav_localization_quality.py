@@ -6,7 +6,8 @@ import pytest
 
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
-                                                       particle_spread, scan_hit_fraction)
+                                                       StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
+                                                       set_covariance)
 from cottonsim_navigation.localization.sensor_models import LikelihoodField, Scan
 
 
@@ -44,7 +45,7 @@ def test_monitor_hysteresis_and_kidnap():
     assert mon.update(0.05, 0.02, 0.1) is True           # one poor fit: still localised
     assert not mon.kidnapped
     assert mon.update(0.05, 0.02, 0.1) is False          # two: not localised
-    assert not mon.kidnapped
+    assert not mon.kidnapped and mon.suspect              # ... and a kidnap is suspected
     mon.update(0.05, 0.02, 0.1)
     assert mon.kidnapped                                  # tight but wrong three times
     mon.reset()
@@ -56,7 +57,74 @@ def test_monitor_hysteresis_and_kidnap():
 
 
 @pytest.mark.parametrize("field,value", [("max_std_xy_m", 0.0), ("min_hit_fraction", 1.5), ("switch_after", 0),
-                                         ("relocalize_after", -1), ("hit_distance_m", float("nan"))])
+                                         ("relocalize_after", -1), ("hit_distance_m", float("nan")),
+                                         ("stationary_update_period_s", -0.5), ("roughen_std_xy_m", math.inf)])
 def test_bad_config_names_the_parameter(field, value):
     with pytest.raises(ValueError, match=field):
         LocalizationQualityConfig(**{field: value})
+
+
+def test_set_covariance_covers_all_clusters():
+    # two tight groups 4 m apart on y, equal weight: y variance 4 m^2 (each 2 m from the mean), x 0
+    p = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 4.0, 0.0], [1.0, 4.0, 0.0]])
+    cov = set_covariance(p)
+    assert cov[1, 1] == pytest.approx(4.0)
+    assert cov[0, 0] == pytest.approx(0.0)
+    assert cov[2, 2] == pytest.approx(0.0, abs=1e-9)
+    # weighted towards one group: p(1-p) * d^2 = 0.25 * 0.75 * 16
+    cov = set_covariance(p, np.array([0.125, 0.125, 0.375, 0.375]))
+    assert cov[1, 1] == pytest.approx(0.1875 * 16.0)
+    with pytest.raises(ValueError, match="weights"):
+        set_covariance(p, np.array([1.0, -1.0, 0.0, 0.0]))
+
+
+def test_stationary_policy_asks_for_updates_only_when_needed():
+    pol = StationaryUpdatePolicy(LocalizationQualityConfig(stationary_update_period_s=0.5, min_hit_fraction=0.6))
+    # localised with a good fit: never
+    assert pol.decide(0.0, True, 0.9) == (False, False)
+    # localised, poor fit: an update (no jitter), then not again before 0.5 s have passed
+    assert pol.decide(1.0, True, 0.3) == (True, False)
+    assert pol.decide(1.2, True, 0.3) == (False, False)
+    assert pol.decide(1.5, True, 0.3) == (True, False)
+    # not localised and not re-localising (e.g. the start, before any motion): never
+    assert pol.decide(3.0, False, None) == (False, False)
+    # re-localising after a kidnap: updates with jitter at the period, until localised again
+    pol.start_relocalizing()
+    assert pol.decide(4.0, False) == (True, True)
+    assert pol.decide(4.1, False) == (False, False)
+    assert pol.decide(4.6, False) == (True, True)
+    assert pol.decide(5.2, True, 0.9) == (False, False)
+    assert not pol.relocalizing
+    # a clock jump back (sim restarted) does not block the updates
+    pol.start_relocalizing()
+    assert pol.decide(0.1, False) == (True, True)
+    # not localised any more but a kidnap is suspected (tight set, poor fit): updates go on (no jitter) so
+    # that the standing robot's kidnap is confirmed
+    sus = StationaryUpdatePolicy(LocalizationQualityConfig(stationary_update_period_s=0.5))
+    assert sus.decide(7.0, False, None, suspect=True) == (True, False)
+    assert sus.decide(7.2, False, None, suspect=True) == (False, False)
+    assert sus.decide(7.6, False, None, suspect=False) == (False, False)
+    off = StationaryUpdatePolicy(LocalizationQualityConfig(stationary_update_period_s=0.0))
+    off.start_relocalizing()
+    assert off.decide(10.0, False) == (False, False)
+
+
+def test_relocalize_covariance_along_and_across_the_heading():
+    cfg = LocalizationQualityConfig(relocalize_std_xy_m=2.0, relocalize_std_across_m=0.5, relocalize_std_yaw_rad=0.3)
+    # heading along +x: x is "along" (2 m), y "across" (0.5 m)
+    assert np.allclose(cfg.relocalize_covariance(0.0), np.diag([4.0, 0.25, 0.09]))
+    # heading along +y: swapped
+    assert np.allclose(cfg.relocalize_covariance(math.pi / 2), np.diag([0.25, 4.0, 0.09]))
+    # 45 deg: variance along the heading direction u is u^T C u = 4, across 0.25
+    c = cfg.relocalize_covariance(math.pi / 4)[:2, :2]
+    u, v = np.array([1.0, 1.0]) / math.sqrt(2), np.array([-1.0, 1.0]) / math.sqrt(2)
+    assert u @ c @ u == pytest.approx(4.0) and v @ c @ v == pytest.approx(0.25)
+    # 0 = round (the old behaviour), whatever the heading
+    assert np.allclose(LocalizationQualityConfig(relocalize_std_xy_m=2.0).relocalize_covariance(1.0)[:2, :2],
+                       4.0 * np.eye(2))
+    with pytest.raises(ValueError, match="relocalize_std_across_m"):
+        LocalizationQualityConfig(relocalize_std_across_m=-1.0)
+    with pytest.raises(ValueError, match="relocalize_round_fraction"):
+        LocalizationQualityConfig(relocalize_round_fraction=1.2)
+    with pytest.raises(ValueError, match="yaw_rad"):
+        cfg.relocalize_covariance(float("nan"))

@@ -4,7 +4,7 @@ import math
 import pytest
 
 from cottonsim_navigation.waypoints.files import (WaypointFileError, load_gps_waypoints, load_map_waypoints)
-from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
+from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult, LocalisationGate,
                                                      WaypointFollower)
 
 
@@ -96,6 +96,29 @@ def test_follower_battery_low_goes_home_and_stops():
         WaypointFollower(["a"]).battery_low()
 
 
+def test_follower_hold_resends_the_same_goal_and_counts_nothing():
+    f = WaypointFollower(["a", "b"], FollowerConfig(on_failure="stop", pass_through_radius_m=1.0), home="H",
+                         pass_through=[True, False])
+    assert not f.hold()                             # nothing active yet: nothing to hold
+    assert f.next_goal() == "a"
+    assert f.hold() and f.state is FollowerState.WAITING
+    assert not f.hold()                             # already held
+    assert not f.passed(0.1)                        # a held goal cannot be driven through
+    with pytest.raises(ValueError, match="no active goal"):
+        f.report_result(GoalResult.ABORTED)         # a held goal has no result (on_failure=stop untouched)
+    assert f.next_goal(localisation_ready=False) is None
+    assert f.next_goal() == "a"                     # the same goal again, route not cut short
+    assert f.hold() and f.next_goal() == "a"
+    f.report_result(GoalResult.SUCCEEDED)
+    assert f.next_goal() == "b"
+    f.hold()
+    f.battery_low()                                 # battery low while held: Home next, 'b' skipped
+    assert f.next_goal() == "H"
+    f.report_result(GoalResult.SUCCEEDED)
+    s = f.summary
+    assert f.finished and (s.succeeded, s.aborted, s.skipped, s.holds) == (1, 0, 1, 3) and s.home_reached
+
+
 def test_follower_drives_through_pass_through_waypoints_only_within_the_radius():
     f = WaypointFollower(["a", "b", "c"], FollowerConfig(pass_through_radius_m=0.5), home="H",
                          pass_through=[False, True, False])
@@ -137,3 +160,20 @@ def test_gps_lanes_file(tmp_path):
         p.write_text(text)
         with pytest.raises(WaypointFileError, match=what):
             load_gps_lanes(p)
+
+
+def test_localisation_gate_is_lost_only_after_having_been_localised():
+    g = LocalisationGate()
+    assert not g.lost                               # nothing heard
+    g.report(False)
+    assert not g.lost                               # not localised yet at the start: not "lost"
+    g.report(True)
+    assert not g.lost
+    g.report(False)
+    assert g.lost                                   # a kidnap
+    g.report(False)
+    assert g.lost
+    g.report(True)
+    assert not g.lost and g.ever_localized          # localised again
+    with pytest.raises(ValueError, match="localized"):
+        g.report("yes")

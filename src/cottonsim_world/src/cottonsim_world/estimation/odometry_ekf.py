@@ -15,6 +15,23 @@ its process noise by dt the same way). Each measurement is linear in the
 state (it picks vx, vyaw or yaw), so the update is a standard Kalman update
 with the yaw innovation wrapped to (-pi, pi].
 
+Wheel slip (not in robot_localization): when a plant pins the robot, its
+wheels spin on while it stands, and wheel odometry runs away. The filter
+keeps a second forward speed, ``v_imu``, integrated from the IMU's forward
+acceleration (its specific force with gravity removed using its attitude)
+and pulled towards the wheel speed with time constant ``slip_blend_time_s``
+while the two agree; while slipping it is kept between 0 and the wheel speed
+(a robot moves no faster than its wheels turn, nor against them), which
+bounds its drift and ends the slip once the wheels stop. When they differ by more than
+``slip_speed_threshold_m_s`` the wheels are slipping: ``v_imu`` is then
+integrated from the IMU alone and fused as the forward speed (variance
+``slip_speed_variance_m2_s2``) instead of the wheels', whose yaw rate is
+down-weighted by ``slip_yaw_rate_variance_scale`` too. Slipping ends when the
+two agree within half the threshold again. A pinned robot decelerates
+against the plant (the IMU sees it), so its speed stays near zero in the
+filter although the wheels turn. No IMU acceleration (``update_imu``
+without ``accel_body_m_s2``) = no slip check.
+
 The outputs are a pose and twist with 6x6 covariances in the
 (x, y, z, roll, pitch, yaw) order of nav_msgs/Odometry, and the odom ->
 base_link transform. Non-finite inputs are refused with a reason (returned
@@ -44,18 +61,36 @@ class OdometryEkfConfig:
         (robot_localization's 2D defaults: 0.05, 0.05, 0.06, 0.025, 0.02).
     initial_covariance_diag: of the start state (robot_localization: 1e-9).
     max_dt_s: a predict longer than this is refused (clock jump) [s].
+    slip_check: use the IMU's forward acceleration to detect slipping wheels (see the module doc).
+    slip_speed_threshold_m_s: wheel and IMU forward speeds differing by more than this = slipping [m/s].
+    slip_blend_time_s: time constant pulling the IMU speed towards the wheels' while they agree [s].
+    slip_speed_variance_m2_s2: variance of the IMU forward speed fused while slipping [m^2/s^2].
+    slip_yaw_rate_variance_scale: the wheels' yaw-rate variance is multiplied by this while slipping.
+    gravity_m_s2: magnitude of gravity removed from the IMU's specific force [m/s^2].
     """
 
     frequency_hz: float = 50.0
     process_noise_diag: Tuple[float, float, float, float, float] = (0.05, 0.05, 0.06, 0.025, 0.02)
     initial_covariance_diag: Tuple[float, float, float, float, float] = (1e-9, 1e-9, 1e-9, 1e-9, 1e-9)
     max_dt_s: float = 1.0
+    slip_check: bool = True
+    slip_speed_threshold_m_s: float = 0.15
+    slip_blend_time_s: float = 0.5
+    slip_speed_variance_m2_s2: float = 0.01
+    slip_yaw_rate_variance_scale: float = 100.0
+    gravity_m_s2: float = 9.8
 
     def __post_init__(self) -> None:
-        for name in ("frequency_hz", "max_dt_s"):
+        if not isinstance(self.slip_check, bool):
+            raise ValueError(f"OdometryEkfConfig.slip_check must be true or false, got {self.slip_check!r}")
+        for name in ("frequency_hz", "max_dt_s", "slip_speed_threshold_m_s", "slip_blend_time_s",
+                     "slip_speed_variance_m2_s2", "gravity_m_s2"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"OdometryEkfConfig.{name} must be a finite number > 0, got {v!r}")
+        v = self.slip_yaw_rate_variance_scale
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 1):
+            raise ValueError(f"OdometryEkfConfig.slip_yaw_rate_variance_scale must be a finite number >= 1, got {v!r}")
         for name in ("process_noise_diag", "initial_covariance_diag"):
             values = getattr(self, name)
             if len(values) != 5 or not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0
@@ -89,6 +124,25 @@ class FilteredOdometry:
         return (self.x_m, self.y_m, 0.0), self.orientation_xyzw
 
 
+def forward_acceleration(specific_force_m_s2: Sequence[float], orientation_xyzw: Optional[Sequence[float]],
+                         gravity_m_s2: float = 9.8) -> float:
+    """Forward (body x) acceleration [m/s^2] from an IMU's specific force (body axes, gravity included) and
+    its attitude quaternion (body -> world, x y z w): a_x = f_x - g R[2][0] (R[2][0] = 2 (x z - w y)).
+    No attitude = a level robot. Raises ValueError on non-finite or malformed input."""
+    try:
+        f = [float(v) for v in specific_force_m_s2]
+        q = [0.0, 0.0, 0.0, 1.0] if orientation_xyzw is None else [float(v) for v in orientation_xyzw]
+    except (TypeError, ValueError):
+        raise ValueError("accel_body_m_s2 / orientation_xyzw must be numbers") from None
+    if len(f) != 3 or len(q) != 4 or not all(math.isfinite(v) for v in f + q):
+        raise ValueError(f"accel_body_m_s2 must be 3 and orientation_xyzw 4 finite numbers, got {f!r}, {q!r}")
+    n = math.sqrt(sum(v * v for v in q))
+    if n < 1e-9:
+        raise ValueError("orientation_xyzw is a zero quaternion")
+    x, y, z, w = (v / n for v in q)
+    return f[0] - gravity_m_s2 * 2.0 * (x * z - w * y)
+
+
 class OdometryEkf:
     """5-state planar EKF: predict(dt), update_wheel_odometry, update_imu.
 
@@ -110,6 +164,16 @@ class OdometryEkf:
         self._s = [float(x_m), float(y_m), _wrap(float(yaw_rad)), 0.0, 0.0]
         diag = self.config.initial_covariance_diag
         self._p = [[float(diag[i]) if i == j else 0.0 for j in range(5)] for i in range(5)]
+        self._accel_x: Optional[float] = None      # latest IMU forward acceleration (gravity removed) [m/s^2]
+        self._v_imu = 0.0                           # IMU-integrated forward speed [m/s]
+        self._last_dt = 0.0
+        self.slipping = False
+        self.slip_events = 0                        # times slipping started
+
+    @property
+    def imu_speed_m_s(self) -> float:
+        """The IMU-integrated forward speed the slip check compares the wheels with [m/s]."""
+        return self._v_imu
 
     @property
     def state(self) -> np.ndarray:
@@ -150,6 +214,9 @@ class OdometryEkf:
         s[X] += s[VX] * c * dt
         s[Y] += s[VX] * si * dt
         s[YAW] = _wrap(s[YAW] + s[VYAW] * dt)
+        if self._accel_x is not None:
+            self._v_imu += self._accel_x * dt
+        self._last_dt = dt
 
         def mix(v):   # F applied to a 5-vector (a row or column of P)
             return [v[X] + f_x_yaw * v[YAW] + f_x_vx * v[VX],
@@ -239,19 +306,49 @@ class OdometryEkf:
         var_w, err_w = self._variance(pair[1], "wheel odometry var_w")
         if err_v or err_w:
             return self._reject(f"wheel odometry rejected: {err_v or err_w}")
-        self._update((VX, VYAW), (float(v_m_s), float(w_rad_s)), (var_v, var_w))
+        v = float(v_m_s)
+        if self.config.slip_check and self._accel_x is not None:
+            c = self.config
+            diff = v - self._v_imu
+            if not self.slipping and abs(diff) > c.slip_speed_threshold_m_s:
+                self.slipping = True
+                self.slip_events += 1
+            elif self.slipping and abs(diff) < 0.5 * c.slip_speed_threshold_m_s:
+                self.slipping = False
+            if self.slipping:        # the IMU's speed instead of the spinning wheels'
+                # a slipping robot moves no faster than its wheels turn and not against them: this bounds
+                # the IMU speed's drift (accelerometer bias, the IMU's lever arm while turning), and once
+                # the wheels stop the slip is over
+                self._v_imu = min(max(self._v_imu, min(0.0, v)), max(0.0, v))
+                if abs(v - self._v_imu) < 0.5 * c.slip_speed_threshold_m_s:
+                    self.slipping = False
+            if self.slipping:
+                self._update((VX, VYAW), (self._v_imu, float(w_rad_s)),
+                             (c.slip_speed_variance_m2_s2, var_w * c.slip_yaw_rate_variance_scale))
+                return None
+            self._v_imu += diff * min(1.0, self._last_dt / c.slip_blend_time_s)
+        self._update((VX, VYAW), (v, float(w_rad_s)), (var_v, var_w))
         return None
 
     def update_imu(self, yaw_rate_rad_s: float, cov: float, yaw: Optional[float] = None,
-                   yaw_cov: Optional[float] = None) -> Optional[str]:
+                   yaw_cov: Optional[float] = None, accel_body_m_s2: Optional[Sequence[float]] = None,
+                   orientation_xyzw: Optional[Sequence[float]] = None) -> Optional[str]:
         """Fuse the IMU yaw rate [rad/s] (variance cov) and optionally its yaw [rad].
 
         yaw_cov: variance of yaw [rad^2]; required when yaw is given.
+        accel_body_m_s2 (with orientation_xyzw, the IMU's attitude in base_link axes): the specific force
+        [m/s^2] (gravity included, as sensor_msgs/Imu); its forward part feeds the slip check.
         """
         bad = self._bad_number("yaw_rate_rad_s", yaw_rate_rad_s) or (
             self._bad_number("yaw", yaw) if yaw is not None else None)
         if bad:
             return self._reject(f"IMU rejected: {bad}")
+        if accel_body_m_s2 is not None and self.config.slip_check:
+            try:
+                ax = forward_acceleration(accel_body_m_s2, orientation_xyzw, self.config.gravity_m_s2)
+            except ValueError as exc:
+                return self._reject(f"IMU rejected: {exc}")
+            self._accel_x = ax
         var_r, err = self._variance(cov, "IMU yaw-rate cov")
         if err:
             return self._reject(f"IMU rejected: {err}")

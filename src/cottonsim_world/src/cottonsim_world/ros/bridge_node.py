@@ -27,6 +27,10 @@ Publications
 Subscriptions
   /cmd_vel                                 geometry_msgs/Twist      Husky velocity command (0.25 s time-out)
   /arm_controller/command                  trajectory_msgs/JointTrajectory  UR5e targets (last point's positions)
+Services
+  /sim/set_robot_pose                      cottonsim_msgs/SetRobotPose  teleport the robot (world frame, at rest)
+                                           between two physics steps; wheel odometry / EKF do not see it (a
+                                           kidnap for localisation tests). success false + message when refused
 TF
   odom -> base_link (from the EKF, ~publish_tf); the robot's own frames come from
   robot_state_publisher (URDF + /joint_states).
@@ -54,6 +58,7 @@ import rospkg
 import rospy
 import tf2_ros
 from cottonsim_msgs.msg import PlantContact, PlantContacts, SimStats
+from cottonsim_msgs.srv import SetRobotPose, SetRobotPoseResponse
 from geometry_msgs.msg import Point, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -112,6 +117,8 @@ class SimBridgeNode:
         self._pending_arm = None
         rospy.Subscriber("/cmd_vel", Twist, self._on_cmd_vel, queue_size=5)
         rospy.Subscriber("/arm_controller/command", JointTrajectory, self._on_arm_command, queue_size=2)
+        self._pending_teleport = None       # [pose, threading.Event, refusal or None], done by the sim loop
+        rospy.Service("/sim/set_robot_pose", SetRobotPose, self._on_set_robot_pose)
 
     # ------------------------------------------------------------------ setup
     def _make_publishers(self):
@@ -161,10 +168,29 @@ class SimBridgeNode:
         with self._cmd_lock:
             self._pending_arm = [target[j] for j in ARM_JOINT_NAMES]
 
+    def _on_set_robot_pose(self, req):
+        """Hand the teleport to the simulation loop (the only thread that touches the simulator); wait for it."""
+        job = [(req.x_m, req.y_m, req.yaw_rad), threading.Event(), None]
+        with self._cmd_lock:
+            self._pending_teleport = job
+        if not job[1].wait(10.0):
+            return SetRobotPoseResponse(False, "the simulation loop did not take the teleport within 10 s (wall)")
+        if job[2] is not None:
+            return SetRobotPoseResponse(False, job[2])
+        rospy.logwarn("sim_bridge: robot teleported to (%.2f, %.2f, yaw %.2f) in world", *job[0])
+        return SetRobotPoseResponse(True, "robot at (%.3f, %.3f, yaw %.3f) in world" % job[0])
+
     def _apply_inputs(self):
         with self._cmd_lock:
             cmd, self._pending_cmd = self._pending_cmd, None
             arm, self._pending_arm = self._pending_arm, None
+            teleport, self._pending_teleport = self._pending_teleport, None
+        if teleport is not None:
+            try:
+                self.sim.teleport_robot(*teleport[0])
+            except ValueError as exc:
+                teleport[2] = str(exc)
+            teleport[1].set()
         if cmd is not None:
             refused = self.sim.command_velocity(*cmd)
             if refused:
