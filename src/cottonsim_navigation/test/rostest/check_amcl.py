@@ -33,6 +33,7 @@ from cottonsim_msgs.srv import SetRobotPose
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy, world_to_frame
 from cottonsim_world.farm.generator import generate_farm
+from wall_wait import wait_until
 
 # the spawn of amcl_sim.yaml: in front of lane 2, 4.6 m before the row ends
 FARM = generate_farm(FarmConfig(spawn_x_m=-5.03, spawn_y_m=4.0, spawn_yaw_rad=math.pi / 2))
@@ -46,14 +47,6 @@ def yaw_of(q):
 def wrap(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
-
-def wait_until(predicate, timeout_s):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end and not rospy.is_shutdown():
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return predicate()
 
 
 class AmclTest(unittest.TestCase):
