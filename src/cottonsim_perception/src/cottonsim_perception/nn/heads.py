@@ -10,7 +10,7 @@ each one the head predicts
 * class logits (sigmoid per class, no objectness);
 * for segmentation, ``num_prototypes`` mask coefficients; a separate 'Proto'
   branch turns the stride-8 features into ``num_prototypes`` prototype masks at
-  stride 4, and an instance mask is sigmoid(coefficients . prototypes).
+  stride 4 (or 2, ``Proto(stride=2)``), and an instance mask is sigmoid(coefficients . prototypes).
 Box and class branches are separate ('decoupled'), each two 3x3 Convs + a 1x1.
 """
 from __future__ import annotations
@@ -112,33 +112,54 @@ class DetectHead(nn.Module):
         return torch.cat((boxes, logits.sigmoid()), dim=-1)
 
 
-class Proto(nn.Module):
-    """Prototype-mask branch: stride-8 features -> k prototypes at stride 4."""
+PROTO_STRIDES = (4, 2)
 
-    def __init__(self, c_in: int, hidden: int = 64, num_prototypes: int = 32):
+
+class Proto(nn.Module):
+    """Prototype-mask branch: stride-8 features -> k prototypes at stride 4 (or 2).
+
+    stride 4 (YOLOv8): 3x3 conv, x2 transposed conv, 3x3 conv, 1x1 conv to k.
+    stride 2 adds one more x2 stage before the 1x1 (transposed conv to hidden / 2
+    channels + 3x3 conv at that width, which keeps its cost at 4x the pixels
+    near that of the stride-4 stage): masks at 1/2 of the network input.
+    """
+
+    def __init__(self, c_in: int, hidden: int = 64, num_prototypes: int = 32, stride: int = 4):
         super().__init__()
+        if stride not in PROTO_STRIDES:
+            raise ValueError(f"Proto stride must be one of {PROTO_STRIDES}, got {stride!r}")
+        self.stride = int(stride)
         self.cv1 = Conv(c_in, hidden, 3)
         self.upsample = nn.ConvTranspose2d(hidden, hidden, 2, 2, 0, bias=True)
         self.cv2 = Conv(hidden, hidden, 3)
-        self.cv3 = Conv(hidden, num_prototypes, 1)
+        c_out = hidden
+        if self.stride == 2:
+            c_out = max(8, hidden // 2)
+            self.upsample2 = nn.ConvTranspose2d(hidden, c_out, 2, 2, 0, bias=True)
+            self.cv2b = Conv(c_out, c_out, 3)
+        self.cv3 = Conv(c_out, num_prototypes, 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.cv3(self.cv2(self.upsample(self.cv1(x))))
+        y = self.cv2(self.upsample(self.cv1(x)))
+        if self.stride == 2:
+            y = self.cv2b(self.upsample2(y))
+        return self.cv3(y)
 
 
 class SegmentHead(nn.Module):
     """Detection head plus per-anchor mask coefficients and the Proto branch.
 
     forward(feats) -> (level maps as DetectHead, coefficients (B, k, A),
-    prototypes (B, k, H/4, W/4)).
+    prototypes (B, k, H/s, W/s), s = proto_stride, 4 or 2).
     """
 
     def __init__(self, num_classes: int, in_channels: Sequence[int], num_prototypes: int = 32,
-                 proto_channels: int = 64, reg_max: int = 16, strides: Sequence[int] = STRIDES):
+                 proto_channels: int = 64, reg_max: int = 16, strides: Sequence[int] = STRIDES,
+                 proto_stride: int = 4):
         super().__init__()
         self.detect = DetectHead(num_classes, in_channels, reg_max, strides)
         self.num_prototypes = int(num_prototypes)
-        self.proto = Proto(in_channels[0], proto_channels, self.num_prototypes)
+        self.proto = Proto(in_channels[0], proto_channels, self.num_prototypes, proto_stride)
         c_mask = max(in_channels[0] // 4, self.num_prototypes)
         self.coef = nn.ModuleList(nn.Sequential(Conv(c, c_mask, 3), Conv(c_mask, c_mask, 3),
                                                 nn.Conv2d(c_mask, self.num_prototypes, 1)) for c in in_channels)
