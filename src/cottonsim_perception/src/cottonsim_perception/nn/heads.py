@@ -119,9 +119,10 @@ class Proto(nn.Module):
     """Prototype-mask branch: stride-8 features -> k prototypes at stride 4 (or 2).
 
     stride 4 (YOLOv8): 3x3 conv, x2 transposed conv, 3x3 conv, 1x1 conv to k.
-    stride 2 adds one more x2 stage before the 1x1 (transposed conv to hidden / 2
-    channels + 3x3 conv at that width, which keeps its cost at 4x the pixels
-    near that of the stride-4 stage): masks at 1/2 of the network input.
+    stride 2 adds one more x2 stage before the 1x1: a 2x2 stride-2 transposed
+    conv to hidden / 2 channels (each stride-4 pixel gets four learned
+    sub-pixels; no 3x3 conv at 4x the pixels, to keep the per-frame cost
+    low): masks at 1/2 of the network input.
     """
 
     def __init__(self, c_in: int, hidden: int = 64, num_prototypes: int = 32, stride: int = 4):
@@ -136,13 +137,12 @@ class Proto(nn.Module):
         if self.stride == 2:
             c_out = max(8, hidden // 2)
             self.upsample2 = nn.ConvTranspose2d(hidden, c_out, 2, 2, 0, bias=True)
-            self.cv2b = Conv(c_out, c_out, 3)
         self.cv3 = Conv(c_out, num_prototypes, 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         y = self.cv2(self.upsample(self.cv1(x)))
         if self.stride == 2:
-            y = self.cv2b(self.upsample2(y))
+            y = nn.functional.silu(self.upsample2(y))
         return self.cv3(y)
 
 
