@@ -11,12 +11,21 @@ Segmentation / Detection valid images, cycled), so post-processing handles
 the instances a trained model really outputs; --random-weights measures an
 untrained network of the default (or given) configuration instead.
 
+By default the networks run as the nodes run them (Predictor's frozen
+channels-last TorchScript graph, ``nn.optimise``); --eager times the fused
+eager model instead (the state before that optimisation), for comparison.
+
 Printed per case: median and 10th percentile wall ms per frame (the median is
 what a node sees; the 10th percentile approximates an unloaded machine), and
 CPU ms per frame (process time of all threads: on a shared machine the
 least load-sensitive figure; with 2 threads it is the sum over both).
 
-  python benchmarks/bench_perception.py [--frames 40] [--random-weights] [--only seg|det]
+--compare runs the eager and the frozen predictor of the same weights in
+alternation (rounds of 5 frames each) and prints, per variant, the lowest CPU
+ms per frame over the rounds: on a shared machine the fairest A/B figure.
+
+  python benchmarks/bench_perception.py [--frames 40] [--random-weights] [--only seg|det] [--eager]
+  python benchmarks/bench_perception.py --compare [--rounds 10] [--only seg]
 """
 import argparse
 import glob
@@ -71,6 +80,21 @@ def time_frames(fn, frames, n: int):
     return float(np.median(w)), float(np.percentile(w, 10)), cpu * 1e3
 
 
+def compare_cpu(variants, frames, rounds: int, per_round: int = 5):
+    """Lowest CPU ms per call over interleaved rounds, per variant (name -> fn(frame))."""
+    best = {k: float("inf") for k in variants}
+    for fn in variants.values():
+        for i in range(3):
+            fn(frames[i % len(frames)])
+    for r in range(rounds):
+        for name, fn in variants.items():
+            c0 = time.process_time()
+            for i in range(per_round):
+                fn(frames[(r * per_round + i) % len(frames)])
+            best[name] = min(best[name], (time.process_time() - c0) / per_round * 1e3)
+    return best
+
+
 def load_frames(folder: str, count: int = 8):
     """Up to ``count`` RGB frames of a folder resized to 640x480, or one noise frame if none."""
     paths = sorted(glob.glob(os.path.join(folder, "*.jpg")) + glob.glob(os.path.join(folder, "*.png")))[:count]
@@ -89,6 +113,10 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=40, help="timed frames per case (default 40)")
     ap.add_argument("--only", choices=("seg", "det"), default=None)
     ap.add_argument("--random-weights", action="store_true", help="untrained networks of the presets")
+    ap.add_argument("--eager", action="store_true", help="fused eager model instead of the frozen graph")
+    ap.add_argument("--compare", action="store_true", help="interleaved eager vs frozen CPU time per frame")
+    ap.add_argument("--rounds", type=int, default=10, help="with --compare: rounds of 5 frames (default 10)")
+    ap.add_argument("--threads", default="1,2", help="torch thread counts to time, comma-separated (default 1,2)")
     ap.add_argument("--seg-weights", default=os.path.join(WEIGHTS, "scene_segmenter.pt"))
     ap.add_argument("--det-weights", default=os.path.join(WEIGHTS, "boll_detector.pt"))
     ap.add_argument("--seg-images", default=os.path.join(ORIGINAL, "Segmentation", "valid", "images"))
@@ -100,7 +128,15 @@ def main() -> int:
     a = ap.parse_args()
     if a.frames < 1:
         ap.error("--frames must be >= 1")
+    if a.rounds < 1:
+        ap.error("--rounds must be >= 1")
     tasks = [t for t in ("seg", "det") if a.only in (None, t)]
+    try:
+        thread_counts = [int(v) for v in a.threads.split(",")]
+    except ValueError:
+        ap.error(f"--threads must be comma-separated ints, got {a.threads!r}")
+    if not thread_counts or min(thread_counts) < 1:
+        ap.error("--threads needs positive thread counts")
     print(f"torch {torch.__version__}, cpu count {os.cpu_count()}, load average "
           f"{' '.join(f'{v:.1f}' for v in os.getloadavg())}, frame 640x480, {a.frames} frames per case")
     with tempfile.TemporaryDirectory() as d:
@@ -121,17 +157,33 @@ def main() -> int:
                     print(f"{task}: weights {path} not found (use --random-weights)", file=sys.stderr)
                     return 2
             frames, source = load_frames(a.seg_images if task == "seg" else a.det_images)
-            for threads in (1, 2):
-                p = Predictor(path, conf_threshold=0.25, threads=threads)
+            if a.compare:
+                for threads in thread_counts:
+                    preds = {"eager": Predictor(path, threads=threads, optimise=False),
+                             "frozen": Predictor(path, threads=threads, optimise=True)}
+                    variants = {}
+                    for name, p in preds.items():
+                        if task == "seg":
+                            variants[name] = (lambda f, p=p: label_image_from_detections(p.predict(f), f.shape[:2]))
+                        else:
+                            variants[name] = preds[name].predict
+                    best = compare_cpu(variants, frames, a.rounds)
+                    print(f"{task} ({os.path.basename(path)}), threads {threads}: lowest CPU ms per frame over "
+                          f"{a.rounds} interleaved rounds: " + ", ".join(f"{k} {v:.1f}" for k, v in best.items()))
+                continue
+            for threads in thread_counts:
+                p = Predictor(path, conf_threshold=0.25, threads=threads, optimise=not a.eager)
                 cfg = p.config
-                if threads == 1:
+                if threads == thread_counts[0]:
                     print(f"\n{task}: {os.path.basename(path)}, input {cfg.input_width}x{cfg.input_height}, "
                           f"width {cfg.width_multiple}, params {count_parameters(p.model) / 1e6:.3f} M, "
-                          f"{gflops(p.model, cfg.input_height, cfg.input_width):.2f} GFLOPs; "
+                          f"{gflops(p.model, cfg.input_height, cfg.input_width):.2f} GFLOPs, "
+                          f"{'frozen TorchScript, channels-last' if p.optimised else 'eager'}; "
                           f"frames: {source} ({len(frames)})")
                 x = [torch.rand(1, 3, cfg.input_height, cfg.input_width)]
-                with torch.inference_mode():
-                    net = time_frames(lambda t: p.model(t), x, a.frames)
+                if p.optimised:
+                    x = [x[0].contiguous(memory_format=torch.channels_last)]
+                net = time_frames(p.network, x, a.frames)
                 if task == "seg":
                     def work(f):
                         return label_image_from_detections(p.predict(f), f.shape[:2])

@@ -3,13 +3,16 @@
 :class:`Predictor` loads a checkpoint (see ``nn.models``), letterboxes an RGB
 frame to the network input, runs the network on the CPU (or a given device)
 and returns :class:`~cottonsim_perception.types.Detections` in the frame's own
-pixels. For inference the BatchNorms are folded into the convolutions.
+pixels. For inference the BatchNorms are folded into the convolutions and,
+with ``optimise`` (the default), the network runs as a frozen channels-last
+TorchScript graph (``nn.optimise``; same outputs up to float rounding).
 
 :func:`class_masks` merges the instance masks of a scene segmentation into one
 mask per class (what row centring needs: the ground and sky regions).
 """
 from __future__ import annotations
 
+import warnings
 from typing import Dict, Optional, Tuple
 
 import numpy as np
@@ -18,6 +21,7 @@ import torch
 from .nn.blocks import fuse_model
 from .nn.letterbox import letterbox
 from .nn.models import load_model
+from .nn.optimise import freeze_for_inference
 from .nn.postprocess import PostprocessConfig, postprocess
 from .types import Detections
 
@@ -40,12 +44,16 @@ class Predictor:
     weights_path: checkpoint written by ``train`` / ``save_checkpoint``;
     device: torch device string; conf_threshold: minimum class probability
     (0..1); iou_threshold: NMS IoU (0..1); threads: torch CPU threads (None
-    leaves torch's setting; note it is process-wide).
+    leaves torch's setting; note it is process-wide); optimise: run the
+    network as a frozen channels-last TorchScript graph (``nn.optimise``;
+    False runs the fused eager model, e.g. to compare).
+    ``model`` is the fused network (for introspection), ``network(x)`` what
+    ``predict`` runs on a letterboxed (1, 3, H, W) float 0..1 tensor.
     Raises FileNotFoundError / ValueError for missing or invalid weights.
     """
 
     def __init__(self, weights_path: str, device: str = "cpu", conf_threshold: float = 0.25,
-                 iou_threshold: float = 0.7, threads: Optional[int] = None):
+                 iou_threshold: float = 0.7, threads: Optional[int] = None, optimise: bool = True):
         if threads is not None:
             if not isinstance(threads, int) or threads < 1:
                 raise ValueError(f"threads must be a positive int or None, got {threads!r}")
@@ -56,6 +64,19 @@ class Predictor:
         self.model = fuse_model(load_model(weights_path, self.device))
         self.config = self.model.config
         self.class_names = self.config.class_names
+        self._network = self.model
+        self.optimised = False
+        if optimise:
+            try:
+                self._network = freeze_for_inference(self.model, self.config.input_height, self.config.input_width)
+                self.optimised = True
+            except (RuntimeError, AttributeError) as exc:   # a torch without TorchScript: stay eager
+                warnings.warn(f"Predictor: frozen TorchScript unavailable ({exc}); running the eager model")
+
+    def network(self, x: torch.Tensor):
+        """The network's eval-mode output for a letterboxed (1, 3, H, W) float 0..1 input."""
+        with torch.inference_mode():
+            return self._network(x)
 
     @property
     def task(self) -> str:
@@ -65,10 +86,13 @@ class Predictor:
         """Detections of one (H, W, 3) uint8 RGB frame, in its own pixels."""
         check_image(image_rgb)
         img, tf = letterbox(image_rgb, self.config.input_width, self.config.input_height)
-        x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).to(self.device)
-        x = x[None].float().div_(255.0)
+        # (H, W, 3) uint8 viewed as (1, 3, H, W): already channels-last, no copy before the float cast
+        x = torch.from_numpy(img).to(self.device).permute(2, 0, 1)[None]
+        if not self.optimised:
+            x = x.contiguous()      # the eager model keeps NCHW weights
+        x = x.float().div_(255.0)
         with torch.inference_mode():
-            out = self.model(x)
+            out = self._network(x)
             if self.config.task == "seg":
                 pred, protos = out
                 return postprocess(pred.float().cpu(), self.config.num_classes, [tf], protos.float().cpu(),

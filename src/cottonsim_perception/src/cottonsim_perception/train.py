@@ -21,7 +21,7 @@ import copy
 import math
 import os
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -68,7 +68,11 @@ class TrainConfig:
     extra_data_dirs: more YOLO dataset roots whose train and valid splits are
     added to data_dir's (e.g. the paper's images + simulator images; the
     class names must agree); mosaic_prob: probability that a training item is
-    a 2x2 mosaic of four images (YOLOv8's mosaic, see YoloDataset; 0 = off).
+    a 2x2 mosaic of four images (YOLOv8's mosaic, see YoloDataset; 0 = off);
+    proto_stride: segmenter prototype stride (4 or 2 input px; None = the
+    preset's 4). init_weights of the same network with another proto_stride
+    is accepted: every tensor whose name and shape match is loaded, the new
+    Proto layers start from their random initialisation (logged).
     """
 
     task: str
@@ -92,6 +96,7 @@ class TrainConfig:
     init_weights: Optional[str] = None
     extra_data_dirs: Tuple[str, ...] = ()
     mosaic_prob: float = 0.0
+    proto_stride: Optional[int] = None
 
     def __post_init__(self) -> None:
         if self.task not in ("seg", "det"):
@@ -130,6 +135,9 @@ class TrainConfig:
         for d in self.extra_data_dirs:
             if not os.path.isdir(d):
                 raise ValueError(f"TrainConfig.extra_data_dirs: not a folder: {d!r}")
+        if self.proto_stride is not None and (self.task != "seg" or self.proto_stride not in (2, 4)):
+            raise ValueError(f"TrainConfig.proto_stride must be None, or 2 or 4 for task 'seg', "
+                             f"got {self.proto_stride!r} for task {self.task!r}")
         if not (isinstance(self.mosaic_prob, (int, float)) and 0.0 <= self.mosaic_prob <= 1.0):
             raise ValueError(f"TrainConfig.mosaic_prob must be in [0, 1], got {self.mosaic_prob!r}")
 
@@ -208,6 +216,30 @@ def _lr_at(cfg: TrainConfig, it: int, total_iters: int) -> float:
     return floor + (cfg.lr - floor) * 0.5 * (1.0 + math.cos(math.pi * frac))
 
 
+def init_from_checkpoint(model: YoloModel, path: str) -> str:
+    """Load a checkpoint's weights into ``model`` (fine-tuning start); returns a log line.
+
+    The checkpoint's model configuration must equal ``model.config``, except
+    that a segmenter's proto_stride may differ: then every tensor whose name
+    and shape match is loaded and the other Proto layers keep their random
+    initialisation. Raises ValueError otherwise.
+    """
+    init = load_checkpoint(path)
+    init_cfg = ModelConfig.from_dict(init["model_config"])
+    if init_cfg == model.config:
+        model.load_state_dict(init["state_dict"])
+        return f"initialised from {path}"
+    if replace(init_cfg, proto_stride=model.config.proto_stride) == model.config:
+        own = model.state_dict()
+        loaded = {k: v for k, v in init["state_dict"].items() if k in own and own[k].shape == v.shape}
+        model.load_state_dict(loaded, strict=False)
+        fresh = sorted(k for k in own if k not in loaded)
+        return (f"initialised from {path} (proto_stride {init_cfg.proto_stride} -> "
+                f"{model.config.proto_stride}): {len(loaded)} tensors loaded, {len(fresh)} new: {fresh}")
+    raise ValueError(f"{path}: its model_config differs from this run's "
+                     f"(task / imgsz / width / classes must match to fine-tune)")
+
+
 def _to_loss_targets(targets: Dict[str, Any]) -> Dict[str, torch.Tensor]:
     out = {k: targets[k] for k in ("batch_idx", "classes", "boxes_xyxy")}
     if "masks" in targets:
@@ -245,17 +277,14 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
     overrides = dict(num_classes=len(names), class_names=names, input_width=width, input_height=height)
     if cfg.width_multiple is not None:
         overrides["width_multiple"] = cfg.width_multiple
+    if cfg.proto_stride is not None:
+        overrides["proto_stride"] = cfg.proto_stride
     model_cfg = ModelConfig.scene_segmenter(**overrides) if cfg.task == "seg" else \
         ModelConfig.boll_detector(**overrides)
 
     model = build_model(model_cfg)
     if cfg.init_weights and not cfg.resume:
-        init = load_checkpoint(cfg.init_weights)
-        if ModelConfig.from_dict(init["model_config"]) != model_cfg:
-            raise ValueError(f"{cfg.init_weights}: its model_config differs from this run's "
-                             f"(task / imgsz / width / classes must match to fine-tune)")
-        model.load_state_dict(init["state_dict"])
-        log(f"initialised from {cfg.init_weights}")
+        log(init_from_checkpoint(model, cfg.init_weights))
     optimizer = torch.optim.AdamW(_param_groups(model, cfg.weight_decay), lr=cfg.lr, betas=(0.9, 0.999))
     ema = ModelEMA(model, cfg.ema_decay, cfg.ema_tau)
     loss_fn = YoloLoss(model_cfg.num_classes, model_cfg.reg_max, model.strides)
@@ -318,7 +347,8 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
                 "extra_data": [os.path.abspath(d) for d in cfg.extra_data_dirs],
                 "init_weights": cfg.init_weights, "mosaic_prob": cfg.mosaic_prob,
                 "epochs_done": epoch + 1, "epochs": cfg.epochs, "batch": cfg.batch, "lr": cfg.lr,
-                "imgsz": [width, height], "best_val_loss": best_val, "metrics": history}
+                "imgsz": [width, height], "best_val_loss": best_val, "metrics": history,
+                "proto_stride": model_cfg.proto_stride}
         opt_state = {"optimizer": optimizer.state_dict(), "model": model.state_dict(),
                      "ema_updates": ema.updates}
         save_checkpoint(os.path.join(cfg.out_dir, "last.pt"), ema.ema, meta, opt_state)

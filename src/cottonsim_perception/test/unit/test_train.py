@@ -74,3 +74,32 @@ def test_fine_tuning_and_mixing_errors_are_clear(tmp_path):
     with pytest.raises(ValueError, match="model_config differs"):
         train(_cfg(tmp_path, "y", imgsz=(96, 64), init_weights=str(tmp_path / "first" / "last.pt")),
               log=lambda s: None)
+
+
+def test_fine_tuning_to_finer_prototypes_keeps_every_matching_tensor(tmp_path):
+    from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
+    from cottonsim_perception.train import init_from_checkpoint
+
+    torch.manual_seed(0)
+    coarse = build_model(ModelConfig.scene_segmenter(width_multiple=0.0625)).eval()
+    path = str(tmp_path / "coarse.pt")
+    save_checkpoint(path, coarse)
+    torch.manual_seed(1)
+    fine = build_model(ModelConfig.scene_segmenter(width_multiple=0.0625, proto_stride=2))
+    line = init_from_checkpoint(fine, path)
+    old, new = coarse.state_dict(), fine.state_dict()
+    same = [k for k in new if k in old and old[k].shape == new[k].shape]
+    assert all(torch.equal(old[k], new[k]) for k in same)
+    fresh = [k for k in new if k not in same]
+    # only the new upsampling stage starts fresh, as a nearest-neighbour copy: the finer network
+    # first reproduces the coarse one's prototypes, each pixel repeated 2 x 2
+    assert sorted(fresh) == ["head.proto.upsample2.bias", "head.proto.upsample2.weight"]
+    assert "2 new" in line
+    x = torch.rand(1, 3, 256, 320)
+    with torch.no_grad():
+        p4 = coarse.eval()(x)[1]
+        p2 = fine.eval()(x)[1]
+    assert p2.shape[-2:] == (128, 160)
+    assert torch.allclose(p2, p4.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3), atol=1e-5)
+    with pytest.raises(ValueError, match="model_config differs"):
+        init_from_checkpoint(build_model(ModelConfig.scene_segmenter(width_multiple=0.125, proto_stride=2)), path)

@@ -17,7 +17,6 @@ from typing import Tuple
 import cv2
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 PAD_VALUE = 114
 
@@ -97,8 +96,9 @@ class LetterboxTransform:
 
         The masks may be at any resolution proportional to the input (e.g. the
         prototype grid, a quarter of the input): the content region is cut out,
-        resized bilinearly to the original size, then thresholded.
-        Returns (N, src_height, src_width) bool.
+        resized bilinearly (half-pixel centres, edges clamped, as torch's
+        ``interpolate(..., align_corners=False)``) to the original size, then
+        thresholded. Returns (N, src_height, src_width) bool.
         """
         if masks.ndim != 3:
             raise ValueError(f"masks must be (N, h, w), got shape {tuple(masks.shape)}")
@@ -110,15 +110,19 @@ class LetterboxTransform:
         x1, y1 = (self.pad_left + self.content_width) * fx, (self.pad_top + self.content_height) * fy
         ix0, iy0 = int(np.floor(x0)), int(np.floor(y0))
         ix1, iy1 = int(np.ceil(x1)), int(np.ceil(y1))
-        crop = masks[:, iy0:iy1, ix0:ix1].float()
+        crop = np.ascontiguousarray(masks[:, iy0:iy1, ix0:ix1].float().cpu().numpy())
         # Resize the integer-pixel crop, then cut the exact (fractional) content window.
         ox = int(round((x0 - ix0) / (x1 - x0) * self.src_width))
         oy = int(round((y0 - iy0) / (y1 - y0) * self.src_height))
         big_w = max(int(round((ix1 - ix0) / (x1 - x0) * self.src_width)), ox + self.src_width)
         big_h = max(int(round((iy1 - iy0) / (y1 - y0) * self.src_height)), oy + self.src_height)
-        up = F.interpolate(crop[None], size=(big_h, big_w), mode="bilinear", align_corners=False)[0]
-        up = up[:, oy:oy + self.src_height, ox:ox + self.src_width]
-        return (up > threshold).cpu().numpy()
+        out = np.empty((n, self.src_height, self.src_width), dtype=bool)
+        for i in range(n):
+            # cv2's bilinear (half-pixel centres, edge clamped) = torch's align_corners=False,
+            # several times faster on one core; only float rounding differs.
+            up = cv2.resize(crop[i], (big_w, big_h), interpolation=cv2.INTER_LINEAR)
+            np.greater(up[oy:oy + self.src_height, ox:ox + self.src_width], threshold, out=out[i])
+        return out
 
 
 def letterbox(image: np.ndarray, dst_width: int, dst_height: int,

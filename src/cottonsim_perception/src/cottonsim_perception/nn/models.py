@@ -24,7 +24,7 @@ import torch
 import torch.nn as nn
 
 from .blocks import Backbone, PANNeck
-from .heads import STRIDES, DetectHead, SegmentHead
+from .heads import PROTO_STRIDES, STRIDES, DetectHead, SegmentHead
 
 CHECKPOINT_FORMAT = "cottonsim_yolo"
 CHECKPOINT_VERSION = 1
@@ -44,6 +44,8 @@ class ModelConfig:
     reg_max: DFL bins per box side (max distance reg_max - 1 grid cells).
     num_prototypes / proto_channels: mask prototypes and Proto hidden width
         (segmentation only).
+    proto_stride: network-input pixels per prototype pixel, 4 (YOLOv8) or 2
+        (one more upsampling stage: finer masks; segmentation only).
     The defaults are the CPU-sized scene segmenter; see :meth:`boll_detector`.
     """
 
@@ -58,6 +60,7 @@ class ModelConfig:
     reg_max: int = 16
     num_prototypes: int = 16
     proto_channels: int = 32
+    proto_stride: int = 4
 
     def __post_init__(self) -> None:
         if self.task not in TASKS:
@@ -84,6 +87,8 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.num_prototypes must be a positive int, got {self.num_prototypes!r}")
         if not isinstance(self.proto_channels, int) or self.proto_channels < 1:
             raise ValueError(f"ModelConfig.proto_channels must be a positive int, got {self.proto_channels!r}")
+        if self.proto_stride not in PROTO_STRIDES:
+            raise ValueError(f"ModelConfig.proto_stride must be one of {PROTO_STRIDES}, got {self.proto_stride!r}")
 
     @staticmethod
     def scene_segmenter(**overrides: Any) -> "ModelConfig":
@@ -168,7 +173,7 @@ class YoloSegmenter(_YoloBase):
 
     forward(images (B, 3, H, W) float 0..1):
       train mode -> (level maps as YoloDetector, coefficients (B, k, A),
-                     prototypes (B, k, H/4, W/4));
+                     prototypes (B, k, H/s, W/s), s = config.proto_stride);
       eval mode  -> (predictions (B, A, 4 + nc + k): boxes xyxy [input px],
                      class probabilities, mask coefficients; prototypes).
     """
@@ -187,7 +192,7 @@ class YoloSegmenter(_YoloBase):
             raise ValueError(f"YoloSegmenter needs a config with task 'seg', got {config.task!r}")
         super().__init__(config)
         self.head = SegmentHead(config.num_classes, self.neck.out_channels, config.num_prototypes,
-                                config.proto_channels, config.reg_max, self.strides)
+                                config.proto_channels, config.reg_max, self.strides, config.proto_stride)
 
     def raw(self, images: torch.Tensor):
         """Train-style output in any mode (validation loss with eval-mode BatchNorm)."""

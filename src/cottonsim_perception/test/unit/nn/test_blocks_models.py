@@ -129,3 +129,17 @@ def test_missing_or_wrong_weights_raise_clear_errors(tmp_path):
     torch.save(ck, path)
     with pytest.raises(ValueError, match="do not match"):
         load_model(path)
+
+
+def test_proto_stride_two_gives_masks_at_half_the_input():
+    from cottonsim_perception.nn.models import ModelConfig, build_model
+    cfg = ModelConfig.scene_segmenter(width_multiple=0.0625, input_width=128, input_height=96, proto_stride=2)
+    model = build_model(cfg).eval()
+    with torch.no_grad():
+        pred, protos = model(torch.rand(1, 3, 96, 128))
+    assert protos.shape == (1, cfg.num_prototypes, 48, 64)
+    four = build_model(ModelConfig.scene_segmenter(width_multiple=0.0625, input_width=128, input_height=96)).eval()
+    with torch.no_grad():
+        assert four(torch.rand(1, 3, 96, 128))[1].shape[-2:] == (24, 32)
+    with pytest.raises(ValueError, match="proto_stride"):
+        ModelConfig.scene_segmenter(proto_stride=8)
