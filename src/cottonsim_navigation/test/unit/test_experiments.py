@@ -170,6 +170,20 @@ def test_route_runs_per_seed_and_summarises_the_spread(tmp_path):
         run_route(ws, "boat_route", [0], runner=runner)
 
 
+def test_map_route_seeds_the_simulator_only_and_keeps_the_mapped_farm(tmp_path):
+    ws = _workspace(tmp_path)
+    report = dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, mode="map")
+    runner = _fake_runner([report, report])
+    run_route(ws, "map_route", [1, 2], record_bag=False, runner=runner)
+    base = yaml.safe_load(open(os.path.join(ws.navigation, "config", "sim_navigation.yaml")))
+    for call, seed in zip(runner.calls, (1, 2)):
+        sim = yaml.safe_load(open(call.args["sim_config"]))
+        assert sim["seed"] == seed                                   # sensor noise, solver order vary
+        assert sim.get("farm") == base.get("farm")                   # the farm the shipped map shows
+        assert (sim.get("farm") or {}).get("seed", 0) == 0           # (farm seed 0, the default)
+    assert runner.calls[0].args["waypoints"].endswith("route_map.csv")
+
+
 def test_row_spacing_study_writes_gps_routes_in_the_tested_lane_and_a_summary(tmp_path):
     ws = _workspace(tmp_path)
     config = rs.RowSpacingStudyConfig(spacings_m=(1.2, 1.8))

@@ -47,13 +47,30 @@ class Workspace:
         return os.path.join(self.root, "src", "cottonsim_perception")
 
 
-# The two waypoint routes of the paper: launch file, route file, sim settings, mode.
+# The two waypoint routes of the paper: launch file, route file, sim settings, mode, and whether the
+# farm is re-drawn per seed. The GPS route drives a new farm per seed (plant jitter, yaw, shapes);
+# the map route keeps the farm of its sim settings (farm seed 0), because the shipped SLAM map
+# (config/maps/farm_slam) is a map of that farm: another farm would not be the mapped one.
 ROUTES = {
-    "gps_route": {"launch": "gps_navigation.launch", "mode": "gps",
+    "gps_route": {"launch": "gps_navigation.launch", "mode": "gps", "seed_farm": True,
                   "waypoints": "config/waypoints/route_gps.txt", "sim_config": "config/sim_navigation.yaml"},
-    "map_route": {"launch": "map_navigation.launch", "mode": "map",
+    "map_route": {"launch": "map_navigation.launch", "mode": "map", "seed_farm": False,
                   "waypoints": "config/waypoints/route_map.csv", "sim_config": "config/sim_navigation.yaml"},
 }
+
+
+def seed_overrides(experiment: str, seed: int) -> Dict:
+    """The sim-settings overrides of one run of ``experiment`` with ``seed``.
+
+    Always the simulator's seed (sensor noise, solver order); the farm's seed too only where the
+    experiment re-draws the farm per seed (the GPS route). The map route keeps the mapped farm.
+    """
+    if experiment not in ROUTES:
+        raise ValueError(f"experiment must be one of {sorted(ROUTES)}, got {experiment!r}")
+    overrides: Dict = {"seed": int(seed)}
+    if ROUTES[experiment]["seed_farm"]:
+        overrides["farm"] = {"seed": int(seed)}
+    return overrides
 
 
 def deep_merge(base: Mapping, override: Mapping) -> Dict:
@@ -141,7 +158,11 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
               record_bag: bool = True, extra_args: Optional[Mapping[str, object]] = None,
               wall_timeout_s: float = 5400.0, runner: Callable = run_launch,
               waypoints: Optional[str] = None) -> Dict:
-    """The GPS or map route once per seed (farm and simulator seeded alike), then the spread.
+    """The GPS or map route once per seed, then the spread.
+
+    Seeds: the GPS route seeds the simulator and the farm alike (a new farm per seed); the map route
+    seeds the simulator only (sensor noise, solver order) and keeps the farm of its sim settings, the
+    one the shipped SLAM map was drawn from (see :func:`seed_overrides`).
 
     With ``record_bag`` each run's bag is re-evaluated offline (scripts/evaluate_bag)
     and the summary says whether that reproduces the online report. ``waypoints``
@@ -164,7 +185,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
         run_name = f"seed_{seed}"
         run_dir = os.path.join(out_dir, run_name)
         sim_yaml = write_sim_config(os.path.join(ws.navigation, route["sim_config"]),
-                                    {"seed": int(seed), "farm": {"seed": int(seed)}},
+                                    seed_overrides(experiment, seed),
                                     os.path.join(run_dir, "sim.yaml"))
         args = {"run_name": run_name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": waypoints,
                 "real_time_factor": real_time_factor, "record_bag": str(bool(record_bag)).lower()}

@@ -82,6 +82,8 @@ class SlamConfig:
     occupied_prob: cells above this probability are occupied (100) in the output map;
     heading_tau_s: time constant of the IMU heading correction [s] (see :class:`HeadingFuser`; used only
         when :meth:`RbpfSlam.update` gets an IMU yaw);
+    heading_track_rate: the heading correction also tracks the odometry heading's drift rate (a second-order
+        loop, no lag for a steady gyro drift) instead of a first-order low-pass;
     heading_sigma_rad: with the IMU, each particle's predicted yaw is the fused heading plus noise of this std
         (an absolute heading, not an accumulated one) [rad]; the matcher's prior_sigma_yaw_rad then bounds
         how far the scan may turn it;
@@ -112,7 +114,8 @@ class SlamConfig:
     logodds_miss: float = -0.05
     logodds_clamp: float = 3.5
     occupied_prob: float = 0.65
-    heading_tau_s: float = 10.0
+    heading_tau_s: float = 5.0
+    heading_track_rate: bool = True
     heading_sigma_rad: float = 0.005
     matcher: ScanMatcherConfig = field(default_factory=ScanMatcherConfig)
 
@@ -149,6 +152,8 @@ class SlamConfig:
             a, b = getattr(self, lo), getattr(self, hi)
             if not (math.isfinite(a) and math.isfinite(b) and a < b):
                 raise ValueError(f"need finite {lo} < {hi}, got {a}, {b}")
+        if not isinstance(self.heading_track_rate, bool):
+            raise ValueError(f"heading_track_rate must be true or false, got {self.heading_track_rate!r}")
         if not isinstance(self.matcher, ScanMatcherConfig):
             raise ValueError(f"matcher must be a ScanMatcherConfig, got {type(self.matcher).__name__}")
 
@@ -289,7 +294,7 @@ class RbpfSlam:
         self._last_time_s: Optional[float] = None
         self._map_to_odom = Pose2D(0.0, 0.0, 0.0)
         self._scores = np.zeros(config.particles)
-        self._heading = HeadingFuser(config.heading_tau_s)
+        self._heading = HeadingFuser(config.heading_tau_s, track_rate=config.heading_track_rate)
         self._imu_seen = False
         self.n_updates = 0
 

@@ -69,7 +69,7 @@ class SlamNode:
       SlamConfig fields under their names (~particles, ~max_urange_m, ~max_range_m, ~linear_update_m,
       ~angular_update_rad, ~temporal_update_s, ~resample_threshold, ~delta_m, ~xmin_m.., ~srr, ~srt,
       ~str_, ~stt, ~lsigma_m, ~ogain, ~lskip, ~match_max_beams, ~logodds_*, ~occupied_prob,
-      ~heading_tau_s, ~heading_sigma_rad); ScanMatcherConfig fields under ~matcher/ (e.g. ~matcher/sigma_m);
+      ~heading_tau_s, ~heading_track_rate, ~heading_sigma_rad); ScanMatcherConfig fields under ~matcher/ (e.g. ~matcher/sigma_m);
       ~scan_topic (/scan_360), ~map_update_interval (0.5 s), ~transform_publish_period (0.05 s),
       ~map_frame (map), ~odom_frame (odom), ~base_frame (base_link), ~seed (-1 = random),
       ~tf_start_delay_s (1.0): map -> odom is first published this long (sim time) after the first map, so

@@ -103,3 +103,27 @@ def test_slam_with_imu_keeps_the_heading_of_a_drifting_odometry():
         results[use_imu] = abs(res.pose.yaw_rad)
     assert results[True] < 0.02                      # within a few particle-noise sigmas (0.005)
     assert results[True] < 0.5 * results[False]
+
+
+def test_a_steady_drift_is_followed_without_the_low_pass_lag():
+    """Gyro drift 0.0015 rad/s (~0.08 deg/s, the EKF odometry's drift on the mapping drive): the first-order
+    low-pass lags it by drift * tau; the rate-tracking loop follows it to within the IMU's averaged noise."""
+    errors = {}
+    for track in (False, True):
+        rng = np.random.default_rng(5)
+        fuser = HeadingFuser(tau_s=5.0, track_rate=track)
+        true, odom, fused = (np.array(a) for a in zip(*_drive(fuser, 300.0, rng, drift_rad_s=0.0015)))
+        err = np.remainder(fused[:, 2] - true[:, 2] + math.pi, 2 * math.pi) - math.pi
+        errors[track] = np.abs(err[-1000:]).mean()          # the last 100 s, after the loop settled
+        if track:
+            assert fuser.drift_rate_rad_s == pytest.approx(-0.0015, abs=3e-4)   # IMU - odometry falls
+    assert errors[False] == pytest.approx(0.0015 * 5.0, rel=0.3)                 # the lag drift * tau
+    assert errors[True] < 0.002
+    assert errors[True] < 0.25 * errors[False]
+
+
+def test_track_rate_must_be_a_bool():
+    with pytest.raises(ValueError, match="track_rate"):
+        HeadingFuser(track_rate="yes")
+    with pytest.raises(ValueError, match="heading_track_rate"):
+        SlamConfig(heading_track_rate=1)
