@@ -143,6 +143,24 @@ def _resample(grid: np.ndarray, res: float, origin, qx: np.ndarray, qy: np.ndarr
     return out
 
 
+def map_on_truth_cells(map_grid, map_resolution_m: float, map_origin: Sequence[float],
+                       truth_shape: Tuple[int, int], truth_resolution_m: float,
+                       truth_origin: Sequence[float]) -> np.ndarray:
+    """The map's values (-1 / 0..100) at the centres of a truth grid's cells, in the frame both origins are
+    given in, without any alignment: what a side-by-side figure of map and truth should show (the map's own
+    registration errors included). ``truth_shape`` is (rows, cols) of the truth grid."""
+    mg, mres, mo = _check_grid("map", map_grid, map_resolution_m, map_origin)
+    rows, cols = (int(v) for v in truth_shape)
+    if rows < 1 or cols < 1:
+        raise ValueError(f"truth_shape must be (rows, cols) >= 1, got {truth_shape!r}")
+    _, tres, to = _check_grid("truth", np.zeros((1, 1), dtype=np.int16), truth_resolution_m, truth_origin)
+    c, s = math.cos(to[2]), math.sin(to[2])
+    jx, jy = np.meshgrid(np.arange(cols) + 0.5, np.arange(rows) + 0.5)
+    qx = to[0] + c * jx * tres - s * jy * tres
+    qy = to[1] + s * jx * tres + c * jy * tres
+    return _resample(mg, mres, mo, qx, qy)
+
+
 class _Aligner:
     """The map resampled into the truth grid (padded by the shift window) for any rotation."""
 

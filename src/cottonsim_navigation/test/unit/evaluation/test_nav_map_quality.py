@@ -141,3 +141,18 @@ def test_bad_grids_raise_clear_errors():
         evaluate_map(np.zeros(5, np.int8), RES, (0, 0, 0), truth, RES, (0, 0, 0))
     with pytest.raises(ValueError, match="integers"):
         evaluate_map(truth.astype(float), RES, (0, 0, 0), truth, RES, (0, 0, 0))
+
+
+def test_map_on_truth_cells_shows_the_map_as_registered():
+    """Same cells -> the same values; a map whose origin is 2 cells further along x shows its content
+    2 truth cells further along x (no alignment); cells the map does not cover read -1."""
+    from cottonsim_navigation.evaluation.map_quality import map_on_truth_cells
+    grid = np.zeros((4, 6), dtype=np.int16)
+    grid[1, 2] = 100
+    same = map_on_truth_cells(grid, 0.05, (0.0, 0.0, 0.0), grid.shape, 0.05, (0.0, 0.0, 0.0))
+    np.testing.assert_array_equal(same, grid)
+    moved = map_on_truth_cells(grid, 0.05, (0.10, 0.0, 0.0), grid.shape, 0.05, (0.0, 0.0, 0.0))
+    assert moved[1, 4] == 100 and moved[1, 2] == 0
+    assert (moved[:, :2] == -1).all()
+    with pytest.raises(ValueError, match="truth_shape"):
+        map_on_truth_cells(grid, 0.05, (0.0, 0.0, 0.0), (0, 3), 0.05, (0.0, 0.0, 0.0))
