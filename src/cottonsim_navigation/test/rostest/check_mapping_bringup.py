@@ -17,10 +17,10 @@ import rostest
 from cottonsim_msgs.msg import PlantContacts
 from std_msgs.msg import Bool, String
 
-from cottonsim_navigation.evaluation.map_quality import MapQualityConfig, evaluate_map
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import OccupancyMapConfig, load_map_yaml, rasterize_occupancy
+from cottonsim_world.farm.export import load_map_yaml
 from cottonsim_world.farm.generator import generate_farm
+from map_checks import assert_map_matches_truth
 from wall_wait import wait_until
 
 FARM = generate_farm(FarmConfig())       # mapping.launch's default simulator settings: the paper's farm
@@ -46,15 +46,7 @@ class MappingBringupTest(unittest.TestCase):
         self.assertAlmostEqual(res, 0.05)
         # cropped to what ~17 m of driving observed (+1 m margin), not the 33 x 25 m extent the SLAM node holds
         self.assertLess(grid.shape[1] * res * grid.shape[0] * res, 0.6 * 33.0 * 25.0)
-        truth, tres, torigin = rasterize_occupancy(FARM, OccupancyMapConfig(resolution_m=res), frame=FARM.spawn)
-        q = evaluate_map(grid, res, origin, truth, tres, torigin, MapQualityConfig(cell_m=0.25))
-        rospy.loginfo("mapping bringup: %d x %d cells, IoU %.3f precision %.3f recall %.3f rotation %.3f deg "
-                      "shift %.3f m", grid.shape[1], grid.shape[0], q.iou, q.precision, q.recall,
-                      q.rotation_deg, q.shift_m)
-        self.assertGreaterEqual(q.iou, 0.25)
-        self.assertGreaterEqual(q.precision, 0.8)
-        self.assertLessEqual(q.rotation_error_deg, 1.5)
-        self.assertLessEqual(q.shift_m, 0.3)
+        assert_map_matches_truth(self, FARM, grid, res, origin, "mapping bringup")
 
 
 if __name__ == "__main__":

@@ -27,10 +27,9 @@ from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 from nav_msgs.srv import GetMap
 from std_msgs.msg import Float64
 
-from cottonsim_navigation.evaluation.map_quality import MapQualityConfig, evaluate_map
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
+from map_checks import assert_map_matches_truth
 from wall_wait import wait_until
 
 # the spawn of amcl_sim.yaml: in front of lane 2, 4.6 m before the row ends
@@ -88,15 +87,7 @@ class SlamTest(unittest.TestCase):
         self.assertEqual((m.info.width, m.info.height), (self.maps[-1].info.width, self.maps[-1].info.height))
         self.assertTrue(set(np.unique(grid)) <= {-1, 0, 100})
         origin = (m.info.origin.position.x, m.info.origin.position.y, 0.0)
-        truth, tres, torigin = rasterize_occupancy(FARM, OccupancyMapConfig(resolution_m=m.info.resolution),
-                                                   frame=FARM.spawn)
-        q = evaluate_map(grid, m.info.resolution, origin, truth, tres, torigin, MapQualityConfig(cell_m=0.25))
-        rospy.loginfo("slam test: IoU %.3f precision %.3f recall %.3f rotation %.3f deg shift %.3f m",
-                      q.iou, q.precision, q.recall, q.rotation_deg, q.shift_m)
-        self.assertGreaterEqual(q.iou, 0.25)
-        self.assertGreaterEqual(q.precision, 0.8)
-        self.assertLessEqual(q.rotation_error_deg, 1.5)
-        self.assertLessEqual(q.shift_m, 0.3)
+        assert_map_matches_truth(self, FARM, grid, m.info.resolution, origin, "slam test")
 
 
 if __name__ == "__main__":
