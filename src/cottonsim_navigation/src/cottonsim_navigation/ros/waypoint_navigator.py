@@ -341,6 +341,7 @@ class WaypointNavigatorBase:
             f.battery_low()
         with self._lock:
             result, self._result = self._result, None
+        lost = self.localisation_lost()
         if result is not None and f.state is FollowerState.ACTIVE:
             status = result[1]
             ok = status == GoalStatus.SUCCEEDED
@@ -348,15 +349,8 @@ class WaypointNavigatorBase:
                 rospy.logwarn("%s: goal %s ended %s", self.NAME, "Home" if f.going_home else f.index + 1,
                               _STATUS_NAMES.get(status, status))
             f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED)
-        if f.finished:
-            return
-        if self.localisation_lost():
-            self._pause()
-            return
-        if self._paused_since is not None:
-            rospy.loginfo("%s: localised again after %.1f s (sim): resuming %s", self.NAME,
-                          (rospy.Time.now() - self._paused_since).to_sec(), self._describe_current())
-            self._paused_since = None
+        elif lost or self._paused_since is not None:
+            pass                         # paused or resuming: no pass-through or time-out of a held goal
         elif f.current_is_pass_through and self._passed_current():
             rospy.loginfo("%s: goal %d passed (within %.2f m); on to the next", self.NAME, f.index,
                           self.follower_config.pass_through_radius_m)
@@ -367,6 +361,13 @@ class WaypointNavigatorBase:
             f.report_result(GoalResult.ABORTED)
         if f.finished:
             return
+        if lost:
+            self._pause()
+            return
+        if self._paused_since is not None:
+            rospy.loginfo("%s: localised again after %.1f s (sim): resuming %s", self.NAME,
+                          (rospy.Time.now() - self._paused_since).to_sec(), self._describe_current())
+            self._paused_since = None
         goal = f.next_goal(localisation_ready=True)
         if goal is not None:
             self._send(goal)
