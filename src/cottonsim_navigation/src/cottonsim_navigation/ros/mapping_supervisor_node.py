@@ -56,7 +56,6 @@ class MappingSupervisorNode:
         self.saver_config = MapSaverConfig(occupied_thresh=typed_param("~occupied_thresh", 65.0),
                                            free_thresh=typed_param("~free_thresh", 19.6))
         self.finished = False
-        self.saved = False
         self.saved_pub = rospy.Publisher("~saved", String, queue_size=1, latch=True)
         self.done_topic = typed_param("~done_topic", "/route_driver/done")
         rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=5)
@@ -90,7 +89,6 @@ class MappingSupervisorNode:
         rospy.loginfo("mapping_supervisor: %d x %d map (cropped from %d x %d) saved to %s, %s; %d occupied cells",
                       cropped.shape[1], cropped.shape[0], grid.shape[1], grid.shape[0], pgm, yaml_path,
                       int(np.count_nonzero(cropped >= 65)))
-        self.saved = True
         self.saved_pub.publish(String(data=os.path.abspath(yaml_path)))
         return True
 
