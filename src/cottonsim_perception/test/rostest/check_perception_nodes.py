@@ -50,6 +50,28 @@ class Collector:
             return list(self.msgs)
 
 
+def wait_for_same_stamp(first, second, first_name, second_name, timeout_s=30.0):
+    """The newest pair of messages, one from each collector, with the same header stamp.
+
+    Both topics come from one camera frame, but each collector keeps only its last 50 messages
+    and receives at its own pace, so one snapshot of both may not overlap yet: poll until they do.
+    """
+    wall_end = time.monotonic() + timeout_s
+    while True:
+        a, b = first.wait(1, timeout_s=1.0), second.wait(1, timeout_s=1.0)
+        by_stamp = {m.header.stamp: m for m in a}
+        pairs = [(by_stamp[m.header.stamp], m) for m in b if m.header.stamp in by_stamp]
+        if pairs:
+            return pairs[-1]
+        if time.monotonic() > wall_end or rospy.is_shutdown():
+            def span(msgs):
+                return (f"{len(msgs)} messages, stamps {msgs[0].header.stamp.to_sec():.3f}.."
+                        f"{msgs[-1].header.stamp.to_sec():.3f} s" if msgs else "no messages")
+            raise AssertionError(f"no {second_name} shares a stamp with a {first_name} within {timeout_s} s: "
+                                 f"{first_name}s {span(a)}, {second_name}s {span(b)}")
+        time.sleep(0.2)
+
+
 class PerceptionNodesTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -74,23 +96,18 @@ class PerceptionNodesTest(unittest.TestCase):
     def test_labels_and_masks_follow_the_ground_truth(self):
         labels = self.labels.wait(3)
         self.assertGreaterEqual(len(labels), 3, "no /segmentation/labels")
-        semantic = {m.header.stamp: m for m in self.semantic.wait(3)}
-        pairs = [(semantic[m.header.stamp], m) for m in labels if m.header.stamp in semantic]
-        self.assertTrue(pairs, "no label image shares a stamp with a semantic image")
-        sem, lab = pairs[-1]
+        sem, lab = wait_for_same_stamp(self.semantic, self.labels, "semantic image", "label image")
         self.assertEqual(lab.encoding, "mono8")
         self.assertEqual(lab.header.frame_id, "realsense_p_color_optical_frame")
         s, l = conv.image_to_array(sem), conv.image_to_array(lab)
         np.testing.assert_array_equal(l, s)          # the oracle passes the classes through
         self.assertTrue({1, 2} <= set(np.unique(l).tolist()), "front view without ground and sky")
-        grounds = {m.header.stamp: m for m in self.ground.wait(1)}
-        common = [st for st in grounds if st in {m.header.stamp for m in labels}]
-        self.assertTrue(common, "no ground mask with a label image's stamp")
-        lab_by_stamp = {m.header.stamp: m for m in labels}
-        g = conv.image_to_array(grounds[common[-1]])
-        np.testing.assert_array_equal(g, (conv.image_to_array(lab_by_stamp[common[-1]]) == 1) * 255)
+        lab, ground = wait_for_same_stamp(self.labels, self.ground, "label image", "ground mask")
+        g = conv.image_to_array(ground)
+        np.testing.assert_array_equal(g, (conv.image_to_array(lab) == 1) * 255)
         lat = self.latency.wait(1)
-        self.assertTrue(lat and all(0.0 < m.data < 5000.0 for m in lat))
+        self.assertTrue(lat and all(0.0 < m.data < 5000.0 for m in lat),
+                        f"latencies [ms] {[round(m.data, 2) for m in lat[-10:]]}")
 
     def test_row_centring_outputs_when_centred(self):
         coords = self.coords.wait(3)
