@@ -52,6 +52,8 @@ def test_layout_counts_and_labels_parse(dataset):
         dy = yf.read_data_yaml(os.path.join(root, "data.yaml"))
         assert dy.names == names
         assert os.path.samefile(dy.path, root)
+        with open(os.path.join(root, "data.yaml")) as fh:
+            assert "path:" not in fh.read()            # no absolute root: the folder can be moved
         expected = {"train": 2, "val": 2, "test": 2}      # 4 train/val images over seeds 0 (train), 1 (val)
         assert summary.counts[task] == expected
         for split, n in expected.items():

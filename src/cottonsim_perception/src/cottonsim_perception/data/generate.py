@@ -1217,7 +1217,7 @@ def generate_dataset(config: DatasetConfig, progress: bool = True) -> DatasetSum
         names = yf.SEGMENTATION_CLASS_NAMES if task == "seg" else yf.DETECTION_CLASS_NAMES
         have = {s: any(r.task == task and r.split == s for r in records) for s in SPLITS}
         yf.write_data_yaml(os.path.join(root, "data.yaml"), yf.DataYaml(
-            path=root, train="images/train" if have["train"] else "",
+            path="", train="images/train" if have["train"] else "",
             val="images/val" if have["val"] else "", test="images/test" if have["test"] else "",
             names=tuple(names)))
         task_records = [r for r in records if r.task == task]

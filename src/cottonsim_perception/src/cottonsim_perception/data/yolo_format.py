@@ -261,11 +261,16 @@ def read_data_yaml(path: str) -> DataYaml:
 
 
 def write_data_yaml(path: str, data: DataYaml) -> None:
-    """Write a data.yaml (names as a list)."""
+    """Write a data.yaml (names as a list).
+
+    An empty ``data.path`` writes no 'path' key: readers (this module, Ultralytics) then take
+    the yaml's own folder as the root, so the dataset folder can be moved or copied.
+    """
     import yaml
 
-    content = {"path": data.path, "train": data.train, "val": data.val, "test": data.test,
-               "nc": len(data.names), "names": list(data.names)}
+    content = {"path": data.path} if data.path else {}
+    content.update({"train": data.train, "val": data.val, "test": data.test,
+                    "nc": len(data.names), "names": list(data.names)})
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w", encoding="utf-8") as fh:
         yaml.safe_dump(content, fh, sort_keys=False)
