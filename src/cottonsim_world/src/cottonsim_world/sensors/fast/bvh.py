@@ -28,7 +28,7 @@ from numba import njit
 BOX_PAD_M = 1e-5          # boxes grown by this [m] on every side (float32 boxes, float64 slab test)
 _BINS = 16                # SAH bins per axis
 _MAX_LEAF = 8             # a node with more triangles is always split (unless its centroids coincide)
-_TRAVERSAL_COST = 1.0     # cost of one node visit, in units of a ray/triangle test
+_TRAVERSAL_COST = 2.0     # cost of one node visit, in units of a ray/triangle test
 MAX_DEPTH = 60            # the tree is never deeper (the caster's stack holds one entry per level)
 
 
