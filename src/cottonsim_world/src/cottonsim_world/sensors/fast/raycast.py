@@ -37,6 +37,35 @@ _AXIS_PARALLEL_INV = 1e300  # reciprocal used for a zero direction component (fi
 _MIN_DET = 1e-14           # |determinant| below this: the ray runs parallel to the triangle
 
 
+@njit(cache=True, inline="always")
+def _box_from(node_box, c, ox, oy, oz):  # pragma: no cover
+    """Box c's min and max corners relative to the origin (x0, y0, z0, x1, y1, z1) [m]."""
+    return (np.float64(node_box[c, 0]) - ox, np.float64(node_box[c, 1]) - oy, np.float64(node_box[c, 2]) - oz,
+            np.float64(node_box[c, 3]) - ox, np.float64(node_box[c, 4]) - oy, np.float64(node_box[c, 5]) - oz)
+
+
+@njit(cache=True, inline="always")
+def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit):  # pragma: no cover
+    """1 if the ray with reciprocal direction (ix, iy, iz) meets the box (corners relative to its origin)
+    within [0, limit] [m], else 0 (slab test; min / max spelled as selects, which vectorise)."""
+    t0x, t1x = b0x * ix, b1x * ix
+    t0y, t1y = b0y * iy, b1y * iy
+    t0z, t1z = b0z * iz, b1z * iz
+    nx = t0x if t0x < t1x else t1x
+    fx = t0x if t0x > t1x else t1x
+    ny = t0y if t0y < t1y else t1y
+    fy = t0y if t0y > t1y else t1y
+    nz = t0z if t0z < t1z else t1z
+    fz = t0z if t0z > t1z else t1z
+    near = nx if nx > ny else ny
+    near = near if near > nz else nz
+    near = near if near > 0.0 else 0.0
+    far = fx if fx < fy else fy
+    far = far if far < fz else fz
+    far = far if far < limit else limit
+    return 1 if near <= far else 0
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
 def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, node_count, node_near,
               out_range, out_hit):  # pragma: no cover
@@ -89,42 +118,30 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, n
             # the packet's middle ray decides which child is visited first
             look = (dxa[m // 2], dya[m // 2], dza[m // 2])
             sp = 0
-            node = 0 if has_tree else -1
-            while node >= 0:
-                # slab test of the node's box against every ray of the packet (vectorised)
-                b0x = np.float64(node_box[node, 0]) - ox
-                b0y = np.float64(node_box[node, 1]) - oy
-                b0z = np.float64(node_box[node, 2]) - oz
-                b1x = np.float64(node_box[node, 3]) - ox
-                b1y = np.float64(node_box[node, 4]) - oy
-                b1z = np.float64(node_box[node, 5]) - oz
+            node = -1
+            if has_tree:
+                b0x, b0y, b0z, b1x, b1y, b1z = _box_from(node_box, 0, ox, oy, oz)
                 meeting = 0
                 for k in range(m):
-                    t0x, t1x = b0x * ixa[k], b1x * ixa[k]
-                    t0y, t1y = b0y * iya[k], b1y * iya[k]
-                    t0z, t1z = b0z * iza[k], b1z * iza[k]
-                    # (min / max spelled as selects: these vectorise)
-                    nx = t0x if t0x < t1x else t1x
-                    fx = t0x if t0x > t1x else t1x
-                    ny = t0y if t0y < t1y else t1y
-                    fy = t0y if t0y > t1y else t1y
-                    nz = t0z if t0z < t1z else t1z
-                    fz = t0z if t0z > t1z else t1z
-                    near = nx if nx > ny else ny
-                    near = near if near > nz else nz
-                    near = near if near > 0.0 else 0.0
-                    far = fx if fx < fy else fy
-                    far = far if far < fz else fz
-                    far = far if far < limit[k] else limit[k]
-                    meeting += 1 if near <= far else 0
-                if meeting > 0:
-                    count = node_count[node]
-                    if count == 0:
-                        left = node_first[node]
+                    meeting += _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], limit[k])
+                node = 0 if meeting > 0 else -1
+            while node >= 0:
+                # invariant: some ray of the packet met this node's box (when it was tested)
+                count = node_count[node]
+                if count == 0:
+                    # both children's boxes against every ray of the packet, in one vectorised loop
+                    left = node_first[node]
+                    l0x, l0y, l0z, l1x, l1y, l1z = _box_from(node_box, left, ox, oy, oz)
+                    r0x, r0y, r0z, r1x, r1y, r1z = _box_from(node_box, left + 1, ox, oy, oz)
+                    meet_left = 0
+                    meet_right = 0
+                    for k in range(m):
+                        meet_left += _meets(l0x, l0y, l0z, l1x, l1y, l1z, ixa[k], iya[k], iza[k], limit[k])
+                        meet_right += _meets(r0x, r0y, r0z, r1x, r1y, r1z, ixa[k], iya[k], iza[k], limit[k])
+                    if meet_left > 0 and meet_right > 0:
                         code = node_near[node]
-                        axis = code >> 1
                         right_low = (code & 1) == 1        # the right child lies lower along axis
-                        if (look[axis] >= 0.0) != right_low:
+                        if (look[code >> 1] >= 0.0) != right_low:
                             stack[sp] = left + 1
                             node = left
                         else:
@@ -132,6 +149,10 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, n
                             node = left + 1
                         sp += 1
                         continue
+                    if meet_left > 0 or meet_right > 0:
+                        node = left if meet_left > 0 else left + 1
+                        continue
+                else:
                     first = node_first[node]
                     for g in range(first, first + count):
                         ax, ay, az = np.float64(tri[g, 0]), np.float64(tri[g, 1]), np.float64(tri[g, 2])
@@ -159,6 +180,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, n
                             hit[k] = gid if nearer else hit[k]
                     for k in range(m):
                         limit[k] = min(best[k], max_range)
+                # next pending node (met when its parent was visited; nearer hits since may make it moot)
                 if sp == 0:
                     node = -1
                 else:
