@@ -4,12 +4,12 @@ Why: pybullet's rayTestBatch needs 140-500 ms per 14,400-ray scan of the
 default farm (and 4-6 s to build its collision world). Here the rays descend
 ``bvh.TriangleBVH`` in *packets* of ``PACKET`` rays: all rays of a scan share
 the sensor's origin, and rays next to each other in a ring (0.4 deg apart)
-cross nearly the same boxes, so a packet visits a box once and tests it
-against all its rays in one loop that LLVM vectorises (the box corners minus
-the origin are shared, each ray adds three multiplications per slab). A box
-is entered when at least one ray meets it before that ray's nearest hit so
-far (the ground's included), the child on the side the packet looks to
-first. Leaves test their triangles against every ray of the packet
+cross nearly the same boxes, so at each node of the tree the packet tests
+both children's boxes against all its rays in one loop that LLVM vectorises
+(the box corners minus the origin are shared; each ray adds two
+multiplications per axis and box). A child is entered when at least one ray
+meets it before that ray's nearest hit so far (the ground's included), the
+child on the side the packet looks to first. Leaves test their triangles against every ray of the packet
 (Moeller-Trumbore, both faces count, the vector computes per ray exactly
 what a lone ray's test computes: the cross products with the shared corner
 are done once per triangle). The ground is the analytic plane z = 0
