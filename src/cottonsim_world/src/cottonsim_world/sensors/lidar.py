@@ -5,9 +5,9 @@ gmapping) needs the /points cloud of the robot's VLP-16. ``Vlp16Model``
 casts one ray per (ring, azimuth) sample, adds Gaussian range noise and
 returns the returns as numpy arrays. Two backends (``LidarConfig.backend``):
 
-* 'numba' (default): ``sensors.fast.raycast`` walks a uniform grid of the
-  plants' mesh triangles (``SensorScene.fast_grid``) with the ground as the
-  analytic plane z = 0; casts against the meshes only (needs
+* 'numba' (default): ``sensors.fast.raycast`` descends a bounding volume
+  hierarchy of the plants' mesh triangles (``SensorScene.fast_bvh``) with
+  the ground as the analytic plane z = 0; casts against the meshes only (needs
   ``SceneConfig.collision_source == 'meshes'``);
 * 'pybullet': the reference, ``rayTestBatch`` against
   ``SensorScene.ray_client`` (ground plane + plant collision shapes, meshes
@@ -46,7 +46,7 @@ class LidarConfig:
     puts at least one sample in every 0.5 deg LaserScan bin at a quarter of
     the cost of 1800); rate_hz: revolutions per second (used by the bridge);
     min_range_m / max_range_m: returns outside are dropped [m];
-    noise_std_m: Gaussian range noise [m]; backend: 'numba' (compiled grid
+    noise_std_m: Gaussian range noise [m]; backend: 'numba' (compiled BVH
     ray caster, fast, the default) or 'pybullet' (rayTestBatch, the
     reference); num_threads: rayTestBatch threads (0 = pybullet picks) or,
     for 'numba', the most worker threads (0 = numba's default); reflectivity per SemanticClass (plant,
@@ -146,7 +146,7 @@ class Vlp16Model:
             if scene.config.collision_source != "meshes":
                 raise ValueError("LidarConfig.backend 'numba' casts against the plant meshes; "
                                  "SceneConfig.collision_source='primitives' needs backend='pybullet'")
-            self._grid = scene.fast_grid
+            self._bvh = scene.fast_bvh
             self._plants = scene.fast_plants
             self._range = np.empty(len(self._dirs))
             self._hit = np.empty(len(self._dirs), np.int32)
@@ -174,14 +174,14 @@ class Vlp16Model:
     def _cast_into_buffers(self, pose: np.ndarray) -> None:
         """Run the numba caster from a checked pose into self._range / self._hit."""
         import numba
-        g, cfg = self._grid, self.config
+        b, cfg = self._bvh, self.config
         before = numba.get_num_threads()
         if cfg.num_threads > 0:
             numba.set_num_threads(min(cfg.num_threads, numba.config.NUMBA_NUM_THREADS))
         try:
             cast_rays(np.ascontiguousarray(pose[:3, 3]), np.ascontiguousarray(pose[:3, :3]), self._dirs,
-                      float(cfg.max_range_m), g.tri, g.tri_id, g.lo, g.hi, g.cell_m, g.dims, g.bdims, g.brick_of,
-                      g.offsets, g.items, g.empty_radius, self._range, self._hit)
+                      float(cfg.max_range_m), b.tri, b.tri_id, b.node_box, b.node_first, b.node_count, b.node_near,
+                      self._range, self._hit)
         finally:
             numba.set_num_threads(before)
 

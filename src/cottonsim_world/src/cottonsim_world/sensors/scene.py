@@ -6,9 +6,9 @@ Cameras and the LiDAR need the farm in a form they can render and ray cast,
 separate from the ODE dynamics. ``SensorScene`` holds the farm and builds,
 each on first use (so that only the backends in use pay for them):
 
-* ``fast_plants`` / ``fast_grid``: the flat arrays of the numba backends
-  (``sensors.fast.geometry``: instanced plant meshes for the rasteriser,
-  a bricked triangle grid for the ray caster);
+* ``fast_plants`` / ``fast_bvh``: the flat arrays of the numba backends
+  (``sensors.fast.geometry``: instanced plant meshes for the rasteriser;
+  ``sensors.fast.bvh``: a bounding volume hierarchy for the ray caster);
 * the pybullet structures below (the ray-cast world takes 4-6 s to build
   on the default farm).
 
@@ -63,8 +63,7 @@ class SceneConfig:
     it drives pybullet's light for the plants and the flat shading of the
     ground, so datasets can vary the time of day. ``collision_source``
     applies to the pybullet LiDAR backend (the numba backend casts against
-    the meshes); ``fast_grid_cell_m`` is the cell size of the numba LiDAR's
-    triangle grid (smaller: fewer triangle tests per ray, more memory).
+    the meshes).
     """
 
     ground_rgb: Tuple[float, float, float] = (0.47, 0.36, 0.25)   # dry soil brown
@@ -82,7 +81,6 @@ class SceneConfig:
     specular_coeff: float = 0.05         # pybullet lightSpecularCoeff
     shadows: bool = False                # TinyRenderer shadow map (costs time)
     collision_source: str = "meshes"     # 'meshes' | 'primitives' for ray casting
-    fast_grid_cell_m: float = 0.035      # cell of the numba LiDAR's triangle grid [m]
     seed: int = 0                        # soil texture noise
 
     def __post_init__(self) -> None:
@@ -102,8 +100,6 @@ class SceneConfig:
             v = getattr(self, name)
             if not (0.0 <= v <= 2.0):
                 raise ValueError(f"{name} must be in [0, 2], got {v}")
-        if not (0.005 <= self.fast_grid_cell_m <= 5.0):
-            raise ValueError(f"fast_grid_cell_m must be in [0.005, 5] m, got {self.fast_grid_cell_m}")
         if self.collision_source not in _COLLISION_SOURCES:
             raise ValueError(f"collision_source must be one of {_COLLISION_SOURCES}, "
                              f"got {self.collision_source!r}")
@@ -288,7 +284,7 @@ class SensorScene:
         self._ray_client: Optional[int] = None
         self._body_info: Dict[int, Tuple[SemanticClass, int]] = {}
         self._fast_plants = None
-        self._fast_grid = None
+        self._fast_bvh = None
         self._closed = False
 
     # ------------------------------------------------------ lazily built worlds
@@ -333,14 +329,14 @@ class SensorScene:
         return self._fast_plants
 
     @property
-    def fast_grid(self):
-        """``fast.geometry.TriangleGrid`` of the farm's meshes (numba LiDAR; built on first use)."""
+    def fast_bvh(self):
+        """``fast.bvh.TriangleBVH`` of the farm's meshes (numba LiDAR; built on first use)."""
         self._require_open()
-        if self._fast_grid is None:
-            from cottonsim_world.sensors.fast.geometry import TriangleGrid
+        if self._fast_bvh is None:
+            from cottonsim_world.sensors.fast.bvh import TriangleBVH
             triangles, ids = self.fast_plants.world_triangles(one_sided_duplicates=True)
-            self._fast_grid = TriangleGrid(triangles, ids, self.config.fast_grid_cell_m)
-        return self._fast_grid
+            self._fast_bvh = TriangleBVH(triangles, ids)
+        return self._fast_bvh
 
     def background_layer(self) -> Tuple[np.ndarray, float, float, float, float, np.ndarray]:
         """What ``ground_and_sky`` paints, for the numba camera.
@@ -552,7 +548,7 @@ class SensorScene:
             pb.disconnect(self._ray_client)
         self._ray_client = None
         self._fast_plants = None
-        self._fast_grid = None
+        self._fast_bvh = None
         self._closed = True
 
     def __enter__(self) -> "SensorScene":

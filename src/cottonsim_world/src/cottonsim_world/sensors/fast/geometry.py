@@ -1,8 +1,7 @@
 """Flat arrays of the static farm for the numba camera and LiDAR kernels.
 
 Why: compiled kernels want plain contiguous arrays, not dictionaries of
-meshes. Two layouts are built from the same plants, each only when a sensor
-needs it:
+meshes. The plants are flattened once per scene:
 
 ``InstancedPlants`` (camera)
     The farm shares a few plant models between many plants (farm.generator
@@ -15,12 +14,9 @@ needs it:
     the farm is static), the SemanticClass and the plant id, so the rasteriser
     only stores triangle ids per pixel and colours at the end.
 
-``TriangleGrid`` (LiDAR)
-    All triangles in world coordinates (same global ids) binned into a
-    uniform 3-D grid of cubic cells (a triangle is listed in every cell it
-    meets, by a separating-axis test), as compressed rows: the triangles
-    of cell c are ``items[offsets[c]:offsets[c + 1]]``. Rays walk the grid
-    cell by cell (3-D DDA) and test only the triangles listed there.
+``InstancedPlants.world_triangles`` (LiDAR)
+    All full-detail triangles in world coordinates with the same global
+    ids, from which ``bvh.TriangleBVH`` builds the ray caster's tree.
 
 Frames: world z up [m]; plant-local as in ``farm.model``.
 """
@@ -30,12 +26,8 @@ import math
 from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
-from numba import njit
-from scipy import ndimage
 
 from cottonsim_world.farm.model import Plant, PlantModel
-
-_MAX_GRID_CELLS = 16_000_000   # ~80 MB of offsets and distances; the cell grows beyond this
 
 
 def _model_arrays(model: PlantModel) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -391,180 +383,3 @@ def _first_of_each_face(faces: np.ndarray) -> np.ndarray:
     key = np.sort(faces, axis=1)
     _, first = np.unique(key, axis=0, return_index=True)
     return np.sort(first)
-
-
-BRICK = 4                       # fine cells per brick edge (a brick holds BRICK ** 3 cells)
-_BRICK_CELLS = BRICK ** 3
-
-
-_SAT_MARGIN = 1e-4              # relative growth of a cell in the overlap test (float32 corners, rounding)
-
-
-@njit(cache=True, inline="always")
-def _axis_separates(a0, a1, a2, q0, q1, q2, r0, r1, r2, half):  # pragma: no cover
-    """Whether axis a = (a0, a1, a2) separates the triangle q, r (corners relative to a cell's centre,
-    q = corner 0, r = the other two as rows) from the cube of half edge ``half`` centred at 0."""
-    p0 = a0 * q0 + a1 * q1 + a2 * q2
-    p1 = a0 * r0[0] + a1 * r1[0] + a2 * r2[0]
-    p2 = a0 * r0[1] + a1 * r1[1] + a2 * r2[1]
-    extent = half * (abs(a0) + abs(a1) + abs(a2))
-    return min(p0, p1, p2) > extent or max(p0, p1, p2) < -extent
-
-
-@njit(cache=True)
-def _triangle_meets_cell(tri, i, cx, cy, cz, half):  # pragma: no cover
-    """Separating-axis test of triangle i of tri (G, 3, 3) against the cube centred at (cx, cy, cz).
-
-    The triangle's box is known to meet the cube (the caller loops over the
-    cells of that box), so only the 9 edge-cross axes and the face normal
-    are tested (Akenine-Moeller's triangle-box overlap test). Conservative:
-    ``half`` is already grown by the caller's margin.
-    """
-    vx0, vy0, vz0 = tri[i, 0, 0] - cx, tri[i, 0, 1] - cy, tri[i, 0, 2] - cz
-    vx1, vy1, vz1 = tri[i, 1, 0] - cx, tri[i, 1, 1] - cy, tri[i, 1, 2] - cz
-    vx2, vy2, vz2 = tri[i, 2, 0] - cx, tri[i, 2, 1] - cy, tri[i, 2, 2] - cz
-    ex = (vx1 - vx0, vx2 - vx1, vx0 - vx2)
-    ey = (vy1 - vy0, vy2 - vy1, vy0 - vy2)
-    ez = (vz1 - vz0, vz2 - vz1, vz0 - vz2)
-    rx, ry, rz = (vx1, vx2), (vy1, vy2), (vz1, vz2)
-    for k in range(3):
-        # unit axis x cross edge k = (0, -ez, ey); y cross = (ez, 0, -ex); z cross = (-ey, ex, 0)
-        if _axis_separates(0.0, -ez[k], ey[k], vx0, vy0, vz0, rx, ry, rz, half):
-            return False
-        if _axis_separates(ez[k], 0.0, -ex[k], vx0, vy0, vz0, rx, ry, rz, half):
-            return False
-        if _axis_separates(-ey[k], ex[k], 0.0, vx0, vy0, vz0, rx, ry, rz, half):
-            return False
-    nx = ey[0] * ez[1] - ez[0] * ey[1]
-    ny = ez[0] * ex[1] - ex[0] * ez[1]
-    nz = ex[0] * ey[1] - ey[0] * ex[1]
-    return abs(nx * vx0 + ny * vy0 + nz * vz0) <= half * (abs(nx) + abs(ny) + abs(nz))
-
-
-@njit(cache=True)
-def _bin_triangles(tri, lo, cell_m, dims, bdims):  # pragma: no cover - compiled
-    """Bricked compressed-row lists of the triangles that meet each cell.
-
-    A triangle is listed in the cells of its bounding box that it really
-    meets (``_triangle_meets_cell`` against the cell grown by
-    ``_SAT_MARGIN``): a third fewer entries than listing the whole box,
-    and so fewer ray-triangle tests. Returns brick_of (coarse cells,)
-    int32 (brick id or -1 if empty), offsets (bricks * BRICK**3 + 1,)
-    int64 and items (N,) int32.
-    """
-    g = tri.shape[0]
-    box = np.empty((g, 6), dtype=np.int64)
-    half = 0.5 * cell_m * (1.0 + _SAT_MARGIN)
-    n_coarse = bdims[0] * bdims[1] * bdims[2]
-    brick_of = np.full(n_coarse, -1, dtype=np.int32)
-    for i in range(g):
-        for a in range(3):
-            mn = min(tri[i, 0, a], tri[i, 1, a], tri[i, 2, a])
-            mx = max(tri[i, 0, a], tri[i, 1, a], tri[i, 2, a])
-            box[i, a] = min(max(int(math.floor((mn - lo[a]) / cell_m)), 0), dims[a] - 1)
-            box[i, 3 + a] = min(max(int(math.floor((mx - lo[a]) / cell_m)), 0), dims[a] - 1)
-    # pass 0 marks the bricks in use, pass 1 counts the entries per cell, pass 2 fills them
-    counts = np.zeros(1, dtype=np.int64)
-    fill = np.zeros(1, dtype=np.int64)
-    items = np.empty(0, dtype=np.int32)
-    for stage in range(3):
-        for i in range(g):
-            for iz in range(box[i, 2], box[i, 5] + 1):
-                for iy in range(box[i, 1], box[i, 4] + 1):
-                    for ix in range(box[i, 0], box[i, 3] + 1):
-                        if not _triangle_meets_cell(tri, i, lo[0] + (ix + 0.5) * cell_m, lo[1] + (iy + 0.5) * cell_m,
-                                                    lo[2] + (iz + 0.5) * cell_m, half):
-                            continue
-                        coarse = ((iz // BRICK) * bdims[1] + iy // BRICK) * bdims[0] + ix // BRICK
-                        if stage == 0:
-                            brick_of[coarse] = 0
-                            continue
-                        c = brick_of[coarse] * _BRICK_CELLS + ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
-                        if stage == 1:
-                            counts[c + 1] += 1
-                        else:
-                            items[fill[c]] = i
-                            fill[c] += 1
-        if stage == 0:
-            n_bricks = 0
-            for c in range(n_coarse):
-                if brick_of[c] == 0:
-                    brick_of[c] = n_bricks
-                    n_bricks += 1
-            counts = np.zeros(n_bricks * _BRICK_CELLS + 1, dtype=np.int64)
-        elif stage == 1:
-            offsets = np.cumsum(counts)
-            fill = offsets[:-1].copy()
-            items = np.empty(offsets[-1], dtype=np.int32)
-    return brick_of, np.cumsum(counts), items
-
-
-class TriangleGrid:
-    """World-space triangles in a uniform 3-D grid of small cubic cells, stored in bricks.
-
-    The triangles are stored sorted along a Morton (z-order) curve of their
-    centroids, so that the triangles of one cell lie close together in
-    memory: ``tri`` (G, 9) float32 holds per sorted triangle its first
-    corner and its two edge vectors [m]; ``tri_id`` (G,) int32 maps a sorted
-    index back to the global triangle id.
-
-    Cells: lo (3,) grid origin [m]; cell_m edge of a cell [m] (grown if the
-    grid would exceed 16 million cells); dims (3,) int64 cells along x, y,
-    z. Cells are grouped in bricks of BRICK^3 cells (bdims (3,) bricks
-    along x, y, z); only bricks holding triangles are stored, so the lists
-    of neighbouring cells share cache lines: ``brick_of`` (bricks in the
-    box,) int32 is the stored brick id or -1; the triangles of local cell l
-    of brick b are ``items[offsets[b * BRICK**3 + l]:offsets[b * BRICK**3
-    + l + 1]]`` (sorted triangle indices). ``empty_radius`` (bricks in the
-    box,) uint8 is the chessboard distance [bricks] from a brick to the
-    nearest stored one, so a ray may jump over the empty cube around it.
-    """
-
-    def __init__(self, triangles: np.ndarray, triangle_ids: np.ndarray, cell_m: float) -> None:
-        if not (cell_m > 0.0 and math.isfinite(cell_m)):
-            raise ValueError(f"cell_m must be > 0, got {cell_m}")
-        tri = np.ascontiguousarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-        if len(tri):
-            lo = tri.reshape(-1, 3).min(axis=0) - 1e-6
-            hi = tri.reshape(-1, 3).max(axis=0) + 1e-6
-        else:
-            lo, hi = np.zeros(3), np.full(3, 1e-3)
-        ext = np.maximum(hi - lo, 1e-6)
-        while True:
-            dims = np.maximum(1, np.ceil(ext / cell_m)).astype(np.int64)
-            if int(np.prod(dims)) <= _MAX_GRID_CELLS:
-                break
-            cell_m *= 1.25
-        order = np.argsort(_morton_keys((tri.mean(axis=1) - lo) / cell_m), kind="stable")
-        tri = tri[order]
-        self.tri_id = np.asarray(triangle_ids, dtype=np.int32)[order]
-        self.lo = lo.astype(np.float64)
-        self.cell_m = float(cell_m)
-        self.dims = dims
-        self.bdims = (dims + BRICK - 1) // BRICK
-        self.hi = lo + dims * cell_m
-        self.brick_of, offsets, self.items = _bin_triangles(tri, self.lo, self.cell_m, dims, self.bdims)
-        if offsets[-1] >= 2 ** 31:
-            raise ValueError(f"too many triangle-cell entries ({offsets[-1]}) for cell_m={cell_m}; use larger cells")
-        self.offsets = offsets.astype(np.int32)
-        packed = np.empty((len(tri), 9), dtype=np.float32)
-        packed[:, 0:3] = tri[:, 0]
-        packed[:, 3:6] = tri[:, 1] - tri[:, 0]
-        packed[:, 6:9] = tri[:, 2] - tri[:, 0]
-        self.tri = packed
-        stored = (self.brick_of >= 0).reshape(self.bdims[2], self.bdims[1], self.bdims[0])
-        if stored.any():
-            radius = ndimage.distance_transform_cdt(~stored, metric="chessboard")
-        else:
-            radius = np.full(stored.shape, 255)
-        self.empty_radius = np.minimum(radius, 255).astype(np.uint8).ravel()
-
-
-def _morton_keys(cells: np.ndarray) -> np.ndarray:
-    """Interleaved-bit (z-order) keys of non-negative 3-D cell coordinates."""
-    c = np.clip(cells, 0, 2 ** 21 - 1).astype(np.uint64)
-    key = np.zeros(len(c), dtype=np.uint64)
-    for bit in range(21):
-        for axis in range(3):
-            key |= ((c[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
-    return key

@@ -1,13 +1,22 @@
 """Numba ray caster for the VLP-16: nearest hit against the farm's triangles.
 
 Why: pybullet's rayTestBatch needs 140-500 ms per 14,400-ray scan of the
-default farm (and 4-6 s to build its collision world). Here every ray walks
-the cells of ``geometry.TriangleGrid`` it crosses, in order (3-D DDA after
-Amanatides and Woo), tests the triangles listed in each cell
-(Moeller-Trumbore, both faces count) and stops as soon as the nearest hit so
-far lies inside the current cell, because no later cell can hold a nearer
-one. The ground is the analytic plane z = 0 (infinite, like pybullet's
-GEOM_PLANE). Rays are independent, so they run in parallel (``prange``).
+default farm (and 4-6 s to build its collision world). Here the rays descend
+``bvh.TriangleBVH`` in *packets* of ``PACKET`` rays: all rays of a scan share
+the sensor's origin, and rays next to each other in a ring (0.4 deg apart)
+cross nearly the same boxes, so at each node of the tree the packet tests
+both children's boxes against all its rays in one loop that LLVM vectorises
+(the box corners minus the origin are shared; each ray adds two
+multiplications per axis and box). A child is entered when at least one ray
+meets it before that ray's nearest hit so far (the ground's included), the
+child on the side the packet looks to first. Leaves test their triangles against every ray of the packet
+(Moeller-Trumbore, both faces count, the vector computes per ray exactly
+what a lone ray's test computes: the cross products with the shared corner
+are done once per triangle). The ground is the analytic plane z = 0
+(infinite, like pybullet's GEOM_PLANE). Packets are independent and run in
+parallel (``prange``), interleaved so that both threads get rays of every
+ring (the low rings end on the ground early, the high ones cross the
+hedges).
 
 Result per ray: the hit distance [m] along the unit direction and what was
 hit: a global triangle id (>= 0), ``HIT_GROUND`` or ``HIT_NONE``.
@@ -19,162 +28,168 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from cottonsim_world.sensors.fast.geometry import BRICK
-
-BRICK3 = BRICK ** 3
 HIT_NONE = -1
 HIT_GROUND = -2
+PACKET = 8                 # rays traversing the tree together (consecutive rays: neighbours in a ring)
+_WORK_ITEMS = 16           # parallel items; item i casts packets i, i + 16, i + 32, ...
+_STACK = 128               # pending nodes: at most one per tree level, and bvh.MAX_DEPTH < _STACK
+_AXIS_PARALLEL_INV = 1e300  # reciprocal used for a zero direction component (finite: no 0 * inf)
+_MIN_DET = 1e-14           # |determinant| below this: the ray runs parallel to the triangle
 
 
 @njit(cache=True, inline="always")
-def _ray_triangle(ox, oy, oz, dx, dy, dz, tri, i, t_best):  # pragma: no cover
-    """Distance to triangle i along the ray, or t_best if it is not nearer."""
-    ax, ay, az = np.float64(tri[i, 0]), np.float64(tri[i, 1]), np.float64(tri[i, 2])
-    e1x, e1y, e1z = np.float64(tri[i, 3]), np.float64(tri[i, 4]), np.float64(tri[i, 5])
-    e2x, e2y, e2z = np.float64(tri[i, 6]), np.float64(tri[i, 7]), np.float64(tri[i, 8])
-    px = dy * e2z - dz * e2y
-    py = dz * e2x - dx * e2z
-    pz = dx * e2y - dy * e2x
-    det = e1x * px + e1y * py + e1z * pz
-    if abs(det) < 1e-14:
-        return t_best
-    inv = 1.0 / det
-    sx, sy, sz = ox - ax, oy - ay, oz - az
-    u = (sx * px + sy * py + sz * pz) * inv
-    if u < 0.0 or u > 1.0:
-        return t_best
-    qx = sy * e1z - sz * e1y
-    qy = sz * e1x - sx * e1z
-    qz = sx * e1y - sy * e1x
-    v = (dx * qx + dy * qy + dz * qz) * inv
-    if v < 0.0 or u + v > 1.0:
-        return t_best
-    t = (e2x * qx + e2y * qy + e2z * qz) * inv
-    if 0.0 <= t < t_best:
-        return t
-    return t_best
+def _box_from(node_box, c, ox, oy, oz):  # pragma: no cover
+    """Box c's min and max corners relative to the origin (x0, y0, z0, x1, y1, z1) [m]."""
+    return (np.float64(node_box[c, 0]) - ox, np.float64(node_box[c, 1]) - oy, np.float64(node_box[c, 2]) - oz,
+            np.float64(node_box[c, 3]) - ox, np.float64(node_box[c, 4]) - oy, np.float64(node_box[c, 5]) - oz)
 
 
-@njit(parallel=True, cache=True)
-def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, bdims, brick_of, offsets, items,
-              empty_radius,
+@njit(cache=True, inline="always")
+def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit):  # pragma: no cover
+    """1 if the ray with reciprocal direction (ix, iy, iz) meets the box (corners relative to its origin)
+    within [0, limit] [m], else 0 (slab test; min / max spelled as selects, which vectorise)."""
+    t0x, t1x = b0x * ix, b1x * ix
+    t0y, t1y = b0y * iy, b1y * iy
+    t0z, t1z = b0z * iz, b1z * iz
+    nx = t0x if t0x < t1x else t1x
+    fx = t0x if t0x > t1x else t1x
+    ny = t0y if t0y < t1y else t1y
+    fy = t0y if t0y > t1y else t1y
+    nz = t0z if t0z < t1z else t1z
+    fz = t0z if t0z > t1z else t1z
+    near = nx if nx > ny else ny
+    near = near if near > nz else nz
+    near = near if near > 0.0 else 0.0
+    far = fx if fx < fy else fy
+    far = far if far < fz else fz
+    far = far if far < limit else limit
+    return 1 if near <= far else 0
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, node_count, node_near,
               out_range, out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
 
     tri (G, 9) float32: corner, edge, edge per sorted triangle; tri_id maps
-    the sorted index to the global id; the rest is ``TriangleGrid``.
+    the sorted index to the global id; node_box, node_first, node_count,
+    node_near: the tree of ``bvh.TriangleBVH``.
 
     Writes out_range (N,) [m] (inf when nothing is hit) and out_hit (N,)
     int32: triangle id, HIT_GROUND or HIT_NONE.
     """
     n = dirs.shape[0]
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    nbx, nby = bdims[0], bdims[1]
     ox, oy, oz = origin[0], origin[1], origin[2]
-    for r in prange(n):
-        sx, sy, sz = dirs[r, 0], dirs[r, 1], dirs[r, 2]
-        dx = rot[0, 0] * sx + rot[0, 1] * sy + rot[0, 2] * sz
-        dy = rot[1, 0] * sx + rot[1, 1] * sy + rot[1, 2] * sz
-        dz = rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
-        best = math.inf
-        hit = HIT_NONE
-        if dz < 0.0 and oz > 0.0:
-            tg = -oz / dz
-            if tg <= max_range:
-                best = tg
-                hit = HIT_GROUND
-        t_end = min(best, max_range)
-        # clip the segment [0, t_end] to the grid's box
-        t0, t1 = 0.0, t_end
-        inside = True
-        for a in range(3):
-            o = ox if a == 0 else (oy if a == 1 else oz)
-            d = dx if a == 0 else (dy if a == 1 else dz)
-            if abs(d) < 1e-15:
-                if o < lo[a] or o > hi[a]:
-                    inside = False
-            else:
-                ta = (lo[a] - o) / d
-                tb = (hi[a] - o) / d
-                if ta > tb:
-                    ta, tb = tb, ta
-                t0 = max(t0, ta)
-                t1 = min(t1, tb)
-        if inside and t0 <= t1 and items.shape[0] > 0:
-            stx = 1 if dx > 0.0 else -1
-            sty = 1 if dy > 0.0 else -1
-            stz = 1 if dz > 0.0 else -1
-            tdx = cell_m / abs(dx) if dx != 0.0 else math.inf
-            tdy = cell_m / abs(dy) if dy != 0.0 else math.inf
-            tdz = cell_m / abs(dz) if dz != 0.0 else math.inf
-            t_at = t0
-            walking = True
-            budget = 4 * (nx + ny + nz) + 64      # a walk never needs more steps; guards against a stuck loop
-            while walking:
-                # (re)start the cell walk at distance t_at
-                ix = min(max(int(math.floor((ox + t_at * dx - lo[0]) / cell_m)), 0), nx - 1)
-                iy = min(max(int(math.floor((oy + t_at * dy - lo[1]) / cell_m)), 0), ny - 1)
-                iz = min(max(int(math.floor((oz + t_at * dz - lo[2]) / cell_m)), 0), nz - 1)
-                tmx = ((lo[0] + (ix + (1 if dx > 0.0 else 0)) * cell_m - ox) / dx) if dx != 0.0 else math.inf
-                tmy = ((lo[1] + (iy + (1 if dy > 0.0 else 0)) * cell_m - oy) / dy) if dy != 0.0 else math.inf
-                tmz = ((lo[2] + (iz + (1 if dz > 0.0 else 0)) * cell_m - oz) / dz) if dz != 0.0 else math.inf
-                while True:
-                    budget -= 1
-                    if budget < 0:
-                        walking = False
-                        break
-                    bx, by, bz = ix // BRICK, iy // BRICK, iz // BRICK
-                    cb = (bz * nby + by) * nbx + bx
-                    brick = brick_of[cb]
-                    if brick < 0:
-                        # the cube of bricks within empty_radius - 1 of this one is empty:
-                        # jump to where the ray leaves it and restart the walk there
-                        h = np.int64(empty_radius[cb]) - 1
-                        span = BRICK * cell_m
-                        ex = lo[0] + (bx + h + 1 if dx > 0.0 else bx - h) * span
-                        ey = lo[1] + (by + h + 1 if dy > 0.0 else by - h) * span
-                        ez = lo[2] + (bz + h + 1 if dz > 0.0 else bz - h) * span
-                        t_jump = min((ex - ox) / dx if dx != 0.0 else math.inf,
-                                     (ey - oy) / dy if dy != 0.0 else math.inf,
-                                     (ez - oz) / dz if dz != 0.0 else math.inf)
-                        t_at = t_jump + 1e-9
-                        if t_at >= t1:
-                            walking = False
-                        break
-                    c = brick * BRICK3 + ((iz % BRICK) * BRICK + iy % BRICK) * BRICK + ix % BRICK
-                    for k in range(offsets[c], offsets[c + 1]):
-                        g = items[k]
-                        t_hit = _ray_triangle(ox, oy, oz, dx, dy, dz, tri, g, best)
-                        if t_hit < best:
-                            best = t_hit
-                            hit = tri_id[g]
-                    t_exit = min(tmx, tmy, tmz)
-                    if best <= t_exit or t_exit > t1:
-                        walking = False
-                        break
-                    if tmx <= tmy and tmx <= tmz:
-                        ix += stx
-                        tmx += tdx
-                        if ix < 0 or ix >= nx:
-                            walking = False
-                            break
-                    elif tmy <= tmz:
-                        iy += sty
-                        tmy += tdy
-                        if iy < 0 or iy >= ny:
-                            walking = False
-                            break
-                    else:
-                        iz += stz
-                        tmz += tdz
-                        if iz < 0 or iz >= nz:
-                            walking = False
-                            break
-        if best > max_range:
-            best = math.inf
-            hit = HIT_NONE
-        out_range[r] = best
-        out_hit[r] = hit
+    n_packets = (n + PACKET - 1) // PACKET
+    has_tree = tri.shape[0] > 0
+    for item in prange(_WORK_ITEMS):
+        stack = np.empty(_STACK, np.int32)
+        dxa = np.empty(PACKET)
+        dya = np.empty(PACKET)
+        dza = np.empty(PACKET)
+        ixa = np.empty(PACKET)
+        iya = np.empty(PACKET)
+        iza = np.empty(PACKET)
+        best = np.empty(PACKET)           # nearest hit so far per ray [m]
+        limit = np.empty(PACKET)          # min(best, max_range) [m]: boxes beyond are skipped
+        hit = np.empty(PACKET, np.int32)
+        for packet in range(item, n_packets, _WORK_ITEMS):
+            r0 = packet * PACKET
+            m = min(PACKET, n - r0)
+            for k in range(m):
+                sx, sy, sz = dirs[r0 + k, 0], dirs[r0 + k, 1], dirs[r0 + k, 2]
+                dx = rot[0, 0] * sx + rot[0, 1] * sy + rot[0, 2] * sz
+                dy = rot[1, 0] * sx + rot[1, 1] * sy + rot[1, 2] * sz
+                dz = rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
+                dxa[k], dya[k], dza[k] = dx, dy, dz
+                ixa[k] = 1.0 / dx if dx != 0.0 else _AXIS_PARALLEL_INV
+                iya[k] = 1.0 / dy if dy != 0.0 else _AXIS_PARALLEL_INV
+                iza[k] = 1.0 / dz if dz != 0.0 else _AXIS_PARALLEL_INV
+                t_first = math.inf
+                what = HIT_NONE
+                if dz < 0.0 and oz > 0.0:
+                    tg = -oz / dz
+                    if tg <= max_range:
+                        t_first = tg
+                        what = HIT_GROUND
+                best[k] = t_first
+                hit[k] = what
+                limit[k] = min(t_first, max_range)
+            # the packet's middle ray decides which child is visited first
+            look = (dxa[m // 2], dya[m // 2], dza[m // 2])
+            sp = 0
+            node = -1
+            if has_tree:
+                b0x, b0y, b0z, b1x, b1y, b1z = _box_from(node_box, 0, ox, oy, oz)
+                meeting = 0
+                for k in range(m):
+                    meeting += _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], limit[k])
+                node = 0 if meeting > 0 else -1
+            while node >= 0:
+                # invariant: some ray of the packet met this node's box (when it was tested)
+                count = node_count[node]
+                if count == 0:
+                    # both children's boxes against every ray of the packet, in one vectorised loop
+                    left = node_first[node]
+                    l0x, l0y, l0z, l1x, l1y, l1z = _box_from(node_box, left, ox, oy, oz)
+                    r0x, r0y, r0z, r1x, r1y, r1z = _box_from(node_box, left + 1, ox, oy, oz)
+                    meet_left = 0
+                    meet_right = 0
+                    for k in range(m):
+                        meet_left += _meets(l0x, l0y, l0z, l1x, l1y, l1z, ixa[k], iya[k], iza[k], limit[k])
+                        meet_right += _meets(r0x, r0y, r0z, r1x, r1y, r1z, ixa[k], iya[k], iza[k], limit[k])
+                    if meet_left > 0 and meet_right > 0:
+                        code = node_near[node]
+                        right_low = (code & 1) == 1        # the right child lies lower along axis
+                        if (look[code >> 1] >= 0.0) != right_low:
+                            stack[sp] = left + 1
+                            node = left
+                        else:
+                            stack[sp] = left
+                            node = left + 1
+                        sp += 1
+                        continue
+                    if meet_left > 0 or meet_right > 0:
+                        node = left if meet_left > 0 else left + 1
+                        continue
+                else:
+                    first = node_first[node]
+                    for g in range(first, first + count):
+                        ax, ay, az = np.float64(tri[g, 0]), np.float64(tri[g, 1]), np.float64(tri[g, 2])
+                        e1x, e1y, e1z = np.float64(tri[g, 3]), np.float64(tri[g, 4]), np.float64(tri[g, 5])
+                        e2x, e2y, e2z = np.float64(tri[g, 6]), np.float64(tri[g, 7]), np.float64(tri[g, 8])
+                        sx, sy, sz = ox - ax, oy - ay, oz - az
+                        qx = sy * e1z - sz * e1y
+                        qy = sz * e1x - sx * e1z
+                        qz = sx * e1y - sy * e1x
+                        t_num = e2x * qx + e2y * qy + e2z * qz
+                        gid = tri_id[g]
+                        for k in range(m):
+                            dx, dy, dz = dxa[k], dya[k], dza[k]
+                            px = dy * e2z - dz * e2y
+                            py = dz * e2x - dx * e2z
+                            pz = dx * e2y - dy * e2x
+                            det = e1x * px + e1y * py + e1z * pz
+                            inv = 1.0 / det
+                            u = (sx * px + sy * py + sz * pz) * inv
+                            v = (dx * qx + dy * qy + dz * qz) * inv
+                            t = t_num * inv
+                            nearer = (abs(det) >= _MIN_DET) & (u >= 0.0) & (u <= 1.0) & (v >= 0.0) \
+                                & (u + v <= 1.0) & (t >= 0.0) & (t < best[k])
+                            best[k] = t if nearer else best[k]
+                            hit[k] = gid if nearer else hit[k]
+                    for k in range(m):
+                        limit[k] = min(best[k], max_range)
+                # next pending node (met when its parent was visited; nearer hits since may make it moot)
+                if sp == 0:
+                    node = -1
+                else:
+                    sp -= 1
+                    node = stack[sp]
+            for k in range(m):
+                far_hit = best[k] > max_range
+                out_range[r0 + k] = math.inf if far_hit else best[k]
+                out_hit[r0 + k] = HIT_NONE if far_hit else hit[k]
 
 
 @njit(cache=True)

@@ -1,0 +1,127 @@
+#!/usr/bin/env python3
+"""CPU cost of one VLP-16 cast and of the simulator's whole LiDAR update, inside a lane and in the headland.
+
+Casts from fixed poses of the default farm (no physics, no ROS), so the figures are repeatable:
+
+  lane     - the 'velodyne' frame in lane 3 (world x = -6.83 m), y = 10.0 .. 10.75 m, 0.38 m up,
+             robot facing +y (a hedge 0.9 m to each side): the expensive place;
+  headland - at the spawn pose (world (-6.0, 1.0), facing the rows 8 m ahead), turned by 0 .. 0.45 rad.
+
+Prints the build time of the LiDAR's scene structure, CPU ms per cast (time.process_time, summed
+over threads: run with NUMBA_NUM_THREADS=1 for the work itself) and CPU ms per whole update
+(scan with noise + PassThrough + the two LaserScans, as ``Simulator._lidar`` does).
+
+  NUMBA_NUM_THREADS=1 python benchmarks/bench_lidar.py [--repeats 5] [--save out.npz | --compare ref.npz]
+
+--save writes every pose's ranges [m] and hit ids (noise-free ``Vlp16Model`` internals); --compare
+checks a later tree against such a file (ranges to 1e-9 m, hit classes and plant ids exact).
+--callgrind (under ``valgrind --tool=callgrind --instr-atstart=no``) instruments the casts only
+(one cast per pose): "Collected : N" is the instruction count of the 4 lane + 4 headland casts,
+and --callgrind-place restricts them to one place.
+"""
+import argparse
+import math
+import os
+import platform
+import subprocess
+import time
+
+import numpy as np
+
+from cottonsim_world.farm.generator import FarmConfig, generate_farm
+from cottonsim_world.farm.model import SemanticClass
+from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
+                                                   original_passthrough_mask)
+from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
+from cottonsim_world.sensors.scene import SceneConfig, SensorScene
+
+SENSOR_Z_M = 0.38
+LANE_X_M = -6.83
+
+
+def sensor_pose(x_m, y_m, robot_yaw_rad):
+    """world_T_velodyne: the velodyne frame is yawed +90 deg on the robot."""
+    yaw = robot_yaw_rad + math.pi / 2
+    pose = np.eye(4)
+    c, s = math.cos(yaw), math.sin(yaw)
+    pose[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    pose[:3, 3] = (x_m, y_m, SENSOR_Z_M)
+    return pose
+
+
+POSES = {
+    "lane": [sensor_pose(LANE_X_M, 10.0 + 0.25 * k, math.pi / 2) for k in range(4)],
+    "headland": [sensor_pose(-6.0, 1.0, math.pi / 2 + 0.15 * k) for k in range(4)],
+}
+
+
+def _callgrind(switch):
+    subprocess.run(["callgrind_control", "-i", switch, str(os.getpid())], stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL, check=False)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--repeats", type=int, default=5, help="casts per pose")
+    parser.add_argument("--save", help="write every pose's ranges and hit ids to this .npz")
+    parser.add_argument("--compare", help="compare every pose's ranges and hits with this .npz")
+    parser.add_argument("--callgrind", action="store_true")
+    parser.add_argument("--callgrind-place", choices=sorted(POSES))
+    args = parser.parse_args()
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; "
+          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'unset')}")
+    farm = generate_farm(FarmConfig())
+    scene = SensorScene(farm, SceneConfig())
+    t0 = time.process_time()
+    _ = scene.fast_plants
+    t1 = time.process_time()
+    lidar = Vlp16Model(scene, LidarConfig())
+    t2 = time.process_time()
+    print(f"build: instanced plants {t1 - t0:.2f} s, LiDAR structure + warm-up cast {t2 - t1:.2f} s CPU")
+    if args.callgrind:
+        places = [args.callgrind_place] if args.callgrind_place else sorted(POSES)
+        _callgrind("on")
+        for place in places:
+            for pose in POSES[place]:
+                lidar.ranges(pose)
+        _callgrind("off")
+        print(f"callgrind: instrumented one cast per pose of {places}")
+        return
+    saved = {}
+    for place, poses in POSES.items():
+        cast_ms, update_ms = [], []
+        for k, pose in enumerate(poses):
+            rng, sem, pid = lidar.ranges(pose)
+            saved[f"{place}{k}_range"], saved[f"{place}{k}_sem"], saved[f"{place}{k}_pid"] = rng, sem, pid
+            c = time.process_time()
+            for _ in range(args.repeats):
+                lidar.ranges(pose)
+            cast_ms.append(1e3 * (time.process_time() - c) / args.repeats)
+            c = time.process_time()
+            for _ in range(args.repeats):
+                scan = lidar.scan(pose)
+                original_passthrough_mask(scan.points, PassThroughConfig())
+                cloud_to_laserscan(scan.points, LaserScanConfig())
+                cloud_to_laserscan(scan.points, LaserScanConfig(min_height_m=-0.25, angle_min_rad=-math.pi,
+                                                                angle_max_rad=math.pi))
+            update_ms.append(1e3 * (time.process_time() - c) / args.repeats)
+        hits = np.mean([np.mean(saved[f"{place}{k}_sem"] != int(SemanticClass.SKY)) for k in range(len(poses))])
+        print(f"{place:9s}: cast {np.mean(cast_ms):6.2f} ms CPU (per pose {', '.join(f'{m:.2f}' for m in cast_ms)}); "
+              f"scan + PassThrough + 2 LaserScans {np.mean(update_ms):6.2f} ms CPU; {hits:.0%} of rays hit")
+    if args.save:
+        np.savez_compressed(args.save, **saved)
+    if args.compare:
+        ref = np.load(args.compare)
+        for key in sorted(k[:-6] for k in ref.files if k.endswith("_range")):
+            r0, r1 = ref[key + "_range"], saved[key + "_range"]
+            same_inf = np.array_equal(np.isinf(r0), np.isinf(r1))
+            fin = np.isfinite(r0) & np.isfinite(r1)
+            err = float(np.max(np.abs(r0[fin] - r1[fin]))) if fin.any() else 0.0
+            sem_diff = int(np.count_nonzero(ref[key + "_sem"] != saved[key + "_sem"]))
+            pid_diff = int(np.count_nonzero(ref[key + "_pid"] != saved[key + "_pid"]))
+            print(f"compare {key}: same misses {same_inf}, max |dr| {err:.3g} m, "
+                  f"semantic differs {sem_diff}, plant id differs {pid_diff}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,230 @@
+"""Bounding volume hierarchy over the farm's world-space triangles, for the numba LiDAR.
+
+Why: a uniform grid makes a ray inside a crop lane step through ~25 small
+cells of the hedges before it hits a leaf (or grazes along the row); a BVH
+adapts to where the leaves are, so the empty lane, the sky and the space
+between the rows cost a few box tests.
+
+Layout (built once per scene, ``TriangleBVH``): a binary tree, root 0,
+whose two children are stored next to each other (node c's children are
+``node_first[c]`` and ``node_first[c] + 1``). A leaf (``node_count[c] >
+0``) lists the sorted triangles ``node_first[c] .. node_first[c] +
+node_count[c] - 1``. Triangles are stored in leaf order as float32 corner +
+two edges, exactly what the ray/triangle test reads; the boxes are computed
+from those float32 corners (so they bound the triangle the test sees) and
+padded by ``BOX_PAD_M`` against rounding in the slab test.
+
+Build: top-down binned surface-area heuristic (SAH): per node the triangle
+centroids are binned into ``_BINS`` bins along each axis, the split with
+the least expected cost (children's box areas times triangle counts) wins,
+unless keeping a leaf is cheaper. O(N log N); ~1.3 s CPU for the default
+farm's 380 k triangles.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+BOX_PAD_M = 1e-5          # boxes grown by this [m] on every side (float32 boxes, float64 slab test)
+_BINS = 32                # SAH bins per axis
+_MAX_LEAF = 8             # a node with more triangles is always split (by count if its centroids coincide)
+_TRAVERSAL_COST = 2.0     # cost of one node visit, in units of a ray/triangle test
+MAX_DEPTH = 60            # the tree is never deeper (the caster's stack holds one entry per level)
+
+
+@njit(cache=True)
+def _box_area(bx):  # pragma: no cover - compiled
+    """Half the surface area of box (minx, miny, minz, maxx, maxy, maxz) [m^2]; 0 for an empty box."""
+    ex, ey, ez = bx[3] - bx[0], bx[4] - bx[1], bx[5] - bx[2]
+    if ex < 0.0 or ey < 0.0 or ez < 0.0:
+        return 0.0
+    return ex * ey + ey * ez + ez * ex
+
+
+@njit(cache=True)
+def _build(tri_box, centroid):  # pragma: no cover - compiled
+    """Binned-SAH tree over triangle boxes (G, 6) and centroids (G, 3), float64 [m].
+
+    Returns the triangle order (G,) int64, node boxes (N, 6) float64,
+    node_first (N,) int64, node_count (N,) int64 (see the module doc) and
+    the tree's depth (root = 1).
+    """
+    g = tri_box.shape[0]
+    order = np.arange(g)
+    cap = max(2 * g, 1)
+    node_box = np.empty((cap, 6))
+    node_first = np.zeros(cap, dtype=np.int64)
+    node_count = np.zeros(cap, dtype=np.int64)
+    # work stack of (node, start, end, depth)
+    work = np.empty((2 * MAX_DEPTH + 8, 4), dtype=np.int64)
+    work[0] = (0, 0, g, 0)
+    sp = 1
+    n_nodes = 1
+    max_depth = 0
+    bin_box = np.empty((_BINS, 6))
+    bin_count = np.zeros(_BINS, dtype=np.int64)
+    right_area = np.empty(_BINS)
+    right_count = np.zeros(_BINS, dtype=np.int64)
+    acc = np.empty(6)
+    while sp > 0:
+        sp -= 1
+        node, start, end, depth = work[sp, 0], work[sp, 1], work[sp, 2], work[sp, 3]
+        count = end - start
+        max_depth = max(max_depth, depth + 1)
+        bx = node_box[node]
+        bx[:3] = np.inf
+        bx[3:] = -np.inf
+        cmin = np.full(3, np.inf)
+        cmax = np.full(3, -np.inf)
+        for k in range(start, end):
+            i = order[k]
+            for a in range(3):
+                bx[a] = min(bx[a], tri_box[i, a])
+                bx[3 + a] = max(bx[3 + a], tri_box[i, 3 + a])
+                cmin[a] = min(cmin[a], centroid[i, a])
+                cmax[a] = max(cmax[a], centroid[i, a])
+        node_first[node] = start
+        node_count[node] = count
+        if count <= 2 or depth >= MAX_DEPTH - 1:
+            continue
+        # best split over all axes
+        best_cost = np.inf
+        best_axis = -1
+        best_bin = 0
+        for a in range(3):
+            span = cmax[a] - cmin[a]
+            if not span > 0.0:
+                continue
+            scale = _BINS / span
+            bin_count[:] = 0
+            bin_box[:, :3] = np.inf
+            bin_box[:, 3:] = -np.inf
+            for k in range(start, end):
+                i = order[k]
+                b = min(int((centroid[i, a] - cmin[a]) * scale), _BINS - 1)
+                bin_count[b] += 1
+                for q in range(3):
+                    bin_box[b, q] = min(bin_box[b, q], tri_box[i, q])
+                    bin_box[b, 3 + q] = max(bin_box[b, 3 + q], tri_box[i, 3 + q])
+            # sweep from the right: area and count of bins b .. BINS - 1
+            acc[:3] = np.inf
+            acc[3:] = -np.inf
+            n_right = 0
+            for b in range(_BINS - 1, 0, -1):
+                for q in range(3):
+                    acc[q] = min(acc[q], bin_box[b, q])
+                    acc[3 + q] = max(acc[3 + q], bin_box[b, 3 + q])
+                n_right += bin_count[b]
+                right_area[b] = _box_area(acc)
+                right_count[b] = n_right
+            acc[:3] = np.inf
+            acc[3:] = -np.inf
+            n_left = 0
+            for b in range(0, _BINS - 1):
+                for q in range(3):
+                    acc[q] = min(acc[q], bin_box[b, q])
+                    acc[3 + q] = max(acc[3 + q], bin_box[b, 3 + q])
+                n_left += bin_count[b]
+                if n_left == 0 or right_count[b + 1] == 0:
+                    continue
+                cost = _box_area(acc) * n_left + right_area[b + 1] * right_count[b + 1]
+                if cost < best_cost:
+                    best_cost = cost
+                    best_axis = a
+                    best_bin = b
+        area = _box_area(bx)
+        leaf_cost = area * count
+        split_cost = _TRAVERSAL_COST * area + best_cost
+        if count <= _MAX_LEAF and (best_axis < 0 or leaf_cost <= split_cost):
+            continue
+        # partition [start, end) by the chosen plane (or by count if the centroids coincide)
+        if best_axis >= 0:
+            a = best_axis
+            scale = _BINS / (cmax[a] - cmin[a])
+            lo, hi = start, end - 1
+            while lo <= hi:
+                i = order[lo]
+                if min(int((centroid[i, a] - cmin[a]) * scale), _BINS - 1) <= best_bin:
+                    lo += 1
+                else:
+                    order[lo], order[hi] = order[hi], order[lo]
+                    hi -= 1
+            mid = lo
+        else:
+            mid = start + count // 2
+        if mid == start or mid == end:
+            mid = start + count // 2
+        left = n_nodes
+        n_nodes += 2
+        node_first[node] = left
+        node_count[node] = 0
+        work[sp] = (left, start, mid, depth + 1)
+        work[sp + 1] = (left + 1, mid, end, depth + 1)
+        sp += 2
+    return order, node_box[:n_nodes].copy(), node_first[:n_nodes].copy(), node_count[:n_nodes].copy(), max_depth
+
+
+class TriangleBVH:
+    """World-space triangles of the farm in a binary BVH (see the module doc).
+
+    tri (G, 9) float32: per sorted triangle its first corner and its two
+    edge vectors [m]; tri_id (G,) int32: the global triangle id of each
+    sorted triangle; node_box (N, 6) float32 min x, y, z, max x, y, z [m];
+    node_first / node_count (N,) int32; node_near (N,) int8 which child a
+    packet of rays visits first (see ``_near_side``); depth: the tree's
+    depth (root = 1).
+    """
+
+    def __init__(self, triangles: np.ndarray, triangle_ids: np.ndarray) -> None:
+        tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+        ids = np.asarray(triangle_ids, dtype=np.int32).reshape(-1)
+        if len(ids) != len(tri):
+            raise ValueError(f"{len(tri)} triangles but {len(ids)} ids")
+        packed = np.empty((len(tri), 9), dtype=np.float32)
+        packed[:, 0:3] = tri[:, 0]
+        packed[:, 3:6] = tri[:, 1] - tri[:, 0]
+        packed[:, 6:9] = tri[:, 2] - tri[:, 0]
+        # the corners the ray/triangle test sees (float32 corner + float32 edges), exactly in float64
+        a = packed[:, 0:3].astype(np.float64)
+        corners = np.stack([a, a + packed[:, 3:6], a + packed[:, 6:9]], axis=1)
+        tri_box = np.ascontiguousarray(np.concatenate([corners.min(axis=1), corners.max(axis=1)], axis=1))
+        centroid = np.ascontiguousarray(corners.mean(axis=1))
+        if len(tri):
+            order, box, first, count, depth = _build(tri_box, centroid)
+        else:
+            order = np.zeros(0, np.int64)
+            box = np.array([[np.inf, np.inf, np.inf, -np.inf, -np.inf, -np.inf]])
+            first, count = np.zeros(1, np.int64), np.zeros(1, np.int64)
+            depth = 1
+        self.tri = np.ascontiguousarray(packed[order])
+        self.tri_id = np.ascontiguousarray(ids[order])
+        pad = np.concatenate([np.full(3, -BOX_PAD_M), np.full(3, BOX_PAD_M)])
+        self.node_box = np.ascontiguousarray((box + pad).astype(np.float32))
+        self.node_first = first.astype(np.int32)
+        self.node_count = count.astype(np.int32)
+        self.node_near = _near_side(self.node_box, self.node_first, self.node_count)
+        self.depth = int(depth)
+
+    @property
+    def node_total(self) -> int:
+        """Number of nodes (leaves and inner nodes)."""
+        return len(self.node_first)
+
+
+def _near_side(box: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Per internal node 2 * axis + (1 if the right child lies lower along axis else 0), 0 for leaves.
+
+    The axis is the one along which the children's box centres lie
+    farthest apart; a packet looking towards +axis visits the lower child
+    first. Only the order of the visits depends on it, not the hits.
+    """
+    code = np.zeros(len(first), dtype=np.int8)
+    internal = np.flatnonzero(count == 0) if len(first) > 1 else np.zeros(0, np.int64)
+    left = first[internal]
+    centre_left = 0.5 * (box[left, :3].astype(np.float64) + box[left, 3:])
+    centre_right = 0.5 * (box[left + 1, :3].astype(np.float64) + box[left + 1, 3:])
+    gap = centre_right - centre_left
+    axis = np.argmax(np.abs(gap), axis=1)
+    code[internal] = 2 * axis + (gap[np.arange(len(axis)), axis] < 0.0)
+    return code
+
