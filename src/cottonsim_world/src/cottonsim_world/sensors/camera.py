@@ -59,12 +59,15 @@ class CameraConfig:
     cull_distance_m: plants whose bounding sphere is farther than this along
     the optical axis are not rendered (inf = only frustum culling);
     plant_id_image: also return a per-pixel plant id image; seed: noise.
-    lod_max_error_px ('numba' only): a plant is drawn with its simplified
-    level of detail (``fast.geometry.proxy_model_arrays``: each leaf, boll
-    and stem part replaced by a few triangles of the same area, ~4.5x fewer
-    triangles) when that level's outline error bound, seen at the depth of
-    the plant's nearest bounding-sphere point, is at most this many pixels
-    [px]; 0 = always full detail.
+    lod_max_error_px ('numba' only): each plant is drawn with the coarsest
+    level of detail of ``fast.geometry.InstancedPlants`` whose outline error
+    bound, seen at the depth of the plant's nearest bounding-sphere point, is
+    at most this many pixels [px]: the middle levels (leaves with fewer
+    outline points, bolls and tubes as proxies where close enough; surface
+    within 1 cm / 2.5 cm of the full model) or the far level
+    (``fast.geometry.proxy_model_arrays``: each leaf, boll and stem part
+    replaced by a few triangles of the same area, ~4.5x fewer triangles);
+    0 = always full detail.
     """
 
     width: int = 640
@@ -278,20 +281,27 @@ class CameraModel:
                            plant_id=plant_id, world_T_optical=pose)
 
     def _levels_of_detail(self, visible: np.ndarray, z_near: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        """Per visible plant the model slot to draw and its first global triangle id."""
+        """Per visible plant the model slot to draw and its first global triangle id.
+
+        The coarsest level whose outline error bound, seen at the depth of the
+        plant's nearest bounding-sphere point, is at most ``lod_max_error_px``.
+        """
         inst = self._fast.plants
         model = inst.plant_model[visible]
         if self.config.lod_max_error_px <= 0.0 or len(visible) == 0:
             return model, inst.plant_gbase[visible]
-        error_px = self._intr.fx * inst.proxy_error_m[model] / np.maximum(z_near, 1e-6)
-        far = (z_near > 0.0) & (error_px <= self.config.lod_max_error_px)
-        self.last_render_stats["simplified"] = int(np.count_nonzero(far))
-        return (np.where(far, model + inst.model_count, model),
-                np.where(far, inst.level_gbase[1, visible], inst.level_gbase[0, visible]))
+        # largest error [m] allowed at each plant's depth; levels are ordered fine to coarse
+        allowed_m = np.where(z_near > 0.0, self.config.lod_max_error_px * z_near / self._intr.fx, 0.0)
+        level = np.zeros(len(visible), dtype=np.int64)
+        for k in range(1, inst.LEVELS):
+            level = np.where(inst.level_error_m[k, model] <= allowed_m, k, level)
+        self.last_render_stats["simplified"] = int(np.count_nonzero(level == inst.LEVELS - 1))
+        self.last_render_stats["middle"] = int(np.count_nonzero((level > 0) & (level < inst.LEVELS - 1)))
+        return level * inst.model_count + model, inst.level_gbase[level, visible]
 
     def _render_numba(self, pose: np.ndarray, visible: np.ndarray, z_near: np.ndarray) -> CameraFrame:
         cfg, fb = self.config, self._fast
-        self.last_render_stats = {"plants": len(visible), "added": 0, "removed": 0, "simplified": 0}
+        self.last_render_stats = {"plants": len(visible), "added": 0, "removed": 0, "simplified": 0, "middle": 0}
         inst = fb.plants
         slot, gbase = self._levels_of_detail(visible, z_near)
         rot = pose[:3, :3].T                                  # optical_R_world
