@@ -61,6 +61,10 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
     wy = ay0 * w0 + ay1 * w1 + ay2 * w2
     wc = c0 * w0 + c1 * w1 + c2 * w2
     eps = 1e-9
+    # the row spans need -r / ax per edge and row: one division per edge here, multiplications per row
+    k0 = -1.0 / ax0 if abs(ax0) > eps else 0.0
+    k1 = -1.0 / ax1 if abs(ax1) > eps else 0.0
+    k2 = -1.0 / ax2 if abs(ax2) > eps else 0.0
     for y in range(y_lo, y_hi + 1):
         # span of x where all three weights are >= 0 on this row
         lo = float(x_lo)
@@ -69,11 +73,11 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
         r1 = ay1 * y + c1
         r2 = ay2 * y + c2
         empty = False
-        for ax, r in ((ax0, r0), (ax1, r1), (ax2, r2)):
+        for ax, r, k in ((ax0, r0, k0), (ax1, r1, k1), (ax2, r2, k2)):
             if ax > eps:
-                lo = max(lo, -r / ax)
+                lo = max(lo, r * k)
             elif ax < -eps:
-                hi = min(hi, -r / ax)
+                hi = min(hi, r * k)
             elif r < -eps:
                 empty = True
         if empty:
