@@ -288,3 +288,32 @@ def test_packed_cloud_and_its_message_match_the_unpacked_ones(farm_scene):
                                                                               b.is_dense, b.header.frame_id)
     with pytest.raises(ValueError, match="packed cloud"):
         packed_xyzrgb_cloud_msg(xyz, stamp, "cam")
+
+
+def test_camera_kernels_release_the_gil_and_render_alike_in_threads(farm_scene):
+    # the simulator may run the sensor kernels in a worker thread next to the physics: they must not hold the GIL
+    import threading
+
+    from cottonsim_world.sensors.fast import raster
+
+    for kernel in (raster._draw_plants, raster._clip_near_and_draw, raster._compose, raster._count_cloud,
+                   raster._fill_cloud_xyzrgb):
+        assert kernel.targetoptions.get("nogil") is True, kernel
+    cams = [CameraModel(farm_scene, CameraConfig(width=160, height=120)) for _ in range(2)]
+    lane = farm_scene.farm.lanes[1]
+    poses = [optical_pose(lane.x_m, lane.y_start_m + 0.5 + k, 0.55, math.pi / 2, 0.1) for k in range(2)]
+    serial = [cam.render(pose) for cam, pose in zip(cams, poses)]
+    threaded = [None, None]
+
+    def work(k):
+        for _ in range(3):
+            threaded[k] = cams[k].render(poses[k])
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for a, b in zip(serial, threaded):
+        np.testing.assert_array_equal(a.semantic, b.semantic)
+        np.testing.assert_array_equal(a.rgb, b.rgb)

@@ -26,6 +26,8 @@ Frames: world z up [m]; plant-local as in ``farm.model``.
 """
 from __future__ import annotations
 
+import collections
+import hashlib
 import math
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -239,78 +241,95 @@ def _with_normals(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.ndarray
     return v, f.astype(np.int32), sem, rgb, nrm
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _point_triangle_d2(px, py, pz, tri, j):  # pragma: no cover - compiled
+    """Squared distance of point p to triangle j of tri (T, 3, 3): the closest point by the triangle's
+    Voronoi regions (vertex, edge or face; Ericson, Real-Time Collision Detection, 5.1.5)."""
+    ax, ay, az = tri[j, 0, 0], tri[j, 0, 1], tri[j, 0, 2]
+    abx, aby, abz = tri[j, 1, 0] - ax, tri[j, 1, 1] - ay, tri[j, 1, 2] - az
+    acx, acy, acz = tri[j, 2, 0] - ax, tri[j, 2, 1] - ay, tri[j, 2, 2] - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    bpx, bpy, bpz = apx - abx, apy - aby, apz - abz
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    cpx, cpy, cpz = apx - acx, apy - acy, apz - acz
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    if d1 <= 0.0 and d2 <= 0.0:                                  # vertex a
+        s, t = 0.0, 0.0
+    elif d3 >= 0.0 and d4 <= d3:                                 # vertex b
+        s, t = 1.0, 0.0
+    elif d6 >= 0.0 and d5 <= d6:                                 # vertex c
+        s, t = 0.0, 1.0
+    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:                  # edge ab
+        s, t = d1 / (d1 - d3), 0.0
+    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:                  # edge ac
+        s, t = 0.0, d2 / (d2 - d6)
+    elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:    # edge bc
+        u = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        s, t = 1.0 - u, u
+    else:                                                        # inside
+        den = va + vb + vc
+        if den == 0.0:                                           # degenerate: its first corner
+            s, t = 0.0, 0.0
+        else:
+            s, t = vb / den, vc / den
+    dx = apx - s * abx - t * acx
+    dy = apy - s * aby - t * acy
+    dz = apz - s * abz - t * acz
+    return dx * dx + dy * dy + dz * dz
+
+
 @njit(cache=True, nogil=True)
 def _point_mesh_distance(points, tri):  # pragma: no cover - compiled
-    """Distance of each point (N, 3) to the nearest of the triangles tri (T, 3, 3) [m]: (N,).
-
-    Per pair the closest point of the triangle by its Voronoi regions
-    (vertex, edge or face; Ericson, Real-Time Collision Detection, 5.1.5).
-    """
+    """Distance of each point (N, 3) to the nearest of the triangles tri (T, 3, 3) [m]: (N,)."""
     out = np.empty(points.shape[0])
     for i in range(points.shape[0]):
-        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         best = np.inf
         for j in range(tri.shape[0]):
-            ax, ay, az = tri[j, 0, 0], tri[j, 0, 1], tri[j, 0, 2]
-            abx, aby, abz = tri[j, 1, 0] - ax, tri[j, 1, 1] - ay, tri[j, 1, 2] - az
-            acx, acy, acz = tri[j, 2, 0] - ax, tri[j, 2, 1] - ay, tri[j, 2, 2] - az
-            apx, apy, apz = px - ax, py - ay, pz - az
-            d1 = abx * apx + aby * apy + abz * apz
-            d2 = acx * apx + acy * apy + acz * apz
-            bpx, bpy, bpz = apx - abx, apy - aby, apz - abz
-            d3 = abx * bpx + aby * bpy + abz * bpz
-            d4 = acx * bpx + acy * bpy + acz * bpz
-            cpx, cpy, cpz = apx - acx, apy - acy, apz - acz
-            d5 = abx * cpx + aby * cpy + abz * cpz
-            d6 = acx * cpx + acy * cpy + acz * cpz
-            va = d3 * d6 - d5 * d4
-            vb = d5 * d2 - d1 * d6
-            vc = d1 * d4 - d3 * d2
-            if d1 <= 0.0 and d2 <= 0.0:                                  # vertex a
-                s, t = 0.0, 0.0
-            elif d3 >= 0.0 and d4 <= d3:                                 # vertex b
-                s, t = 1.0, 0.0
-            elif d6 >= 0.0 and d5 <= d6:                                 # vertex c
-                s, t = 0.0, 1.0
-            elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:                  # edge ab
-                s, t = d1 / (d1 - d3), 0.0
-            elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:                  # edge ac
-                s, t = 0.0, d2 / (d2 - d6)
-            elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:    # edge bc
-                u = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                s, t = 1.0 - u, u
-            else:                                                        # inside
-                den = va + vb + vc
-                if den == 0.0:                                           # degenerate: nearest corner
-                    s, t = 0.0, 0.0
-                else:
-                    s, t = vb / den, vc / den
-            dx = apx - s * abx - t * acx
-            dy = apy - s * aby - t * acy
-            dz = apz - s * abz - t * acz
-            best = min(best, dx * dx + dy * dy + dz * dz)
+            best = min(best, _point_triangle_d2(points[i, 0], points[i, 1], points[i, 2], tri, j))
         out[i] = math.sqrt(best)
     return out
 
 
-_SAMPLE_BARY = np.array([(i / 4.0, j / 4.0) for i in range(5) for j in range(5 - i)])
+_SAMPLE_STEPS = 3          # a face is sampled at the barycentric grid (i / 3, j / 3), i + j <= 3: 10 points
 
 
-def _surface_samples(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Points on a mesh: per face a grid of 15 barycentric points (corners and edge points included)."""
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    s, t = _SAMPLE_BARY[:, 0], _SAMPLE_BARY[:, 1]
-    return (a[:, None] + s[None, :, None] * (b - a)[:, None] + t[None, :, None] * (c - a)[:, None]).reshape(-1, 3)
+@njit(cache=True, nogil=True)
+def _directed_surface_distance(tri_a, tri_b):  # pragma: no cover - compiled
+    """Largest distance from the sample points of triangles tri_a (A, 3, 3) to the surface tri_b [m]."""
+    worst = 0.0
+    n = _SAMPLE_STEPS
+    for k in range(tri_a.shape[0]):
+        for i in range(n + 1):
+            for j in range(n + 1 - i):
+                s, t = i / n, j / n
+                px = tri_a[k, 0, 0] + s * (tri_a[k, 1, 0] - tri_a[k, 0, 0]) + t * (tri_a[k, 2, 0] - tri_a[k, 0, 0])
+                py = tri_a[k, 0, 1] + s * (tri_a[k, 1, 1] - tri_a[k, 0, 1]) + t * (tri_a[k, 2, 1] - tri_a[k, 0, 1])
+                pz = tri_a[k, 0, 2] + s * (tri_a[k, 1, 2] - tri_a[k, 0, 2]) + t * (tri_a[k, 2, 2] - tri_a[k, 0, 2])
+                best = np.inf
+                for m in range(tri_b.shape[0]):
+                    best = min(best, _point_triangle_d2(px, py, pz, tri_b, m))
+                    if best <= worst * worst:                    # cannot raise the maximum
+                        break
+                worst = max(worst, math.sqrt(best))
+    return worst
 
 
 def _surface_distance(va: np.ndarray, fa: np.ndarray, vb: np.ndarray, fb: np.ndarray) -> float:
-    """Symmetric Hausdorff distance of two small meshes [m], estimated on ``_surface_samples`` of each.
+    """Symmetric Hausdorff distance of two small meshes [m], estimated on a grid of 10 points per face.
 
     If every point of one surface is within d of the other and back, their
     outlines seen from any camera are within d too (d f / z pixels at depth z).
     """
-    return float(max(_point_mesh_distance(_surface_samples(va, fa), np.ascontiguousarray(vb[fb], dtype=np.float64)).max(),
-                     _point_mesh_distance(_surface_samples(vb, fb), np.ascontiguousarray(va[fa], dtype=np.float64)).max()))
+    ta = np.ascontiguousarray(va[fa], dtype=np.float64)
+    tb = np.ascontiguousarray(vb[fb], dtype=np.float64)
+    return float(max(_directed_surface_distance(ta, tb), _directed_surface_distance(tb, ta)))
 
 
 def _fan_outline(faces: np.ndarray) -> Optional[Tuple[int, List[int], bool]]:
@@ -370,32 +389,34 @@ def _fan_decimations(pts: np.ndarray, faces: np.ndarray, max_step_m: float) -> L
     hub, ring, closed = fan
 
     def fan_faces(count: int, closed_: bool) -> np.ndarray:
-        m = count if closed_ else count - 1
-        return np.array([(0, 1 + j, 1 + (j + 1) % count) for j in range(m)], dtype=np.int64)
+        j = np.arange(count if closed_ else count - 1)
+        return np.stack([np.zeros_like(j), 1 + j, 1 + (j + 1) % count], axis=1)
 
     def fan_area(outline: np.ndarray) -> float:
-        vv = np.vstack([pts[hub], outline])
-        ff = fan_faces(len(outline), closed)
-        return 0.5 * float(np.linalg.norm(np.cross(vv[ff[:, 1]] - vv[ff[:, 0]], vv[ff[:, 2]] - vv[ff[:, 0]]),
-                                          axis=1).sum())
+        a = outline - pts[hub]
+        b = np.roll(a, -1, axis=0)
+        if not closed:
+            a, b = a[:-1], b[:-1]
+        cx = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+        cy = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+        cz = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        return 0.5 * float(np.sqrt(cx * cx + cy * cy + cz * cz).sum())
 
     target = fan_area(pts[ring])
     out = []
     keep = list(ring)
     min_count = 3
     while len(keep) > min_count:
-        cands = range(len(keep)) if closed else range(1, len(keep) - 1)
-        best_i, best_d = -1, np.inf
-        for i in cands:
-            a, p, b = pts[keep[i - 1]], pts[keep[i]], pts[keep[(i + 1) % len(keep)]]
-            ab = b - a
-            t = min(1.0, max(0.0, float(np.dot(p - a, ab)) / max(float(np.dot(ab, ab)), 1e-300)))
-            d = float(np.linalg.norm(p - (a + t * ab)))
-            if d < best_d:
-                best_i, best_d = i, d
-        if best_d > max_step_m:
+        cands = np.arange(len(keep)) if closed else np.arange(1, len(keep) - 1)
+        idx = np.array(keep)
+        a, p, b = pts[idx[cands - 1]], pts[idx[cands]], pts[idx[(cands + 1) % len(keep)]]
+        ab = b - a
+        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+        d = np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+        best = int(np.argmin(d))
+        if d[best] > max_step_m:
             break
-        keep.pop(best_i)
+        keep.pop(int(cands[best]))
         outline = pts[keep]
         area = fan_area(outline)
         if not area > 0.0:
@@ -485,6 +506,25 @@ def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: fl
     return out
 
 
+_PART_LEVELS_CACHE: "collections.OrderedDict[bytes, list]" = collections.OrderedDict()
+_PART_LEVELS_CACHE_SIZE = 64          # models (~100 kB each)
+
+
+def _cached_part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float) -> list:
+    """``part_levels`` remembered by the model's bytes: a process that builds several scenes of the same
+    farm (tests, benchmarks, a simulator reset) pays the ~0.5 s per plant model once."""
+    key = hashlib.sha1(np.ascontiguousarray(v).tobytes() + np.ascontiguousarray(f).tobytes()
+                       + np.float64(max_error_m).tobytes()).digest()
+    if key in _PART_LEVELS_CACHE:
+        _PART_LEVELS_CACHE.move_to_end(key)
+        return _PART_LEVELS_CACHE[key]
+    levels = part_levels(v, f, max_error_m)
+    _PART_LEVELS_CACHE[key] = levels
+    while len(_PART_LEVELS_CACHE) > _PART_LEVELS_CACHE_SIZE:
+        _PART_LEVELS_CACHE.popitem(last=False)
+    return levels
+
+
 def simplified_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.ndarray, tolerance_m: float,
                             levels: Optional[list] = None) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                                                     np.ndarray, float]:
@@ -564,7 +604,7 @@ class InstancedPlants:
         # levels 1 .. L-2: each part its fewest-face version within a tolerance; level L-1: the far proxies
         middle = []
         for a in per_model:
-            versions = part_levels(a[0], a[1], max(self.MIDDLE_TOLERANCES_M)) if len(a[1]) else None
+            versions = _cached_part_levels(a[0], a[1], max(self.MIDDLE_TOLERANCES_M)) if len(a[1]) else None
             middle.append([simplified_model_arrays(*a[:4], tol, versions) for tol in self.MIDDLE_TOLERANCES_M])
         proxies = [proxy_model_arrays(*a[:4]) for a in per_model]
         per_slot = list(per_model)

@@ -46,7 +46,7 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Depth-tested fill of a screen triangle with a non-zero signed area and a non-empty sample box."""
     inv = 1.0 / area
@@ -99,7 +99,7 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
                 ib[y, x] = gid
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _sample_box(u0, v0, u1, v1, u2, v2, width, height):  # pragma: no cover
     """Integer sample points (x_lo..x_hi, y_lo..y_hi) inside the screen box of a triangle (may be empty)."""
     x_lo = max(0, int(math.ceil(min(u0, u1, u2))))
@@ -109,7 +109,7 @@ def _sample_box(u0, v0, u1, v1, u2, v2, width, height):  # pragma: no cover
     return x_lo, x_hi, y_lo, y_hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Depth-tested fill of one screen triangle; w = 1/z at the corners."""
     height, width = zb.shape
@@ -122,7 +122,7 @@ def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_m
     _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Project a camera-frame triangle p (3, 3) with z > 0 and draw it."""
     iz0, iz1, iz2 = 1.0 / p[0, 2], 1.0 / p[1, 2], 1.0 / p[2, 2]
@@ -131,7 +131,7 @@ def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no c
                      fx * p[2, 0] * iz2 + cx, fy * p[2, 1] * iz2 + cy, iz2, gid, zb, ib, w_min, w_max)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Clip triangle (a, b, c) (camera frame) to z >= near and draw the 1-2 pieces."""
     src = np.empty((3, 3))
@@ -159,7 +159,7 @@ def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max
         _project_draw(tri, fx, fy, cx, cy, gid, zb, ib, w_min, w_max)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, nogil=True)
 def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_vcount, draw_base, draw_count,
                  model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
                  zbuf, ibuf, scratch):  # pragma: no cover
@@ -255,7 +255,7 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
                                     zb, ib, w_min, w_max)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _reflect(i, n):  # pragma: no cover
     """OpenCV BORDER_REFLECT index (fedcba|abcdef|fedcba) for any integer i."""
     period = 2 * n
@@ -288,7 +288,7 @@ def tile_texture(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(packed.reshape(ty, TILE, tx, TILE).transpose(0, 2, 1, 3).reshape(ty, tx, TILE * TILE))
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, nogil=True)
 def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, cy, near, far, texture,
              tex_w, tex_h, tex_x0, tex_y0, tex_res_x, tex_res_y, sky_lut, ground_class, sky_class,
              out_rgb, out_depth, out_sem, out_plant):  # pragma: no cover
@@ -373,7 +373,7 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                 out_rgb[y, x, 2] = sky_lut[idx, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
     """Pixels the cloud keeps: every stride-th in u and v whose depth lies in [min_m, max_m] (NaN fails)."""
     height, width = depth.shape
@@ -386,7 +386,7 @@ def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, out_u, out_rgb):  # pragma: no cover
     """The depth cloud straight into PointCloud2's x, y, z, rgb layout (16 bytes a point).
 
