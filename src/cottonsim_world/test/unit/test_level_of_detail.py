@@ -296,7 +296,7 @@ def test_camera_kernels_release_the_gil_and_render_alike_in_threads(farm_scene):
 
     from cottonsim_world.sensors.fast import raster
 
-    for kernel in (raster._draw_plants, raster._clip_near_and_draw, raster._compose, raster._count_cloud,
+    for kernel in (raster._draw_plants, raster._clip_near_and_draw, raster._compose,
                    raster._fill_cloud_xyzrgb):
         assert kernel.targetoptions.get("nogil") is True, kernel
     cams = [CameraModel(farm_scene, CameraConfig(width=160, height=120)) for _ in range(2)]

@@ -30,8 +30,9 @@ How a frame is made (``FastRasterCamera.render``):
    bilinear-sampled soil texture, tiled by ``tile_texture``, weights in
    1/256 steps; sky gradient over the ray elevation). The thread buffers
    are cleared on the way.
-4. ``_count_cloud`` + ``_fill_cloud_xyzrgb``: the depth point cloud (count,
-   then fill), straight into PointCloud2's x, y, z, rgb byte layout.
+4. ``_fill_cloud_xyzrgb``: the depth point cloud in one pass over the
+   pixels, straight into PointCloud2's x, y, z, rgb byte layout (into
+   buffers with room for every pixel; the caller keeps the first N rows).
 
 Sampling convention: pixel (col, row) is the point u = col, v = row of the
 pinhole model u = fx x / z + cx, v = fy y / z + cy with the intrinsics of
@@ -374,29 +375,18 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
 
 
 @njit(cache=True, nogil=True)
-def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
-    """Pixels the cloud keeps: every stride-th in u and v whose depth lies in [min_m, max_m] (NaN fails)."""
-    height, width = depth.shape
-    n = 0
-    for y in range(0, height, stride):
-        for x in range(0, width, stride):
-            z = depth[y, x]
-            if z >= min_m and z <= max_m:
-                n += 1
-    return n
-
-
-@njit(cache=True, nogil=True)
 def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, out_u, out_rgb):  # pragma: no cover
-    """The depth cloud straight into PointCloud2's x, y, z, rgb layout (16 bytes a point).
+    """The depth cloud straight into PointCloud2's x, y, z, rgb layout (16 bytes a point); returns its size N.
 
-    The ``_count_cloud`` pixels in row-major order: x = ray_x[col] * z,
+    The pixels kept: every stride-th in u and v whose depth lies in
+    [min_m, max_m] (NaN fails), in row-major order: x = ray_x[col] * z,
     y = ray_y[row] * z with ray_x = (u - cx) / fx, ray_y = (v - cy) / fy
     (float32, as numpy computes them), in the optical frame [m].
 
-    out_f (N, 4) float32 and out_u (N, 4) uint32 are two views of the same
-    memory: x, y, z go to out_f[:, :3], PCL's packed colour 0x00RRGGBB to
-    out_u[:, 3]; out_rgb (N, 3) uint8 gets the colours unpacked.
+    out_f (M, 4) float32 and out_u (M, 4) uint32 are two views of the same
+    memory, M >= N (room for every stride-th pixel): x, y, z go to
+    out_f[:N, :3], PCL's packed colour 0x00RRGGBB to out_u[:N, 3]; out_rgb
+    (M, 3) uint8 gets the colours unpacked.
     """
     height, width = depth.shape
     i = 0
@@ -414,3 +404,4 @@ def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, ou
                 out_rgb[i, 1] = g
                 out_rgb[i, 2] = b
                 i += 1
+    return i
