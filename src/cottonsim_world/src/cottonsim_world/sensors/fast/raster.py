@@ -8,9 +8,10 @@ How a frame is made (``FastRasterCamera.render``):
 
 1. the visible plants come from ``SensorScene.plants_in_view_depth``
    (bounding spheres against the view frustum, as the pybullet path does);
-   ``CameraModel`` picks each one's level of detail (full model, or the
-   simplified proxies of ``geometry.proxy_model_arrays`` when their error
-   bound projects to at most ``lod_max_error_px``);
+   ``CameraModel`` picks each one's level of detail (the full model, the
+   middle levels of ``geometry.simplified_model_arrays`` or the far proxies
+   of ``geometry.proxy_model_arrays``: the coarsest whose error bound
+   projects to at most ``lod_max_error_px``);
 2. ``_draw_plants`` (parallel): each worker thread takes every n-th visible
    plant, moves the plant's model vertices into the optical frame (one 3x4
    transform per plant), skips faces whose screen box holds no sample point
