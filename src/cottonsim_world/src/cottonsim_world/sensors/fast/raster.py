@@ -301,6 +301,8 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
     tex_w x tex_h texels in the tiled, packed layout of ``tile_texture``.
     """
     n_threads, height, width = zbuf.shape
+    tiles_x = texture.shape[1]
+    tex_flat = texture.reshape(texture.size)           # the same texels, one index
     cam_h = t_wo[2]
     inv_fx, inv_rx, inv_ry = 1.0 / fx, 1.0 / tex_res_x, 1.0 / tex_res_y
     for y in prange(height):
@@ -349,13 +351,23 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                 ay = int((gy - fyi) * 256.0)
                 if 0 <= ix and ix + 1 < tex_w and 0 <= iy and iy + 1 < tex_h:   # inside: no border rule needed
                     c0, c1, r0, r1 = ix, ix + 1, iy, iy + 1
+                    one_tile = (ix & 7) != 7 and (iy & 7) != 7
                 else:
                     c0, c1 = _reflect(ix, tex_w), _reflect(ix + 1, tex_w)
                     r0, r1 = _reflect(iy, tex_h), _reflect(iy + 1, tex_h)
-                p00 = np.int64(texture[r0 >> 3, c0 >> 3, ((r0 & 7) << 3) | (c0 & 7)])
-                p01 = np.int64(texture[r0 >> 3, c1 >> 3, ((r0 & 7) << 3) | (c1 & 7)])
-                p10 = np.int64(texture[r1 >> 3, c0 >> 3, ((r1 & 7) << 3) | (c0 & 7)])
-                p11 = np.int64(texture[r1 >> 3, c1 >> 3, ((r1 & 7) << 3) | (c1 & 7)])
+                    one_tile = False
+                if one_tile:
+                    # the 2 x 2 texels in one tile: the right neighbour at +1, the lower ones at +8 and +9
+                    i00 = (((r0 >> 3) * tiles_x + (c0 >> 3)) << 6) | ((r0 & 7) << 3) | (c0 & 7)
+                    p00 = np.int64(tex_flat[i00])
+                    p01 = np.int64(tex_flat[i00 + 1])
+                    p10 = np.int64(tex_flat[i00 + 8])
+                    p11 = np.int64(tex_flat[i00 + 9])
+                else:
+                    p00 = np.int64(texture[r0 >> 3, c0 >> 3, ((r0 & 7) << 3) | (c0 & 7)])
+                    p01 = np.int64(texture[r0 >> 3, c1 >> 3, ((r0 & 7) << 3) | (c1 & 7)])
+                    p10 = np.int64(texture[r1 >> 3, c0 >> 3, ((r1 & 7) << 3) | (c0 & 7)])
+                    p11 = np.int64(texture[r1 >> 3, c1 >> 3, ((r1 & 7) << 3) | (c1 & 7)])
                 w00, w01 = (256 - ay) * (256 - ax), (256 - ay) * ax
                 w10, w11 = ay * (256 - ax), ay * ax
                 for ch in range(3):
