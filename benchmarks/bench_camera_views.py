@@ -17,7 +17,8 @@ thread count instead.
 With --callgrind the instrumentation is on for the first timed pass of
 every (place, camera, width) only, and the counts are dumped after each
 (callgrind.out.PID.1, .2, ... in the printed order; read each file's
-"summary:" line), so the total is the sum of those frames.
+"totals:" line: its "summary:" line can be wrong after the counters were
+switched off and on), so the total is the sum of those frames.
 --png DIR writes each camera's first frame (rgb | semantic) to DIR.
 """
 import argparse
