@@ -22,7 +22,6 @@ switched off and on), so the total is the sum of those frames.
 --png DIR writes each camera's first frame (rgb | semantic) to DIR.
 """
 import argparse
-import dataclasses
 import os
 import pathlib
 import subprocess
