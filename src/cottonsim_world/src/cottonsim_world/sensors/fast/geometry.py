@@ -29,6 +29,7 @@ from __future__ import annotations
 import collections
 import hashlib
 import math
+import threading
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -508,6 +509,7 @@ def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: fl
 
 _PART_LEVELS_CACHE: "collections.OrderedDict[bytes, list]" = collections.OrderedDict()
 _PART_LEVELS_CACHE_SIZE = 64          # models (~100 kB each)
+_PART_LEVELS_LOCK = threading.Lock()
 
 
 def _cached_part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float) -> list:
@@ -515,13 +517,15 @@ def _cached_part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float) -> lis
     farm (tests, benchmarks, a simulator reset) pays the ~0.5 s per plant model once."""
     key = hashlib.sha1(np.ascontiguousarray(v).tobytes() + np.ascontiguousarray(f).tobytes()
                        + np.float64(max_error_m).tobytes()).digest()
-    if key in _PART_LEVELS_CACHE:
-        _PART_LEVELS_CACHE.move_to_end(key)
-        return _PART_LEVELS_CACHE[key]
+    with _PART_LEVELS_LOCK:                       # scenes may be built in several threads
+        if key in _PART_LEVELS_CACHE:
+            _PART_LEVELS_CACHE.move_to_end(key)
+            return _PART_LEVELS_CACHE[key]
     levels = part_levels(v, f, max_error_m)
-    _PART_LEVELS_CACHE[key] = levels
-    while len(_PART_LEVELS_CACHE) > _PART_LEVELS_CACHE_SIZE:
-        _PART_LEVELS_CACHE.popitem(last=False)
+    with _PART_LEVELS_LOCK:
+        _PART_LEVELS_CACHE[key] = levels
+        while len(_PART_LEVELS_CACHE) > _PART_LEVELS_CACHE_SIZE:
+            _PART_LEVELS_CACHE.popitem(last=False)
     return levels
 
 
