@@ -1,10 +1,12 @@
-"""Far level of detail of the numba camera, and the compiled cloud / LiDAR packing.
+"""Levels of detail of the numba camera, and the compiled cloud / LiDAR packing.
 
-What the level of detail promises (``fast.geometry.proxy_model_arrays``):
+What the far level promises (``fast.geometry.proxy_model_arrays``):
 every part keeps its mean silhouette (convex parts: their area), semantic
 class and base colour with far fewer triangles; a camera draws it only where its error bound is at most
-``lod_max_error_px`` pixels, so a view of near plants is unchanged, and a
-far view keeps its plant and boll pixel counts and nearly all labels.
+``lod_max_error_px`` pixels, so a far view keeps its plant and boll pixel counts and nearly all labels.
+The middle levels (``simplified_model_arrays``): each part's fewest-face version within a surface
+distance, leaves keep their area; a lane view keeps its plant and boll pixel counts within a few
+per cent and ~97 % or more of its labels. Full detail (no level meets the budget) is unchanged.
 """
 import dataclasses
 import math
@@ -15,7 +17,9 @@ import pytest
 from cottonsim_world.farm.generator import FarmConfig, generate_farm
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel
-from cottonsim_world.sensors.fast.geometry import _model_arrays, _pair_reversed_faces, proxy_model_arrays
+from cottonsim_world.sensors.fast.geometry import (_fan_decimations, _model_arrays, _pair_reversed_faces,
+                                                    _point_mesh_distance, _surface_distance, part_levels,
+                                                    proxy_model_arrays, simplified_model_arrays)
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
 from cottonsim_world.sensors.scene import SensorScene
 from world_camera_poses import optical_pose
@@ -102,18 +106,28 @@ def farm_scene():
         yield scene
 
 
-def test_near_views_are_unchanged_and_far_views_keep_their_pixels(farm_scene):
+def _pixel_agreement(a, b):
+    """Relative plant / boll pixel count changes and the share of differing labels from frame a to frame b."""
+    change = {}
+    for cls in (SemanticClass.PLANT, SemanticClass.BOLL):
+        na, nb = np.count_nonzero(a.semantic == cls), np.count_nonzero(b.semantic == cls)
+        change[cls] = (na, nb)
+    return change, float((a.semantic != b.semantic).mean())
+
+
+def test_full_detail_views_are_unchanged_and_far_views_keep_their_pixels(farm_scene):
     full_cfg = CameraConfig(width=320, height=240, plant_id_image=True, lod_max_error_px=0.0)
     full = CameraModel(farm_scene, full_cfg)
     lod = CameraModel(farm_scene, dataclasses.replace(full_cfg, lod_max_error_px=3.0))
+    tiny = CameraModel(farm_scene, dataclasses.replace(full_cfg, lod_max_error_px=1e-6))
     lane = farm_scene.farm.lanes[1]
     mid = 0.5 * (lane.y_start_m + lane.y_end_m)
-    # beside a plant, looking at the next row 0.9 m away: every plant in view is near
+    # beside a plant, looking at the next row 0.9 m away; an error budget no level meets draws all at full detail
     near = optical_pose(lane.x_m, mid, 0.5, math.pi, math.radians(10))
-    a, b = full.render(near), lod.render(near)
-    if lod.last_render_stats["simplified"] == 0:
-        for name in ("rgb", "depth_m", "semantic", "plant_id"):
-            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    a, b = full.render(near), tiny.render(near)
+    assert tiny.last_render_stats["middle"] == tiny.last_render_stats["simplified"] == 0
+    for name in ("rgb", "depth_m", "semantic", "plant_id"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     # the whole farm from 12 m: plants 12-18 m away, all simplified
     far = optical_pose(lane.x_m, lane.y_start_m - 12.0, 0.5, math.pi / 2, math.radians(2))
     a, b = full.render(far), lod.render(far)
@@ -130,6 +144,75 @@ def test_near_views_are_unchanged_and_far_views_keep_their_pixels(farm_scene):
     assert len(ids) > 10 and np.abs(per_b - per_a).sum() <= 0.25 * per_a.sum()
     both = np.isfinite(a.depth_m) & np.isfinite(b.depth_m) & plants
     assert np.median(np.abs(a.depth_m[both] - b.depth_m[both])) < 0.05
+
+
+@pytest.mark.parametrize("width", [320, 640])
+def test_middle_levels_keep_plant_and_boll_pixels_in_a_lane(farm_scene, width):
+    # the robot's cameras in a lane: along the rows (front) and at the hedge 0.9 m away (side), where
+    # most plants in view are drawn with a middle level
+    full_cfg = CameraConfig(width=width, height=width * 3 // 4, plant_id_image=True, lod_max_error_px=0.0)
+    full = CameraModel(farm_scene, full_cfg)
+    lod = CameraModel(farm_scene, dataclasses.replace(full_cfg, lod_max_error_px=4.0))
+    lane = farm_scene.farm.lanes[1]
+    counts = np.zeros((2, 2))
+    differ, middle = [], 0
+    for yaw, pitch in ((math.pi / 2, 5.0), (math.pi, 15.0), (0.0, 15.0)):
+        pose = optical_pose(lane.x_m, lane.y_start_m + 0.5, 0.55, yaw, math.radians(pitch))
+        a, b = full.render(pose), lod.render(pose)
+        middle += lod.last_render_stats["middle"]
+        change, share = _pixel_agreement(a, b)
+        counts += [change[SemanticClass.PLANT], change[SemanticClass.BOLL]]
+        differ.append(share)
+        both = np.isfinite(a.depth_m) & np.isfinite(b.depth_m) & (a.plant_id >= 0) & (b.plant_id >= 0)
+        assert np.median(np.abs(a.depth_m[both] - b.depth_m[both])) < 0.01
+    assert middle > 10
+    (plant_a, plant_b), (boll_a, boll_b) = counts
+    assert boll_a > 300 and abs(boll_b - boll_a) <= 0.05 * boll_a, (boll_a, boll_b)
+    assert abs(plant_b - plant_a) <= 0.03 * plant_a, (plant_a, plant_b)
+    assert max(differ) <= 0.03, differ
+
+
+def test_middle_levels_stay_within_their_tolerance_with_fewer_faces():
+    farm = generate_farm(FarmConfig(rows=1, plants_per_row=1, plant_variants=1, seed=5))
+    v, f, sem, rgb, _ = _model_arrays(farm.plants[0].model)
+    versions = part_levels(v, f, 0.025)
+    drawn = len(_pair_reversed_faces(f)[0])
+    previous = drawn
+    for tol in (0.01, 0.025):
+        mv, mf, msem, mrgb, mn, error_m = simplified_model_arrays(v, f, sem, rgb, tol, versions)
+        now = len(_pair_reversed_faces(mf)[0])
+        assert 0.0 < error_m <= tol and now < 0.8 * previous
+        previous = now
+        assert np.allclose(np.linalg.norm(mn, axis=1), 1.0)
+        assert set(map(tuple, np.round(mrgb, 6))) == set(map(tuple, np.round(rgb, 6)))
+        for cls in (SemanticClass.PLANT, SemanticClass.BOLL):
+            # leaves keep their one-sided area; bolls and tubes their convex hull's / lateral area
+            assert 0.8 < area(mv, mf[msem == cls]) / area(v, f[sem == cls]) < 1.05, (tol, cls)
+    assert previous < 0.5 * drawn
+
+
+def test_fan_decimations_keep_the_area_and_the_surface_distance_is_a_distance():
+    # a two-sided fan: a hub and an open zig-zag outline (tips and notches)
+    ang = np.linspace(-1.2, 1.2, 9)
+    radius = np.where(np.arange(9) % 2 == 0, 0.1, 0.07)
+    v = np.vstack([[0.0, 0.0, 0.0], np.c_[radius * np.cos(ang), radius * np.sin(ang), np.zeros(9)]])
+    fan = np.array([(0, 1 + j, 2 + j) for j in range(8)])
+    f = np.vstack([fan, fan[:, ::-1]])
+    steps = _fan_decimations(v, f, max_step_m=1.0)
+    assert [len(sf) for _, sf in steps] == [14, 12, 10, 8, 6, 4]          # down to two triangles, two-sided
+    for sv, sf in steps:
+        assert area(sv, sf) == pytest.approx(area(v, f), rel=1e-9)
+        assert np.array_equal(sv[0], v[0])                                  # the hub stays
+    errors = [_surface_distance(v, f, sv, sf) for sv, sf in steps]
+    assert 0.0 < errors[0] < errors[-1] < 0.1
+    assert _fan_decimations(v, f, max_step_m=1e-4) == []
+    assert _fan_decimations(v, fan, max_step_m=1.0) == []                  # one-sided: not a leaf blade
+    # a square and the same square 1 cm above it: 1 cm apart; a point's distance to a triangle
+    sq = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    quad = np.array([(0, 1, 2), (0, 2, 3)])
+    assert _surface_distance(sq, quad, sq + [0, 0, 0.01], quad) == pytest.approx(0.01, abs=1e-12)
+    pts = np.array([[0.5, 0.2, 0.3], [2.0, 0.5, 0.0], [-1.0, -1.0, 1.0]])
+    np.testing.assert_allclose(_point_mesh_distance(pts, sq[quad]), [0.3, 1.0, math.sqrt(3.0)], rtol=1e-12)
 
 
 def test_lod_config_is_validated():
@@ -205,3 +288,32 @@ def test_packed_cloud_and_its_message_match_the_unpacked_ones(farm_scene):
                                                                               b.is_dense, b.header.frame_id)
     with pytest.raises(ValueError, match="packed cloud"):
         packed_xyzrgb_cloud_msg(xyz, stamp, "cam")
+
+
+def test_camera_kernels_release_the_gil_and_render_alike_in_threads(farm_scene):
+    # the simulator may run the sensor kernels in a worker thread next to the physics: they must not hold the GIL
+    import threading
+
+    from cottonsim_world.sensors.fast import raster
+
+    for kernel in (raster._draw_plants, raster._clip_near_and_draw, raster._compose,
+                   raster._fill_cloud_xyzrgb):
+        assert kernel.targetoptions.get("nogil") is True, kernel
+    cams = [CameraModel(farm_scene, CameraConfig(width=160, height=120)) for _ in range(2)]
+    lane = farm_scene.farm.lanes[1]
+    poses = [optical_pose(lane.x_m, lane.y_start_m + 0.5 + k, 0.55, math.pi / 2, 0.1) for k in range(2)]
+    serial = [cam.render(pose) for cam, pose in zip(cams, poses)]
+    threaded = [None, None]
+
+    def work(k):
+        for _ in range(3):
+            threaded[k] = cams[k].render(poses[k])
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for a, b in zip(serial, threaded):
+        np.testing.assert_array_equal(a.semantic, b.semantic)
+        np.testing.assert_array_equal(a.rgb, b.rgb)

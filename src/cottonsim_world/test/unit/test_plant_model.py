@@ -31,6 +31,19 @@ def test_materials_and_semantics(plant):
     assert r > g > b
 
 
+@pytest.mark.parametrize("detail", ["high", "low"])
+def test_bolls_face_outwards(detail):
+    # a back-face culling renderer must see a boll's near side: every face counter-clockwise from outside
+    model = build_cotton_plant(CottonPlantConfig(boll_count=10, detail=detail), 4)
+    mesh = model.meshes["boll"]
+    v, f = mesh.vertices.astype(float), mesh.faces
+    normal = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    mid = v[f].mean(axis=1)
+    nearest = np.argmin(np.linalg.norm(mid[:, None] - model.boll_centres[None], axis=2), axis=1)
+    assert len(f) >= 10 * 8
+    assert np.all(np.einsum("ij,ij->i", normal, mid - model.boll_centres[nearest]) > 0.0)
+
+
 @pytest.mark.parametrize("stage", ["cutout", "defoliated"])
 @pytest.mark.parametrize("detail", ["high", "low"])
 def test_geometry_inside_the_nominal_envelope(stage, detail):

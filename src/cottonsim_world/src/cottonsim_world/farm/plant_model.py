@@ -213,21 +213,23 @@ def _boll(centre: np.ndarray, radius: float, detail: str, rng: np.random.Generat
     top = np.array([[0.0, 0.0, 0.80 * radius]])
     bottom = np.array([[0.0, 0.0, -0.85 * radius]])
     verts = centre + np.concatenate([top, ring, bottom])
+    # counter-clockwise seen from outside (longitude grows counter-clockwise seen from above), so that a
+    # renderer that culls back faces draws the near side of the boll, not the inside of its far side
     faces = []
     n_rings = n_lat - 1
     for j in range(n_lon):                                   # top cap
-        faces.append((0, 1 + (j + 1) % n_lon, 1 + j))
+        faces.append((0, 1 + j, 1 + (j + 1) % n_lon))
     for i in range(n_rings - 1):
         for j in range(n_lon):
             a = 1 + i * n_lon + j
             b = 1 + i * n_lon + (j + 1) % n_lon
             c, d = a + n_lon, b + n_lon
-            faces.append((a, d, c))
-            faces.append((a, b, d))
+            faces.append((a, c, d))
+            faces.append((a, d, b))
     last = 1 + n_rings * n_lon
     base = 1 + (n_rings - 1) * n_lon
     for j in range(n_lon):                                   # bottom cap
-        faces.append((last, base + j, base + (j + 1) % n_lon))
+        faces.append((last, base + (j + 1) % n_lon, base + j))
     return verts, np.array(faces, dtype=np.int64)
 
 

@@ -36,8 +36,7 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.fast.raster import (_compose, _count_cloud, _draw_plants,
-                                                   _fill_cloud_xyzrgb, tile_texture)
+from cottonsim_world.sensors.fast.raster import _compose, _draw_plants, _fill_cloud_xyzrgb, tile_texture
 from cottonsim_world.sensors.scene import SensorScene, check_pose
 
 _RENDERERS = ("numba", "tiny", "egl")
@@ -59,12 +58,15 @@ class CameraConfig:
     cull_distance_m: plants whose bounding sphere is farther than this along
     the optical axis are not rendered (inf = only frustum culling);
     plant_id_image: also return a per-pixel plant id image; seed: noise.
-    lod_max_error_px ('numba' only): a plant is drawn with its simplified
-    level of detail (``fast.geometry.proxy_model_arrays``: each leaf, boll
-    and stem part replaced by a few triangles of the same area, ~4.5x fewer
-    triangles) when that level's outline error bound, seen at the depth of
-    the plant's nearest bounding-sphere point, is at most this many pixels
-    [px]; 0 = always full detail.
+    lod_max_error_px ('numba' only): each plant is drawn with the coarsest
+    level of detail of ``fast.geometry.InstancedPlants`` whose outline error
+    bound, seen at the depth of the plant's nearest bounding-sphere point, is
+    at most this many pixels [px]: the middle levels (leaves with fewer
+    outline points, bolls and tubes as proxies where close enough; surface
+    within 1 cm / 2.5 cm of the full model) or the far level
+    (``fast.geometry.proxy_model_arrays``: each leaf, boll and stem part
+    replaced by a few triangles of the same area, ~4.5x fewer triangles);
+    0 = always full detail.
     """
 
     width: int = 640
@@ -278,20 +280,27 @@ class CameraModel:
                            plant_id=plant_id, world_T_optical=pose)
 
     def _levels_of_detail(self, visible: np.ndarray, z_near: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        """Per visible plant the model slot to draw and its first global triangle id."""
+        """Per visible plant the model slot to draw and its first global triangle id.
+
+        The coarsest level whose outline error bound, seen at the depth of the
+        plant's nearest bounding-sphere point, is at most ``lod_max_error_px``.
+        """
         inst = self._fast.plants
         model = inst.plant_model[visible]
         if self.config.lod_max_error_px <= 0.0 or len(visible) == 0:
             return model, inst.plant_gbase[visible]
-        error_px = self._intr.fx * inst.proxy_error_m[model] / np.maximum(z_near, 1e-6)
-        far = (z_near > 0.0) & (error_px <= self.config.lod_max_error_px)
-        self.last_render_stats["simplified"] = int(np.count_nonzero(far))
-        return (np.where(far, model + inst.model_count, model),
-                np.where(far, inst.level_gbase[1, visible], inst.level_gbase[0, visible]))
+        # largest error [m] allowed at each plant's depth; levels are ordered fine to coarse
+        allowed_m = np.where(z_near > 0.0, self.config.lod_max_error_px * z_near / self._intr.fx, 0.0)
+        level = np.zeros(len(visible), dtype=np.int64)
+        for k in range(1, inst.LEVELS):
+            level = np.where(inst.level_error_m[k, model] <= allowed_m, k, level)
+        self.last_render_stats["simplified"] = int(np.count_nonzero(level == inst.LEVELS - 1))
+        self.last_render_stats["middle"] = int(np.count_nonzero((level > 0) & (level < inst.LEVELS - 1)))
+        return level * inst.model_count + model, inst.level_gbase[level, visible]
 
     def _render_numba(self, pose: np.ndarray, visible: np.ndarray, z_near: np.ndarray) -> CameraFrame:
         cfg, fb = self.config, self._fast
-        self.last_render_stats = {"plants": len(visible), "added": 0, "removed": 0, "simplified": 0}
+        self.last_render_stats = {"plants": len(visible), "added": 0, "removed": 0, "simplified": 0, "middle": 0}
         inst = fb.plants
         slot, gbase = self._levels_of_detail(visible, z_near)
         rot = pose[:3, :3].T                                  # optical_R_world
@@ -338,7 +347,7 @@ class CameraModel:
         it with ``.view(np.uint32)``), so that ``packed.tobytes()`` is the
         message's data for fields x, y, z, rgb at offsets 0, 4, 8, 12
         (little-endian, point_step 16); and rgb (N, 3) uint8. One compiled
-        pass fills both (after one that counts the kept pixels).
+        pass fills both.
         """
         cfg = self.config
         if frame.depth_m.shape != (cfg.height, cfg.width) or frame.rgb.shape != (cfg.height, cfg.width, 3):
@@ -347,8 +356,11 @@ class CameraModel:
         depth = np.ascontiguousarray(frame.depth_m, dtype=np.float32)
         rgb = np.ascontiguousarray(frame.rgb, dtype=np.uint8)
         lo, hi, stride = np.float32(cfg.cloud_min_m), np.float32(cfg.cloud_max_m), int(cfg.cloud_stride)
-        n = _count_cloud(depth, stride, lo, hi)
-        out = np.empty((n, 4), np.uint32)
-        colours = np.empty((n, 3), np.uint8)
-        _fill_cloud_xyzrgb(depth, rgb, self._ray_x, self._ray_y, stride, lo, hi, out.view(np.float32), out, colours)
-        return out.view(np.float32), colours
+        # room for every kept pixel: one pass instead of counting first; the returned arrays are the
+        # first n rows (views; the untouched tail of a large np.empty is never paged in)
+        room = (-(-cfg.height // stride)) * (-(-cfg.width // stride))
+        out = np.empty((room, 4), np.uint32)
+        colours = np.empty((room, 3), np.uint8)
+        n = _fill_cloud_xyzrgb(depth, rgb, self._ray_x, self._ray_y, stride, lo, hi, out.view(np.float32), out,
+                               colours)
+        return out[:n].view(np.float32), colours[:n]

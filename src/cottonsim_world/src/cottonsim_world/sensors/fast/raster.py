@@ -8,9 +8,10 @@ How a frame is made (``FastRasterCamera.render``):
 
 1. the visible plants come from ``SensorScene.plants_in_view_depth``
    (bounding spheres against the view frustum, as the pybullet path does);
-   ``CameraModel`` picks each one's level of detail (full model, or the
-   simplified proxies of ``geometry.proxy_model_arrays`` when their error
-   bound projects to at most ``lod_max_error_px``);
+   ``CameraModel`` picks each one's level of detail (the full model, the
+   middle levels of ``geometry.simplified_model_arrays`` or the far proxies
+   of ``geometry.proxy_model_arrays``: the coarsest whose error bound
+   projects to at most ``lod_max_error_px``);
 2. ``_draw_plants`` (parallel): each worker thread takes every n-th visible
    plant, moves the plant's model vertices into the optical frame (one 3x4
    transform per plant), skips faces whose screen box holds no sample point
@@ -30,8 +31,9 @@ How a frame is made (``FastRasterCamera.render``):
    bilinear-sampled soil texture, tiled by ``tile_texture``, weights in
    1/256 steps; sky gradient over the ray elevation). The thread buffers
    are cleared on the way.
-4. ``_count_cloud`` + ``_fill_cloud_xyzrgb``: the depth point cloud (count,
-   then fill), straight into PointCloud2's x, y, z, rgb byte layout.
+4. ``_fill_cloud_xyzrgb``: the depth point cloud in one pass over the
+   pixels, straight into PointCloud2's x, y, z, rgb byte layout (into
+   buffers with room for every pixel; the caller keeps the first N rows).
 
 Sampling convention: pixel (col, row) is the point u = col, v = row of the
 pinhole model u = fx x / z + cx, v = fy y / z + cy with the intrinsics of
@@ -46,7 +48,7 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Depth-tested fill of a screen triangle with a non-zero signed area and a non-empty sample box."""
     inv = 1.0 / area
@@ -61,6 +63,10 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
     wy = ay0 * w0 + ay1 * w1 + ay2 * w2
     wc = c0 * w0 + c1 * w1 + c2 * w2
     eps = 1e-9
+    # the row spans need -r / ax per edge and row: one division per edge here, multiplications per row
+    k0 = -1.0 / ax0 if abs(ax0) > eps else 0.0
+    k1 = -1.0 / ax1 if abs(ax1) > eps else 0.0
+    k2 = -1.0 / ax2 if abs(ax2) > eps else 0.0
     for y in range(y_lo, y_hi + 1):
         # span of x where all three weights are >= 0 on this row
         lo = float(x_lo)
@@ -69,11 +75,11 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
         r1 = ay1 * y + c1
         r2 = ay2 * y + c2
         empty = False
-        for ax, r in ((ax0, r0), (ax1, r1), (ax2, r2)):
+        for ax, r, k in ((ax0, r0, k0), (ax1, r1, k1), (ax2, r2, k2)):
             if ax > eps:
-                lo = max(lo, -r / ax)
+                lo = max(lo, r * k)
             elif ax < -eps:
-                hi = min(hi, -r / ax)
+                hi = min(hi, r * k)
             elif r < -eps:
                 empty = True
         if empty:
@@ -95,7 +101,7 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
                 ib[y, x] = gid
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _sample_box(u0, v0, u1, v1, u2, v2, width, height):  # pragma: no cover
     """Integer sample points (x_lo..x_hi, y_lo..y_hi) inside the screen box of a triangle (may be empty)."""
     x_lo = max(0, int(math.ceil(min(u0, u1, u2))))
@@ -105,7 +111,7 @@ def _sample_box(u0, v0, u1, v1, u2, v2, width, height):  # pragma: no cover
     return x_lo, x_hi, y_lo, y_hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Depth-tested fill of one screen triangle; w = 1/z at the corners."""
     height, width = zb.shape
@@ -118,7 +124,7 @@ def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_m
     _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid, zb, ib, w_min, w_max)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Project a camera-frame triangle p (3, 3) with z > 0 and draw it."""
     iz0, iz1, iz2 = 1.0 / p[0, 2], 1.0 / p[1, 2], 1.0 / p[2, 2]
@@ -127,7 +133,7 @@ def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no c
                      fx * p[2, 0] * iz2 + cx, fy * p[2, 1] * iz2 + cy, iz2, gid, zb, ib, w_min, w_max)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Clip triangle (a, b, c) (camera frame) to z >= near and draw the 1-2 pieces."""
     src = np.empty((3, 3))
@@ -155,7 +161,7 @@ def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max
         _project_draw(tri, fx, fy, cx, cy, gid, zb, ib, w_min, w_max)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, nogil=True)
 def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_vcount, draw_base, draw_count,
                  model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
                  zbuf, ibuf, scratch):  # pragma: no cover
@@ -251,7 +257,7 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
                                     zb, ib, w_min, w_max)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _reflect(i, n):  # pragma: no cover
     """OpenCV BORDER_REFLECT index (fedcba|abcdef|fedcba) for any integer i."""
     period = 2 * n
@@ -284,7 +290,7 @@ def tile_texture(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(packed.reshape(ty, TILE, tx, TILE).transpose(0, 2, 1, 3).reshape(ty, tx, TILE * TILE))
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, nogil=True)
 def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, cy, near, far, texture,
              tex_w, tex_h, tex_x0, tex_y0, tex_res_x, tex_res_y, sky_lut, ground_class, sky_class,
              out_rgb, out_depth, out_sem, out_plant):  # pragma: no cover
@@ -295,6 +301,8 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
     tex_w x tex_h texels in the tiled, packed layout of ``tile_texture``.
     """
     n_threads, height, width = zbuf.shape
+    tiles_x = texture.shape[1]
+    tex_flat = texture.reshape(texture.size)           # the same texels, one index
     cam_h = t_wo[2]
     inv_fx, inv_rx, inv_ry = 1.0 / fx, 1.0 / tex_res_x, 1.0 / tex_res_y
     for y in prange(height):
@@ -343,13 +351,23 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                 ay = int((gy - fyi) * 256.0)
                 if 0 <= ix and ix + 1 < tex_w and 0 <= iy and iy + 1 < tex_h:   # inside: no border rule needed
                     c0, c1, r0, r1 = ix, ix + 1, iy, iy + 1
+                    one_tile = (ix & 7) != 7 and (iy & 7) != 7
                 else:
                     c0, c1 = _reflect(ix, tex_w), _reflect(ix + 1, tex_w)
                     r0, r1 = _reflect(iy, tex_h), _reflect(iy + 1, tex_h)
-                p00 = np.int64(texture[r0 >> 3, c0 >> 3, ((r0 & 7) << 3) | (c0 & 7)])
-                p01 = np.int64(texture[r0 >> 3, c1 >> 3, ((r0 & 7) << 3) | (c1 & 7)])
-                p10 = np.int64(texture[r1 >> 3, c0 >> 3, ((r1 & 7) << 3) | (c0 & 7)])
-                p11 = np.int64(texture[r1 >> 3, c1 >> 3, ((r1 & 7) << 3) | (c1 & 7)])
+                    one_tile = False
+                if one_tile:
+                    # the 2 x 2 texels in one tile: the right neighbour at +1, the lower ones at +8 and +9
+                    i00 = (((r0 >> 3) * tiles_x + (c0 >> 3)) << 6) | ((r0 & 7) << 3) | (c0 & 7)
+                    p00 = np.int64(tex_flat[i00])
+                    p01 = np.int64(tex_flat[i00 + 1])
+                    p10 = np.int64(tex_flat[i00 + 8])
+                    p11 = np.int64(tex_flat[i00 + 9])
+                else:
+                    p00 = np.int64(texture[r0 >> 3, c0 >> 3, ((r0 & 7) << 3) | (c0 & 7)])
+                    p01 = np.int64(texture[r0 >> 3, c1 >> 3, ((r0 & 7) << 3) | (c1 & 7)])
+                    p10 = np.int64(texture[r1 >> 3, c0 >> 3, ((r1 & 7) << 3) | (c0 & 7)])
+                    p11 = np.int64(texture[r1 >> 3, c1 >> 3, ((r1 & 7) << 3) | (c1 & 7)])
                 w00, w01 = (256 - ay) * (256 - ax), (256 - ay) * ax
                 w10, w11 = ay * (256 - ax), ay * ax
                 for ch in range(3):
@@ -369,30 +387,19 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
                 out_rgb[y, x, 2] = sky_lut[idx, 2]
 
 
-@njit(cache=True)
-def _count_cloud(depth, stride, min_m, max_m):  # pragma: no cover
-    """Pixels the cloud keeps: every stride-th in u and v whose depth lies in [min_m, max_m] (NaN fails)."""
-    height, width = depth.shape
-    n = 0
-    for y in range(0, height, stride):
-        for x in range(0, width, stride):
-            z = depth[y, x]
-            if z >= min_m and z <= max_m:
-                n += 1
-    return n
-
-
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, out_u, out_rgb):  # pragma: no cover
-    """The depth cloud straight into PointCloud2's x, y, z, rgb layout (16 bytes a point).
+    """The depth cloud straight into PointCloud2's x, y, z, rgb layout (16 bytes a point); returns its size N.
 
-    The ``_count_cloud`` pixels in row-major order: x = ray_x[col] * z,
+    The pixels kept: every stride-th in u and v whose depth lies in
+    [min_m, max_m] (NaN fails), in row-major order: x = ray_x[col] * z,
     y = ray_y[row] * z with ray_x = (u - cx) / fx, ray_y = (v - cy) / fy
     (float32, as numpy computes them), in the optical frame [m].
 
-    out_f (N, 4) float32 and out_u (N, 4) uint32 are two views of the same
-    memory: x, y, z go to out_f[:, :3], PCL's packed colour 0x00RRGGBB to
-    out_u[:, 3]; out_rgb (N, 3) uint8 gets the colours unpacked.
+    out_f (M, 4) float32 and out_u (M, 4) uint32 are two views of the same
+    memory, M >= N (room for every stride-th pixel): x, y, z go to
+    out_f[:N, :3], PCL's packed colour 0x00RRGGBB to out_u[:N, 3]; out_rgb
+    (M, 3) uint8 gets the colours unpacked.
     """
     height, width = depth.shape
     i = 0
@@ -410,3 +417,4 @@ def _fill_cloud_xyzrgb(depth, rgb, ray_x, ray_y, stride, min_m, max_m, out_f, ou
                 out_rgb[i, 1] = g
                 out_rgb[i, 2] = b
                 i += 1
+    return i
