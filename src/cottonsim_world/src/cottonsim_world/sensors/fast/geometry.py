@@ -29,6 +29,7 @@ import threading
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
+from numba import njit
 
 from cottonsim_world.farm.model import Plant, PlantModel
 
