@@ -12,11 +12,17 @@ Where the robot is (--places; the sensors' cost depends on it):
              drives an arc (0.5 m/s, 0.15 rad/s) through the headland;
   lane     - the robot is spawned inside lane 3 (world x = -6.83, y = 10.0, facing +y: a row of
              plants 0.9 m to each side, 12 m of lane ahead) and drives straight along it at 0.5 m/s.
-Prints sim seconds, wall and CPU seconds, the real-time factor and ms per update of each sensor
+Prints sim seconds, wall and CPU seconds (all threads, and the main thread's), the real-time factor and ms per update of each sensor
 (wall, and process CPU summed over threads: on a loaded machine, NUMBA_NUM_THREADS=1 and the CPU
 figures are the load-independent measure of the work).
 
   OMP_NUM_THREADS=2 python benchmarks/bench_sim.py [--profiles all,nav,none] [--places headland,lane] [--seconds 5]
+      [--sensor-workers N]
+
+--sensor-workers N runs cameras and LiDAR on N threads beside the physics
+(SimulatorConfig.sensor_workers; 0 = serial, the default); the timed run
+then ends with the pending readings collected. Per-update figures of those
+sensors are then the worker thread's own (numba's helper threads not in the CPU column).
 
 On a shared machine wall time is noisy; instruction counts are not. --callgrind
 switches callgrind's instrumentation on for the timed loop only (start-up and
@@ -72,20 +78,28 @@ def _callgrind(switch: str) -> None:
                    stderr=subprocess.DEVNULL, check=False)
 
 
-def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, place: str = "headland"):
-    config = simulator_config_from_dict(PROFILES[profile])
+def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, place: str = "headland",
+        sensor_workers: int = 0):
+    settings = dict(PROFILES[profile])
+    if sensor_workers:
+        settings["sensor_workers"] = sensor_workers
+    config = simulator_config_from_dict(settings)
     farm, (v_m_s, w_rad_s) = _place(config, place)
     sim = Simulator(config, UrdfModel.from_file(URDF), farm=farm)
     for cam in sim.cameras:
         sim.set_camera_cloud_wanted(cam, clouds and profile == "all")
     sim.step_for(0.2)                      # warm-up (first renders, JIT)
+    if hasattr(sim, "flush_readings"):
+        sim.flush_readings()
     if callgrind:
         _callgrind("on")
-    t0_sim, t0, c0 = sim.time_s, time.perf_counter(), time.process_time()
+    t0_sim, t0, c0, m0 = sim.time_s, time.perf_counter(), time.process_time(), time.thread_time()
     while sim.time_s - t0_sim < seconds - 1e-9:
         sim.command_velocity(v_m_s, w_rad_s)
         sim.step()
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if hasattr(sim, "flush_readings"):     # pipelined: the readings still pending belong to the timed run
+        sim.flush_readings()
+    wall, cpu, main_cpu = time.perf_counter() - t0, time.process_time() - c0, time.thread_time() - m0
     if callgrind:
         _callgrind("off")
     sim_s = sim.time_s - t0_sim
@@ -93,7 +107,7 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
     cpu_ms = sim.sensor_cpu_ms() if hasattr(sim, "sensor_cpu_ms") else {}
     timing = {k: (v, cpu_ms.get(k, float("nan"))) for k, v in sim.sensor_timing_ms().items() if v > 0}
     sim.close()
-    return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s
+    return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s, main_cpu
 
 
 def main():
@@ -102,11 +116,15 @@ def main():
     parser.add_argument("--places", default="headland,lane", help=f"where the robot drives, of {PLACES}")
     parser.add_argument("--seconds", type=float, default=5.0, help="sim seconds per profile")
     parser.add_argument("--no-clouds", action="store_true", help="skip the cameras' point clouds")
+    parser.add_argument("--sensor-workers", type=int, default=0,
+                        help="SimulatorConfig.sensor_workers: threads that run cameras and LiDAR beside the "
+                             "physics (0 = serial)")
     parser.add_argument("--callgrind", action="store_true",
                         help="under valgrind --tool=callgrind --instr-atstart=no: instrument the timed loop only")
     args = parser.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; "
-          f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
+          f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, "
+          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'unset')}; sensor workers {args.sensor_workers}")
     places = args.places.split(",")
     for place in places:
         if place not in PLACES:
@@ -116,9 +134,10 @@ def main():
             parser.error(f"--profiles: unknown profile {profile!r}, known: {sorted(PROFILES)}")
     for place in places:
         for profile in args.profiles.split(","):
-            sim_s, wall, cpu, timing, physics_ms, step_s = run(profile, args.seconds, not args.no_clouds,
-                                                                args.callgrind, place)
-            print(f"\n[{profile} @ {place}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s): "
+            sim_s, wall, cpu, timing, physics_ms, step_s, main_cpu = run(
+                profile, args.seconds, not args.no_clouds, args.callgrind, place, args.sensor_workers)
+            print(f"\n[{profile} @ {place}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s, "
+                  f"{main_cpu:.2f} of them in the main thread): "
                   f"real-time factor {sim_s / wall:.2f} (cpu {sim_s / cpu:.2f})")
             print(f"  physics step {physics_ms:.3f} ms (step {step_s * 1e3:.1f} ms)")
             for name, (ms, cpu_ms) in timing.items():

@@ -55,7 +55,7 @@ def _ray_triangle(ox, oy, oz, dx, dy, dz, tri, i, t_best):  # pragma: no cover
     return t_best
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, nogil=True)
 def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, bdims, brick_of, offsets, items,
               empty_radius,
               out_range, out_hit):  # pragma: no cover
@@ -177,7 +177,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, lo, hi, cell_m, dims, b
         out_hit[r] = hit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def gather_returns(ranges, hits, noise, min_m, max_m, dirs, ring, azimuth, g_semantic, g_plant, ground_class,
                    sky_class, reflectivity):  # pragma: no cover
     """The returns of a cast, packed: what ``lidar.Vlp16Model.scan`` publishes.
