@@ -311,6 +311,7 @@ class Simulator:
 
         self.geodesy = HectorGeodesy(*cfg.geodesy_reference)
         self.gps_noise = GpsNoiseModel(cfg.gps_noise)
+        self._gps_variance_m2 = float(max(max(cfg.gps_noise.gaussian_noise_m), max(cfg.gps_noise.drift_m))) ** 2
         self.imu = ImuModel(cfg.imu)
         self.wheel_odometry = WheelOdometry(WheelOdometryConfig.from_husky(cfg.husky, cfg.drive_limits))
         self.ekf = OdometryEkf(cfg.ekf)
@@ -578,10 +579,10 @@ class Simulator:
             dt = now - self._last_gps_s
             self._last_gps_s = now
             noisy = self.gps_noise.apply(state.position_m, dt)
-            lat, lon, alt = self.geodesy.world_to_geodetic(noisy[0], noisy[1], noisy[2])
-            var = float(max(max(self.config.gps_noise.gaussian_noise_m), max(self.config.gps_noise.drift_m))) ** 2
+            x, y, z = noisy.tolist()
+            lat, lon, alt = self.geodesy.world_to_geodetic(x, y, z)
             # The original's hector plugin reports the base_link position (its bodyName); so do we.
-            return GpsReading(now, BASE_FRAME, float(lat), float(lon), float(alt), var)
+            return GpsReading(now, BASE_FRAME, lat, lon, alt, self._gps_variance_m2)
         if name == "odometry":
             dt = now - self._last_odom_s
             self._last_odom_s = now
@@ -641,8 +642,8 @@ class Simulator:
         n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
         if q[3] < 0.0:
             n = -n
-        return dataclasses.replace(
-            m, orientation_xyzw=np.array((q[0] / n, q[1] / n, q[2] / n, q[3] / n)),
+        return ImuMeasurement(
+            stamp_s=m.stamp_s, orientation_xyzw=np.array((q[0] / n, q[1] / n, q[2] / n, q[3] / n)),
             angular_velocity_rad_s=rotate(m.angular_velocity_rad_s),
             linear_acceleration_m_s2=rotate(m.linear_acceleration_m_s2),
             orientation_covariance=cov(m.orientation_covariance),
