@@ -93,6 +93,7 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
         sim.flush_readings()
     if callgrind:
         _callgrind("on")
+    wait0 = getattr(sim, "sensor_wait_s", 0.0)
     t0_sim, t0, c0, m0 = sim.time_s, time.perf_counter(), time.process_time(), time.thread_time()
     while sim.time_s - t0_sim < seconds - 1e-9:
         sim.command_velocity(v_m_s, w_rad_s)
@@ -107,7 +108,8 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
     cpu_ms = sim.sensor_cpu_ms() if hasattr(sim, "sensor_cpu_ms") else {}
     timing = {k: (v, cpu_ms.get(k, float("nan"))) for k, v in sim.sensor_timing_ms().items() if v > 0}
     sim.close()
-    return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s, main_cpu
+    waited = getattr(sim, "sensor_wait_s", 0.0) - wait0
+    return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s, main_cpu, waited
 
 
 def main():
@@ -134,12 +136,13 @@ def main():
             parser.error(f"--profiles: unknown profile {profile!r}, known: {sorted(PROFILES)}")
     for place in places:
         for profile in args.profiles.split(","):
-            sim_s, wall, cpu, timing, physics_ms, step_s, main_cpu = run(
+            sim_s, wall, cpu, timing, physics_ms, step_s, main_cpu, waited = run(
                 profile, args.seconds, not args.no_clouds, args.callgrind, place, args.sensor_workers)
             print(f"\n[{profile} @ {place}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s, "
                   f"{main_cpu:.2f} of them in the main thread): "
                   f"real-time factor {sim_s / wall:.2f} (cpu {sim_s / cpu:.2f})")
-            print(f"  physics step {physics_ms:.3f} ms (step {step_s * 1e3:.1f} ms)")
+            print(f"  physics step {physics_ms:.3f} ms (step {step_s * 1e3:.1f} ms)"
+                  + (f"; main thread waited {waited:.2f} s for the sensor workers" if args.sensor_workers else ""))
             for name, (ms, cpu_ms) in timing.items():
                 print(f"  {name:22s} {ms:8.2f} ms per update (cpu {cpu_ms:.2f} ms)")
 

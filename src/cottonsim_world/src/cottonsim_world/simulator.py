@@ -369,6 +369,7 @@ class Simulator:
         self._held: Deque[_HeldReading] = deque()
         self._held_deadline_s = math.inf    # earliest deadline of a pending job in _held
         self._delivered_s = 0.0             # stamp of the last reading returned
+        self._sensor_wait_s = 0.0           # wall time step() / flush_readings() waited for jobs [s]
 
     # ------------------------------------------------------------------ inputs
     @property
@@ -444,6 +445,14 @@ class Simulator:
         if not self._held:
             return self.time_s
         return max(self._delivered_s, self._held[0].before_s)
+
+    @property
+    def sensor_wait_s(self) -> float:
+        """Wall time [s] the stepping thread has waited for pipelined sensor jobs so far (0 when serial).
+
+        Near 0: the physics is the slower side; large: the sensor workers are.
+        """
+        return self._sensor_wait_s
 
     def physics_step_ms(self) -> float:
         steps = max(1, round(self.time_s / self.step_s))
@@ -540,6 +549,10 @@ class Simulator:
         if slot.future is None:
             reading = slot.reading
         else:
+            if not slot.future.done():
+                t0 = time.perf_counter()
+                slot.future.result()
+                self._sensor_wait_s += time.perf_counter() - t0
             reading, wall_s, cpu_s = slot.future.result()
             sched = slot.schedule
             sched.wall_s += wall_s

@@ -94,9 +94,11 @@ def test_physics_runs_at_most_one_sensor_period_ahead(urdf):
     """
     longest_period_s = 0.1
     seen = []
+    sims = []
 
     def check(sim, got):
         assert sim.pipelined
+        sims.append(sim)
         delivered = sim.delivered_time_s
         assert delivered <= sim.time_s + 1e-12
         for r in got:
@@ -109,6 +111,7 @@ def test_physics_runs_at_most_one_sensor_period_ahead(urdf):
     stamps = [r.stamp_s for r in piped]
     assert stamps == sorted(stamps)
     assert max(t - s for s, t in seen) > 0.05, "nothing was returned late: the jobs did not run on a worker"
+    assert sims[-1].sensor_wait_s > 0.0, "the physics never waited for the slow scans"
     serial, _ = run_stream(urdf, 0, seconds=0.5)
     assert [type(r) for r in piped] == [type(r) for r in serial]
     assert [r.stamp_s for r in piped] == [r.stamp_s for r in serial]
@@ -118,6 +121,7 @@ def test_serial_mode_returns_each_reading_in_its_own_step(urdf):
     def check(sim, got):
         assert not sim.pipelined
         assert sim.delivered_time_s == sim.time_s
+        assert sim.sensor_wait_s == 0.0
         assert all(r.stamp_s == sim.time_s for r in got)
 
     run_stream(urdf, 0, seconds=0.3, on_step=check)
