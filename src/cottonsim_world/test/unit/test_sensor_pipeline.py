@@ -152,3 +152,17 @@ def test_no_workers_without_heavy_sensors(urdf):
     assert not sim.pipelined
     assert math.isclose(sim.step_for(0.1)[-1].stamp_s, 0.1)
     sim.close()
+
+
+def test_a_failing_job_raises_in_the_stepping_thread(urdf):
+    sim = Simulator(config(1), urdf)
+
+    def broken(pose):
+        raise RuntimeError("scan failed")
+
+    sim.lidar.scan = broken
+    try:
+        with pytest.raises(RuntimeError, match="scan failed"):
+            sim.step_for(0.3)       # the first scan is due at once and must be in by its next one
+    finally:
+        sim.close()
