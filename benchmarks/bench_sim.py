@@ -19,6 +19,10 @@ figures are the load-independent measure of the work).
   OMP_NUM_THREADS=2 python benchmarks/bench_sim.py [--profiles all,nav,none] [--places headland,lane] [--seconds 5]
       [--sensor-workers N]
 
+--compare-workers N steps a serial and an N-worker simulator of each profile in one
+process, in alternating segments (--segments per mode), and prints both RTFs and the
+speed-up per pair: a comparison that a loaded machine's slow drift hits alike.
+
 --sensor-workers N runs cameras and LiDAR on N threads beside the physics
 (SimulatorConfig.sensor_workers; 0 = serial, the default); the timed run
 then ends with the pending readings collected. Per-update figures of those
@@ -37,6 +41,7 @@ import math
 import os
 import pathlib
 import platform
+import statistics
 import subprocess
 import time
 
@@ -112,6 +117,44 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
     return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s, main_cpu, waited
 
 
+def _make_sim(profile: str, place: str, clouds: bool, sensor_workers: int):
+    """A warmed-up simulator of ``profile`` at ``place`` and the command it drives with."""
+    settings = dict(PROFILES[profile])
+    settings["sensor_workers"] = sensor_workers
+    config = simulator_config_from_dict(settings)
+    farm, command = _place(config, place)
+    sim = Simulator(config, UrdfModel.from_file(URDF), farm=farm)
+    for cam in sim.cameras:
+        sim.set_camera_cloud_wanted(cam, clouds and profile == "all")
+    sim.step_for(0.2)
+    sim.flush_readings()
+    return sim, command
+
+
+def compare_workers(profile: str, place: str, seconds: float, clouds: bool, workers: int, segments: int):
+    """Serial and ``workers``-pipelined simulators in one process, stepped in alternating segments.
+
+    Each takes ``segments`` segments of seconds / segments sim seconds, in the order
+    serial, pipelined, pipelined, serial, ... so that a slow drift of the machine's load
+    hits both alike. Returns the wall times [s] of the segments per mode.
+    """
+    sims = {w: _make_sim(profile, place, clouds, w) for w in (0, workers)}
+    seg_s = seconds / segments
+    walls = {0: [], workers: []}
+    for i in range(segments):
+        for w in ((0, workers) if i % 2 == 0 else (workers, 0)):
+            sim, (v_m_s, w_rad_s) = sims[w]
+            t0, s0 = time.perf_counter(), sim.time_s
+            while sim.time_s - s0 < seg_s - 1e-9:
+                sim.command_velocity(v_m_s, w_rad_s)
+                sim.step()
+            sim.flush_readings()
+            walls[w].append(time.perf_counter() - t0)
+    for sim, _ in sims.values():
+        sim.close()
+    return seg_s, walls
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profiles", default="all,nav,none")
@@ -121,6 +164,10 @@ def main():
     parser.add_argument("--sensor-workers", type=int, default=0,
                         help="SimulatorConfig.sensor_workers: threads that run cameras and LiDAR beside the "
                              "physics (0 = serial)")
+    parser.add_argument("--compare-workers", type=int, default=0, metavar="N",
+                        help="instead: step a serial and an N-worker simulator in one process in alternating "
+                             "segments and print both real-time factors and the speed-up per pair")
+    parser.add_argument("--segments", type=int, default=12, help="segments per mode for --compare-workers")
     parser.add_argument("--callgrind", action="store_true",
                         help="under valgrind --tool=callgrind --instr-atstart=no: instrument the timed loop only")
     args = parser.parse_args()
@@ -134,6 +181,20 @@ def main():
     for profile in args.profiles.split(","):
         if profile not in PROFILES:
             parser.error(f"--profiles: unknown profile {profile!r}, known: {sorted(PROFILES)}")
+    if args.compare_workers:
+        for place in places:
+            for profile in args.profiles.split(","):
+                seg_s, walls = compare_workers(profile, place, args.seconds, not args.no_clouds,
+                                               args.compare_workers, args.segments)
+                print(f"\n[{profile} @ {place}] {args.segments} x {seg_s:.2f} sim s per mode, alternating")
+                for w, label in ((0, "serial"), (args.compare_workers, f"{args.compare_workers} sensor workers")):
+                    rtf = sorted(seg_s / x for x in walls[w])
+                    print(f"  {label:17s} real-time factor {seg_s * len(walls[w]) / sum(walls[w]):.2f} "
+                          f"(segments: median {statistics.median(rtf):.2f}, range {rtf[0]:.2f}-{rtf[-1]:.2f})")
+                gain = sorted(a / b for a, b in zip(walls[0], walls[args.compare_workers]))
+                print(f"  speed-up per pair: median {statistics.median(gain):.2f}, range {gain[0]:.2f}-{gain[-1]:.2f}; "
+                      f"load average now {os.getloadavg()[0]:.1f}")
+        return
     for place in places:
         for profile in args.profiles.split(","):
             sim_s, wall, cpu, timing, physics_ms, step_s, main_cpu, waited = run(
