@@ -570,7 +570,10 @@ class Simulator:
         return out
 
     def step_for(self, duration_s: float) -> List[object]:
-        """Step for ``duration_s`` of sim time; all readings in order."""
+        """Step for ``duration_s`` of sim time; the readings returned meanwhile, in order.
+
+        Pipelined, the last ones may still be pending: ``flush_readings()`` returns them.
+        """
         out: List[object] = []
         end = self.time_s + duration_s
         while self.time_s < end - 1e-9:
