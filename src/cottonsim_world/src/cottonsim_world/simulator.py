@@ -104,7 +104,8 @@ class SimulatorConfig:
     LiDAR while the main thread steps the physics (the module docstring);
     0 (default) = serial, everything inside ``step()``. 1 overlaps the
     sensors with the physics; more than 1 also runs different sensors at
-    once (the sensor models must then not share mutable state). The
+    once (the sensor models must then not share mutable state, so the
+    pybullet renderers / LiDAR backend need <= 1). The
     readings are the same either way; only their return is later (at most
     one sensor period of sim time).
     """
@@ -153,6 +154,15 @@ class SimulatorConfig:
         for name, cam in self.cameras:
             if not isinstance(cam, CameraConfig):
                 raise ValueError(f"SimulatorConfig.cameras['{name}'] must be a CameraConfig")
+        if self.sensor_workers > 1:
+            pybullet_users = [f"cameras['{name}'] (renderer {cam.renderer!r})" for name, cam in self.cameras
+                              if cam.renderer != "numba"]
+            if self.lidar_enabled and self.lidar.backend != "numba":
+                pybullet_users.append(f"lidar (backend {self.lidar.backend!r})")
+            if pybullet_users:
+                raise ValueError(f"SimulatorConfig.sensor_workers > 1 runs sensors at the same time, which the "
+                                 f"pybullet backends do not allow; use the numba ones or 1 worker: "
+                                 f"{', '.join(pybullet_users)}")
         if len(self.arm_initial_positions_rad) != 6:
             raise ValueError("SimulatorConfig.arm_initial_positions_rad needs 6 joint angles [rad]")
         if not isinstance(self.seed, int) or self.seed < 0:

@@ -143,6 +143,14 @@ def test_sensor_workers_is_validated(bad):
         SimulatorConfig(sensor_workers=bad)
 
 
+def test_two_workers_refuse_the_pybullet_backends():
+    from cottonsim_world.sensors.lidar import LidarConfig
+    with pytest.raises(ValueError, match="lidar"):
+        SimulatorConfig(sensor_workers=2, lidar=LidarConfig(backend="pybullet"))
+    SimulatorConfig(sensor_workers=1, lidar=LidarConfig(backend="pybullet"))       # one at a time is fine
+    SimulatorConfig(sensor_workers=2, lidar=LidarConfig(backend="pybullet"), lidar_enabled=False)
+
+
 def test_no_workers_without_heavy_sensors(urdf):
     cfg = simulator_config_from_dict({"sensor_workers": 2, "lidar_enabled": False,
                                       "farm": {"rows": 2, "plants_per_row": 4, "plant_detail": "low"},
