@@ -84,10 +84,12 @@ def _callgrind(switch: str) -> None:
 
 
 def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, place: str = "headland",
-        sensor_workers: int = 0):
+        sensor_workers: int = 0, switch_interval_s=None):
     settings = dict(PROFILES[profile])
     if sensor_workers:
         settings["sensor_workers"] = sensor_workers
+    if switch_interval_s is not None:
+        settings["sensor_switch_interval_s"] = switch_interval_s
     config = simulator_config_from_dict(settings)
     farm, (v_m_s, w_rad_s) = _place(config, place)
     sim = Simulator(config, UrdfModel.from_file(URDF), farm=farm)
@@ -117,10 +119,12 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
     return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s, main_cpu, waited
 
 
-def _make_sim(profile: str, place: str, clouds: bool, sensor_workers: int):
+def _make_sim(profile: str, place: str, clouds: bool, sensor_workers: int, switch_interval_s=None):
     """A warmed-up simulator of ``profile`` at ``place`` and the command it drives with."""
     settings = dict(PROFILES[profile])
     settings["sensor_workers"] = sensor_workers
+    if switch_interval_s is not None:
+        settings["sensor_switch_interval_s"] = switch_interval_s
     config = simulator_config_from_dict(settings)
     farm, command = _place(config, place)
     sim = Simulator(config, UrdfModel.from_file(URDF), farm=farm)
@@ -131,14 +135,15 @@ def _make_sim(profile: str, place: str, clouds: bool, sensor_workers: int):
     return sim, command
 
 
-def compare_workers(profile: str, place: str, seconds: float, clouds: bool, workers: int, segments: int):
+def compare_workers(profile: str, place: str, seconds: float, clouds: bool, workers: int, segments: int,
+                    switch_interval_s=None):
     """Serial and ``workers``-pipelined simulators in one process, stepped in alternating segments.
 
     Each takes ``segments`` segments of seconds / segments sim seconds, in the order
     serial, pipelined, pipelined, serial, ... so that a slow drift of the machine's load
     hits both alike. Returns the wall times [s] of the segments per mode.
     """
-    sims = {w: _make_sim(profile, place, clouds, w) for w in (0, workers)}
+    sims = {w: _make_sim(profile, place, clouds, w, switch_interval_s) for w in (0, workers)}
     seg_s = seconds / segments
     walls = {0: [], workers: []}
     for i in range(segments):
@@ -164,6 +169,8 @@ def main():
     parser.add_argument("--sensor-workers", type=int, default=0,
                         help="SimulatorConfig.sensor_workers: threads that run cameras and LiDAR beside the "
                              "physics (0 = serial)")
+    parser.add_argument("--switch-interval-s", type=float, default=None,
+                        help="SimulatorConfig.sensor_switch_interval_s for the pipelined runs (default: the config's)")
     parser.add_argument("--compare-workers", type=int, default=0, metavar="N",
                         help="instead: step a serial and an N-worker simulator in one process in alternating "
                              "segments and print both real-time factors and the speed-up per pair")
@@ -185,7 +192,7 @@ def main():
         for place in places:
             for profile in args.profiles.split(","):
                 seg_s, walls = compare_workers(profile, place, args.seconds, not args.no_clouds,
-                                               args.compare_workers, args.segments)
+                                               args.compare_workers, args.segments, args.switch_interval_s)
                 print(f"\n[{profile} @ {place}] {args.segments} x {seg_s:.2f} sim s per mode, alternating")
                 for w, label in ((0, "serial"), (args.compare_workers, f"{args.compare_workers} sensor workers")):
                     rtf = sorted(seg_s / x for x in walls[w])
@@ -198,7 +205,8 @@ def main():
     for place in places:
         for profile in args.profiles.split(","):
             sim_s, wall, cpu, timing, physics_ms, step_s, main_cpu, waited = run(
-                profile, args.seconds, not args.no_clouds, args.callgrind, place, args.sensor_workers)
+                profile, args.seconds, not args.no_clouds, args.callgrind, place, args.sensor_workers,
+                args.switch_interval_s)
             print(f"\n[{profile} @ {place}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s, "
                   f"{main_cpu:.2f} of them in the main thread): "
                   f"real-time factor {sim_s / wall:.2f} (cpu {sim_s / cpu:.2f})")

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -108,6 +109,13 @@ class SimulatorConfig:
     pybullet renderers / LiDAR backend need <= 1). The
     readings are the same either way; only their return is later (at most
     one sensor period of sim time).
+    sensor_switch_interval_s: Python's GIL switch interval [s]
+    (``sys.setswitchinterval``, Python's default 0.005) while pipelined,
+    restored by ``close()``; 0 = leave it. Each time a sensor job comes out
+    of a GIL-free kernel it needs the GIL back, and a thread that wants it
+    waits up to this long while the physics thread runs Python (the convoy
+    effect); the sensors are the slower side, so they should not wait 5 ms
+    per kernel. Unused when serial.
     """
 
     farm: FarmConfig = FarmConfig()
@@ -139,12 +147,17 @@ class SimulatorConfig:
     arm_initial_positions_rad: Tuple[float, ...] = (0.0, -2.2, 2.4, -1.77, -1.57, 0.0)   # stowed over the base
     seed: int = 0
     sensor_workers: int = 0
+    sensor_switch_interval_s: float = 0.0005
 
     def __post_init__(self):
         if (not isinstance(self.sensor_workers, int) or isinstance(self.sensor_workers, bool)
                 or not 0 <= self.sensor_workers <= MAX_SENSOR_WORKERS):
             raise ValueError(f"SimulatorConfig.sensor_workers must be an int in 0..{MAX_SENSOR_WORKERS} "
                              f"(0 = serial), got {self.sensor_workers!r}")
+        v = self.sensor_switch_interval_s
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= 0.1):
+            raise ValueError(f"SimulatorConfig.sensor_switch_interval_s must be a number of seconds in "
+                             f"[0, 0.1] (0 = leave Python's), got {v!r}")
         for name in ("gps_rate_hz", "odometry_rate_hz", "joint_states_rate_hz", "ground_truth_rate_hz",
                      "contacts_rate_hz"):
             _positive_rate(name, getattr(self, name))
@@ -374,8 +387,12 @@ class Simulator:
         self._arm_idle = False      # at target and still: skip the 100 Hz arm update until command_arm
         # pipelined sensors (sensor_workers > 0): the worker pool and the readings not yet returned
         self._workers: Optional[ThreadPoolExecutor] = None
+        self._saved_switch_interval_s: Optional[float] = None     # Python's, while we changed it
         if cfg.sensor_workers > 0 and (self.cameras or self.lidar is not None):
             self._workers = ThreadPoolExecutor(max_workers=cfg.sensor_workers, thread_name_prefix="cottonsim-sensor")
+            if cfg.sensor_switch_interval_s > 0.0:
+                self._saved_switch_interval_s = sys.getswitchinterval()
+                sys.setswitchinterval(cfg.sensor_switch_interval_s)
         self._held: Deque[_HeldReading] = deque()
         self._held_deadline_s = math.inf    # earliest deadline of a pending job in _held
         self._delivered_s = 0.0             # stamp of the last reading returned
@@ -713,6 +730,9 @@ class Simulator:
                     slot.future.cancel()
             self._workers.shutdown(wait=True)
             self._workers = None
+            if self._saved_switch_interval_s is not None:
+                sys.setswitchinterval(self._saved_switch_interval_s)
+                self._saved_switch_interval_s = None
             self._held.clear()
             self._held_deadline_s = math.inf
         if self.sensor_scene is not None:

@@ -2,6 +2,7 @@
 import dataclasses
 import math
 import pathlib
+import sys
 import time
 
 import numpy as np
@@ -141,6 +142,20 @@ def test_close_with_pending_jobs_returns(urdf):
 def test_sensor_workers_is_validated(bad):
     with pytest.raises(ValueError, match="sensor_workers"):
         SimulatorConfig(sensor_workers=bad)
+
+
+def test_switch_interval_is_set_while_pipelined_and_restored(urdf):
+    python_default = sys.getswitchinterval()
+    serial = Simulator(config(0), urdf)
+    assert sys.getswitchinterval() == python_default
+    serial.close()
+    piped = Simulator(config(1), urdf)
+    assert sys.getswitchinterval() == pytest.approx(piped.config.sensor_switch_interval_s)
+    assert piped.config.sensor_switch_interval_s < python_default
+    piped.close()
+    assert sys.getswitchinterval() == python_default
+    with pytest.raises(ValueError, match="sensor_switch_interval_s"):
+        SimulatorConfig(sensor_switch_interval_s=-0.001)
 
 
 def test_two_workers_refuse_the_pybullet_backends():
