@@ -146,14 +146,17 @@ def test_sensor_workers_is_validated(bad):
 
 def test_switch_interval_is_set_while_pipelined_and_restored(urdf):
     python_default = sys.getswitchinterval()
-    serial = Simulator(config(0), urdf)
-    assert sys.getswitchinterval() == python_default
+    faster = dataclasses.replace(config(0), sensor_switch_interval_s=0.0005)
+    serial = Simulator(faster, urdf)
+    assert sys.getswitchinterval() == python_default            # serial: never touched
     serial.close()
-    piped = Simulator(config(1), urdf)
-    assert sys.getswitchinterval() == pytest.approx(piped.config.sensor_switch_interval_s)
-    assert piped.config.sensor_switch_interval_s < python_default
+    piped = Simulator(dataclasses.replace(faster, sensor_workers=1), urdf)
+    assert sys.getswitchinterval() == pytest.approx(0.0005)
     piped.close()
     assert sys.getswitchinterval() == python_default
+    default = Simulator(config(1), urdf)                          # default 0: left as Python has it
+    assert sys.getswitchinterval() == python_default
+    default.close()
     with pytest.raises(ValueError, match="sensor_switch_interval_s"):
         SimulatorConfig(sensor_switch_interval_s=-0.001)
 
