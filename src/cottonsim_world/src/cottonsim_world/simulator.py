@@ -26,8 +26,9 @@ is still returned once, in the serial order and with the serial stamp, and
 bit-identical to the serial run; readings behind a pending one wait with it
 (``delivered_time_s`` says up to which sim time everything is out). Physics
 runs at most one sensor period ahead: the step at which a sensor falls due
-again (at most its period after the stamp) first waits for its pending job,
-so no reading comes out later than the longest camera / LiDAR period after
+again (at most its period after the stamp) hands its next job to the workers
+(queued behind the pending one) and then waits for the pending one, so no
+reading comes out later than the longest camera / LiDAR period after
 its stamp (0.1 s of sim time with the 10 Hz VLP-16). Commands
 (``command_velocity``, teleports) act on the physics, which is ahead of
 the readings by that lag. ``flush_readings()``
@@ -46,6 +47,7 @@ import sys
 import time
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
 from typing import Callable, Deque, Dict, List, Optional, Sequence, Tuple
 
@@ -313,8 +315,14 @@ class _HeldReading:
         self.reading = reading
 
 
-def _timed_job(produce: Callable[..., object], *args) -> Tuple[object, float, float]:
-    """Run a sensor job on a worker: (reading, wall [s], CPU of this thread [s])."""
+def _timed_job(after: Optional[Future], produce: Callable[..., object], *args) -> Tuple[object, float, float]:
+    """Run a sensor job on a worker: (reading, wall [s], CPU of this thread [s]).
+
+    ``after``: the same sensor's previous job, which must finish first (its model and noise
+    generator are not shared); with one worker the queue's order already ensures that.
+    """
+    if after is not None:
+        futures_wait((after,))
     t0, c0 = time.perf_counter(), time.thread_time()
     reading = produce(*args)
     return reading, time.perf_counter() - t0, time.thread_time() - c0
@@ -396,6 +404,7 @@ class Simulator:
                 self._saved_switch_interval_s = sys.getswitchinterval()
                 sys.setswitchinterval(cfg.sensor_switch_interval_s)
         self._held: Deque[_HeldReading] = deque()
+        self._last_job: Dict[str, Future] = {}  # each pipelined sensor's latest job
         self._held_deadline_s = math.inf    # earliest deadline of a pending job in _held
         self._delivered_s = 0.0             # stamp of the last reading returned
         self._sensor_wait_s = 0.0           # wall time step() / flush_readings() waited for jobs [s]
@@ -515,8 +524,12 @@ class Simulator:
         readings: List[object] = []
         held = self._held
         if held:
-            self._release_held(now, readings)
+            # only what is finished: a job whose deadline is now is waited for after this step's
+            # jobs are submitted, so that the worker goes on with them meanwhile
+            self._release_held(now, readings, wait=False)
         if now + 1e-9 < self._next_due_s:
+            if held:
+                self._release_held(now, readings)
             return readings
         state: Optional[RobotState] = None
         next_due = math.inf
@@ -526,11 +539,15 @@ class Simulator:
                 if state is None:
                     state = self.physics.robot_state()
                 if workers is not None and sched.name in self._jobs:
-                    # Due again at next_s (<= now + period): the job must be in by then, so that a
-                    # sensor has one job at a time (its model and noise generator are not shared).
+                    # Due again at next_s (<= now + period): the step that reaches it waits for
+                    # this job (after submitting the next one, which runs after it).
                     produce, args = self._jobs[sched.name](now, state)
-                    held.append(_HeldReading(now, before, sched.next_s, sched,
-                                             workers.submit(_timed_job, produce, *args), None))
+                    previous = self._last_job.get(sched.name)
+                    if previous is not None and previous.done():
+                        previous = None
+                    future = workers.submit(_timed_job, previous, produce, *args)
+                    self._last_job[sched.name] = future
+                    held.append(_HeldReading(now, before, sched.next_s, sched, future, None))
                     self._held_deadline_s = min(self._held_deadline_s, sched.next_s)
                 else:
                     # pipelined: only this thread's CPU (the workers run meanwhile)
@@ -553,15 +570,15 @@ class Simulator:
             self._release_held(now, readings)
         return readings
 
-    def _release_held(self, now: float, out: List[object]) -> None:
+    def _release_held(self, now: float, out: List[object], wait: bool = True) -> None:
         """Append to ``out`` the held readings that are out at sim time ``now``, in order.
 
-        First waits for every job whose deadline has come (and for what is
-        before it), then takes the finished ones from the front.
+        First (``wait``) waits for every job whose deadline has come (and for
+        what is before it), then takes the finished ones from the front.
         """
         held = self._held
         n_before = len(out)
-        if now + 1e-9 >= self._held_deadline_s:
+        if wait and now + 1e-9 >= self._held_deadline_s:
             last = -1
             for i, slot in enumerate(held):
                 if slot.future is not None and slot.deadline_s <= now + 1e-9:
