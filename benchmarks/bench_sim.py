@@ -19,6 +19,9 @@ figures are the load-independent measure of the work).
   OMP_NUM_THREADS=2 python benchmarks/bench_sim.py [--profiles all,nav,none] [--places headland,lane] [--seconds 5]
       [--sensor-workers N]
 
+--job-breakdown (with --sensor-workers) splits the sensor jobs' wall time into CPU, run-queue
+wait (no free core) and blocked (the GIL), from the worker thread's /proc schedstat.
+
 --compare-workers N steps a serial and an N-worker simulator of each profile in one
 process, in alternating segments (--segments per mode), and prints both RTFs and the
 speed-up per pair: a comparison that a loaded machine's slow drift hits alike.
@@ -43,7 +46,9 @@ import pathlib
 import platform
 import statistics
 import subprocess
+import threading
 import time
+from concurrent.futures import wait as futures_wait
 
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.farm.generator import generate_farm
@@ -83,8 +88,45 @@ def _callgrind(switch: str) -> None:
                    stderr=subprocess.DEVNULL, check=False)
 
 
+def _thread_schedstat():
+    """(CPU [s], time runnable but waiting for a core [s]) of the calling thread (Linux schedstat)."""
+    with open(f"/proc/self/task/{threading.get_native_id()}/schedstat") as f:
+        cpu_ns, wait_ns, _slices = f.read().split()
+    return int(cpu_ns) * 1e-9, int(wait_ns) * 1e-9
+
+
+class JobBreakdown:
+    """Splits each pipelined sensor job's wall time into CPU, run-queue wait and the rest (blocked:
+    the GIL), from the worker thread's schedstat at the job's start and end; wraps the simulator
+    module's job runner while installed (a benchmark probe, Linux only)."""
+
+    def __init__(self):
+        import cottonsim_world.simulator as simulator_module
+        self._module = simulator_module
+        self._original = simulator_module._timed_job
+        self.sums = {}                   # job function name -> [jobs, wall, cpu, run queue] [s]
+
+        def timed(after, produce, *args):
+            if after is not None:        # the wait for the sensor's previous job is not the job's
+                futures_wait((after,))
+            t0, (c0, q0) = time.perf_counter(), _thread_schedstat()
+            result = self._original(None, produce, *args)
+            (c1, q1), t1 = _thread_schedstat(), time.perf_counter()
+            entry = self.sums.setdefault(produce.__name__.lstrip("_"), [0, 0.0, 0.0, 0.0])
+            entry[0] += 1
+            entry[1] += t1 - t0
+            entry[2] += c1 - c0
+            entry[3] += q1 - q0
+            return result
+
+        simulator_module._timed_job = timed
+
+    def remove(self):
+        self._module._timed_job = self._original
+
+
 def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, place: str = "headland",
-        sensor_workers: int = 0, switch_interval_s=None):
+        sensor_workers: int = 0, switch_interval_s=None, breakdown: bool = False):
     settings = dict(PROFILES[profile])
     if sensor_workers:
         settings["sensor_workers"] = sensor_workers
@@ -98,6 +140,7 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
     sim.step_for(0.2)                      # warm-up (first renders, JIT)
     if hasattr(sim, "flush_readings"):
         sim.flush_readings()
+    probe = JobBreakdown() if breakdown and sensor_workers else None
     if callgrind:
         _callgrind("on")
     wait0 = getattr(sim, "sensor_wait_s", 0.0)
@@ -116,7 +159,14 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
     timing = {k: (v, cpu_ms.get(k, float("nan"))) for k, v in sim.sensor_timing_ms().items() if v > 0}
     sim.close()
     waited = getattr(sim, "sensor_wait_s", 0.0) - wait0
-    return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s, main_cpu, waited
+    notes = []
+    if probe is not None:
+        probe.remove()
+        for name, (jobs, job_wall, job_cpu, queued) in probe.sums.items():
+            notes.append(f"  {name} jobs: {jobs}, wall {job_wall:.3f} s = CPU {job_cpu:.3f} + run queue {queued:.3f} "
+                         f"+ blocked (GIL) {job_wall - job_cpu - queued:.3f}; "
+                         f"{job_wall / max(wall, 1e-9):.0%} of the run's wall time")
+    return sim_s, wall, cpu, timing, sim.physics_step_ms(), sim.step_s, main_cpu, waited, notes
 
 
 def _make_sim(profile: str, place: str, clouds: bool, sensor_workers: int, switch_interval_s=None):
@@ -171,6 +221,9 @@ def main():
                              "physics (0 = serial)")
     parser.add_argument("--switch-interval-s", type=float, default=None,
                         help="SimulatorConfig.sensor_switch_interval_s for the pipelined runs (default: the config's)")
+    parser.add_argument("--job-breakdown", action="store_true",
+                        help="with --sensor-workers: split the jobs' wall time into CPU, run-queue wait and "
+                             "blocked (the GIL), from the worker's /proc schedstat (Linux)")
     parser.add_argument("--compare-workers", type=int, default=0, metavar="N",
                         help="instead: step a serial and an N-worker simulator in one process in alternating "
                              "segments and print both real-time factors and the speed-up per pair")
@@ -204,14 +257,16 @@ def main():
         return
     for place in places:
         for profile in args.profiles.split(","):
-            sim_s, wall, cpu, timing, physics_ms, step_s, main_cpu, waited = run(
+            sim_s, wall, cpu, timing, physics_ms, step_s, main_cpu, waited, notes = run(
                 profile, args.seconds, not args.no_clouds, args.callgrind, place, args.sensor_workers,
-                args.switch_interval_s)
+                args.switch_interval_s, args.job_breakdown)
             print(f"\n[{profile} @ {place}] {sim_s:.1f} sim s in {wall:.2f} wall s ({cpu:.2f} cpu s, "
                   f"{main_cpu:.2f} of them in the main thread): "
                   f"real-time factor {sim_s / wall:.2f} (cpu {sim_s / cpu:.2f})")
             print(f"  physics step {physics_ms:.3f} ms (step {step_s * 1e3:.1f} ms)"
                   + (f"; main thread waited {waited:.2f} s for the sensor workers" if args.sensor_workers else ""))
+            for line in notes:
+                print(line)
             for name, (ms, cpu_ms) in timing.items():
                 print(f"  {name:22s} {ms:8.2f} ms per update (cpu {cpu_ms:.2f} ms)")
 
