@@ -523,14 +523,14 @@ class Simulator:
         now = self.time_s
         readings: List[object] = []
         held = self._held
-        if held:
-            # only what is finished: a job whose deadline is now is waited for after this step's
-            # jobs are submitted, so that the worker goes on with them meanwhile
-            self._release_held(now, readings, wait=False)
         if now + 1e-9 < self._next_due_s:
             if held:
                 self._release_held(now, readings)
             return readings
+        if held:
+            # only what is finished: a job whose deadline is now is waited for after this step's
+            # jobs are submitted, so that the worker goes on with them meanwhile
+            self._release_held(now, readings, wait=False)
         state: Optional[RobotState] = None
         next_due = math.inf
         workers = self._workers
