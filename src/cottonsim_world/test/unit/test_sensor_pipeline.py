@@ -96,12 +96,17 @@ def test_physics_runs_at_most_one_sensor_period_ahead(urdf):
     longest_period_s = 0.1
     seen = []
     sims = []
+    clock = [0.0]
+    lags = []
 
     def check(sim, got):
         assert sim.pipelined
         sims.append(sim)
         delivered = sim.delivered_time_s
         assert delivered <= sim.time_s + 1e-12
+        assert delivered >= clock[-1], "delivered_time_s (the bridge's /clock) went back"
+        clock.append(delivered)
+        lags.append(sim.time_s - delivered)
         for r in got:
             assert r.stamp_s <= delivered + 1e-12, "a reading stamped after delivered_time_s"
             assert sim.time_s <= r.stamp_s + longest_period_s + 1e-9, f"{r} at {r.stamp_s} came at {sim.time_s}"
@@ -113,6 +118,7 @@ def test_physics_runs_at_most_one_sensor_period_ahead(urdf):
     assert stamps == sorted(stamps)
     assert max(t - s for s, t in seen) > 0.05, "nothing was returned late: the jobs did not run on a worker"
     assert sims[-1].sensor_wait_s > 0.0, "the physics never waited for the slow scans"
+    assert max(lags) > 0.05, "delivered_time_s never lagged the physics"
     serial, _ = run_stream(urdf, 0, seconds=0.5)
     assert [type(r) for r in piped] == [type(r) for r in serial]
     assert [r.stamp_s for r in piped] == [r.stamp_s for r in serial]
