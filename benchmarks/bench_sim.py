@@ -20,7 +20,9 @@ figures are the load-independent measure of the work).
       [--sensor-workers N]
 
 --job-breakdown (with --sensor-workers) splits the sensor jobs' wall time into CPU, run-queue
-wait (no free core) and blocked (the GIL), from the worker thread's /proc schedstat.
+wait (no free core) and blocked (the GIL), from the worker thread's /proc schedstat. With
+NUMBA_NUM_THREADS > 1 "blocked" also holds the worker's waits for numba's own threads at the end
+of each parallel kernel: read it as the GIL with NUMBA_NUM_THREADS=1 only.
 
 --compare-workers N steps a serial and an N-worker simulator of each profile in one
 process, in alternating segments (--segments per mode), and prints both RTFs and the
