@@ -198,3 +198,25 @@ def test_a_failing_job_raises_in_the_stepping_thread(urdf):
             sim.step_for(0.3)       # the first scan is due at once and must be in by its next one
     finally:
         sim.close()
+
+
+def test_commands_and_teleports_at_the_same_steps_give_the_same_readings(urdf):
+    """Inputs act on the physics step they are given at, pipelined or not: same stream as serial."""
+    def scripted(workers):
+        sim = Simulator(config(workers), urdf)
+        out = []
+        try:
+            for i in range(140):
+                sim.command_velocity(0.6 if i < 70 else -0.3, 0.4 if i % 30 < 15 else -0.2)
+                if i == 55:              # a kidnap while camera and LiDAR jobs are pending
+                    sim.teleport_robot(-4.0, 2.0, 1.0)
+                out.extend(sim.step())
+            out.extend(sim.flush_readings())
+        finally:
+            sim.close()
+        return out
+
+    serial, piped = scripted(0), scripted(1)
+    assert len(piped) == len(serial)
+    for i, (a, b) in enumerate(zip(serial, piped)):
+        assert_same(a, b, f"reading {i} ({type(a).__name__} at {a.stamp_s:.3f} s)")
