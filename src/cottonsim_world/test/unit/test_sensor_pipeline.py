@@ -16,7 +16,7 @@ URDF = pathlib.Path(__file__).resolve().parents[3] / "cottonsim_description" / "
 
 
 def config(workers, seed=5):
-    """Two cameras at different rates (one with its cloud), the LiDAR, every light sensor."""
+    """Two cameras at different rates (with their clouds), the LiDAR, every light sensor."""
     return simulator_config_from_dict({
         "seed": seed,
         "sensor_workers": workers,
