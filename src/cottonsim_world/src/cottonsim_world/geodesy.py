@@ -234,9 +234,14 @@ class GpsNoiseModel:
 
     def apply(self, position_m, dt_s: float) -> np.ndarray:
         """True world position (3,) [m] -> noisy position (3,) [m]."""
-        p = _finite_array("position_m", position_m)
-        if p.shape != (3,):
-            raise ValueError(f"position_m must have shape (3,), got {p.shape}")
+        if isinstance(position_m, np.ndarray) and position_m.shape == (3,) and position_m.dtype == np.float64:
+            px, py, pz = position_m.tolist()          # the simulator's case: no numpy round trip
+            if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)):
+                raise ValueError("position_m contains NaN or infinite values")
+        else:
+            p = _finite_array("position_m", position_m)
+            if p.shape != (3,):
+                raise ValueError(f"position_m must have shape (3,), got {p.shape}")
+            px, py, pz = p.tolist()
         ex, ey, ez = self._errors(dt_s)
-        px, py, pz = p.tolist()
         return np.array((px + ex, py + ey, pz + ez))

@@ -122,6 +122,9 @@ def test_noise_bad_input():
         m.update(-0.1)
     with pytest.raises(ValueError, match="position_m"):
         m.apply([1.0, 2.0], 0.1)
+    for bad in (np.array([1.0, np.nan, 0.0]), [1.0, np.inf, 0.0]):     # the float64 fast path and the general one
+        with pytest.raises(ValueError, match="position_m"):
+            m.apply(bad, 0.1)
 
 
 @pytest.mark.parametrize("heading", [0.0, 37.0, -120.0])
