@@ -90,7 +90,20 @@ class HectorGeodesy:
         """World position [m] -> (latitude [deg], longitude [deg], altitude [m]).
 
         Scalars in -> floats out; arrays broadcast and give arrays.
+        Three floats (the simulator's 40 Hz fix) take a plain-float path with
+        the same operations in the same order, so the same result bit for bit
+        at a tenth of numpy's per-call cost.
         """
+        if isinstance(x_m, float) and isinstance(y_m, float) and isinstance(z_m, float):
+            for name, v in (("x_m", x_m), ("y_m", y_m), ("z_m", z_m)):
+                if not math.isfinite(v):
+                    raise ValueError(f"{name} contains NaN or infinite values")
+            x, y = float(x_m), float(y_m)
+            north = self._cos_h * x + self._sin_h * y
+            west = -self._sin_h * x + self._cos_h * y
+            return (self.reference_latitude_deg + math.degrees(north / self.radius_north_m),
+                    self.reference_longitude_deg - math.degrees(west / self.radius_east_m),
+                    self.reference_altitude_m + float(z_m))
         scalar = all(np.ndim(v) == 0 for v in (x_m, y_m, z_m))
         x = _finite_array("x_m", x_m)
         y = _finite_array("y_m", y_m)
@@ -175,30 +188,60 @@ class GpsNoiseModel:
         if not isinstance(config, GpsNoiseConfig):
             raise ValueError(f"config must be a GpsNoiseConfig, got {type(config).__name__}")
         self.config = config
-        self._offset = np.array(config.offset_m)
-        self._drift_std = np.array(config.drift_m)
+        self._offset = tuple(config.offset_m)
         self._freq = np.array(config.drift_frequency_hz)
-        self._noise = np.array(config.gaussian_noise_m)
+        self._drift_std = np.array(config.drift_m)
+        self._noise = tuple(config.gaussian_noise_m)
+        # the drift's decay and innovation gain per axis for the last time step (the fix rate's
+        # step repeats): (dt_s, decay (3,), gain (3,)) as plain floats
+        self._step_cache: Tuple[float, Tuple[float, ...], Tuple[float, ...]] = (math.nan, (), ())
         self.reset()
 
     def reset(self) -> None:
         """Restart the random sequence; the drift starts at zero as in hector."""
         self._rng = np.random.default_rng(self.config.seed)
-        self.current_drift_m = np.zeros(3)
+        self._drift = (0.0, 0.0, 0.0)
 
-    def update(self, dt_s: float) -> np.ndarray:
-        """Advance the drift by ``dt_s`` seconds; returns the error (3,) [m]."""
+    @property
+    def current_drift_m(self) -> np.ndarray:
+        """The drift now (3,) [m] (a copy)."""
+        return np.array(self._drift)
+
+    def _errors(self, dt_s: float) -> Tuple[float, float, float]:
+        """Advance the drift by dt_s [s]; the error per axis [m] as floats.
+
+        Plain floats, one multiply or add at a time as numpy did them on
+        3-vectors (the same results bit for bit); exp and sqrt stay numpy's
+        and are cached per time step.
+        """
         if isinstance(dt_s, bool) or not isinstance(dt_s, (int, float, np.floating, np.integer)) \
                 or not math.isfinite(dt_s) or dt_s < 0:
             raise ValueError(f"dt_s must be a finite number >= 0, got {dt_s!r}")
-        decay = np.exp(-self._freq * dt_s)
-        self.current_drift_m = (self.current_drift_m * decay
-                                + self._drift_std * np.sqrt(1.0 - decay ** 2) * self._rng.standard_normal(3))
-        return self._offset + self.current_drift_m + self._noise * self._rng.standard_normal(3)
+        cached_dt, decay, gain = self._step_cache
+        if dt_s != cached_dt:
+            d = np.exp(-self._freq * dt_s)
+            decay, gain = tuple(d.tolist()), tuple((self._drift_std * np.sqrt(1.0 - d ** 2)).tolist())
+            self._step_cache = (dt_s, decay, gain)
+        n1 = self._rng.standard_normal(3).tolist()
+        drift = tuple(c * k + g * n for c, k, g, n in zip(self._drift, decay, gain, n1))
+        self._drift = drift
+        n2 = self._rng.standard_normal(3).tolist()
+        return tuple(o + c + s * n for o, c, s, n in zip(self._offset, drift, self._noise, n2))
+
+    def update(self, dt_s: float) -> np.ndarray:
+        """Advance the drift by ``dt_s`` seconds; returns the error (3,) [m]."""
+        return np.array(self._errors(dt_s))
 
     def apply(self, position_m, dt_s: float) -> np.ndarray:
         """True world position (3,) [m] -> noisy position (3,) [m]."""
-        p = _finite_array("position_m", position_m)
-        if p.shape != (3,):
-            raise ValueError(f"position_m must have shape (3,), got {p.shape}")
-        return p + self.update(dt_s)
+        if isinstance(position_m, np.ndarray) and position_m.shape == (3,) and position_m.dtype == np.float64:
+            px, py, pz = position_m.tolist()          # the simulator's case: no numpy round trip
+            if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)):
+                raise ValueError("position_m contains NaN or infinite values")
+        else:
+            p = _finite_array("position_m", position_m)
+            if p.shape != (3,):
+                raise ValueError(f"position_m must have shape (3,), got {p.shape}")
+            px, py, pz = p.tolist()
+        ex, ey, ez = self._errors(dt_s)
+        return np.array((px + ex, py + ey, pz + ez))

@@ -17,6 +17,23 @@ Given the same config (including its seed) and the same command sequence,
 a run is deterministic: ODE's solver is seeded and every noise model has a
 seed derived from ``SimulatorConfig.seed``.
 
+With ``SimulatorConfig.sensor_workers`` > 0 the cameras and the LiDAR run on
+worker threads while the main thread keeps stepping the physics (their
+numba kernels release the GIL): when such a sensor falls due, ``step()``
+takes its pose from the physics at that instant and hands the render or scan
+to a worker; the reading comes back from a later ``step()``. Every reading
+is still returned once, in the serial order and with the serial stamp, and
+bit-identical to the serial run; readings behind a pending one wait with it
+(``delivered_time_s`` says up to which sim time everything is out). Physics
+runs at most one sensor period ahead: the step at which a sensor falls due
+again (at most its period after the stamp) hands its next job to the workers
+(queued behind the pending one) and then waits for the pending one, so no
+reading comes out later than the longest camera / LiDAR period after
+its stamp (0.1 s of sim time with the 10 Hz VLP-16). Commands
+(``command_velocity``, teleports) act on the physics, which is ahead of
+the readings by that lag. ``flush_readings()``
+returns what is still pending (end of a run); ``close()`` stops the workers.
+
 Sensor frames come from the URDF (``base_link -> <sensor frame>`` fixed
 transforms), so the robot description stays the single source of truth.
 Sensors can be switched off individually (``set_sensor_active``), which the
@@ -26,9 +43,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Deque, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -56,6 +77,7 @@ WHEEL_JOINTS = ("front_left_wheel_joint", "front_right_wheel_joint", "rear_left_
 ARM_PREFIX = "ur5e_"
 ARM_JOINT_NAMES = tuple(ARM_PREFIX + name for name in ARM_JOINTS)
 ARM_PERIOD_S = 0.01          # the kinematic UR5e follower runs at 100 Hz
+MAX_SENSOR_WORKERS = 8      # upper bound of SimulatorConfig.sensor_workers
 LIDAR_FRAME = "velodyne"
 IMU_FRAME = "imu_link"
 BASE_FRAME = "base_link"
@@ -80,6 +102,24 @@ class SimulatorConfig:
     Rates are in sim-time Hz. ``seed`` seeds every random process (physics
     solver order, IMU, GPS, LiDAR and camera noise); the sub-configs' own
     seeds are replaced by values derived from it.
+
+    sensor_workers: worker threads [-] that render the cameras and scan the
+    LiDAR while the main thread steps the physics (the module docstring);
+    0 (default) = serial, everything inside ``step()``. 1 overlaps the
+    sensors with the physics; more than 1 also runs different sensors at
+    once (the sensor models must then not share mutable state, so the
+    pybullet renderers / LiDAR backend need <= 1). The
+    readings are the same either way; only their return is later (at most
+    one sensor period of sim time).
+    sensor_switch_interval_s: Python's GIL switch interval [s]
+    (``sys.setswitchinterval``, Python's default 0.005) while pipelined,
+    restored by ``close()``; 0 (default) = leave it. A sensor job coming
+    out of a GIL-free kernel needs the GIL back and may wait up to this
+    long while the physics thread runs Python (the convoy effect). Measured
+    on the shared vm: no difference between 5 and 0.5 ms (the physics step
+    releases the GIL in its ctypes call every step; a job starts ~1.3 ms
+    after its submission either way), hence left as Python has it.
+    Unused when serial.
     """
 
     farm: FarmConfig = FarmConfig()
@@ -110,8 +150,18 @@ class SimulatorConfig:
     contacts_rate_hz: float = 10.0
     arm_initial_positions_rad: Tuple[float, ...] = (0.0, -2.2, 2.4, -1.77, -1.57, 0.0)   # stowed over the base
     seed: int = 0
+    sensor_workers: int = 0
+    sensor_switch_interval_s: float = 0.0
 
     def __post_init__(self):
+        if (not isinstance(self.sensor_workers, int) or isinstance(self.sensor_workers, bool)
+                or not 0 <= self.sensor_workers <= MAX_SENSOR_WORKERS):
+            raise ValueError(f"SimulatorConfig.sensor_workers must be an int in 0..{MAX_SENSOR_WORKERS} "
+                             f"(0 = serial), got {self.sensor_workers!r}")
+        v = self.sensor_switch_interval_s
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= 0.1):
+            raise ValueError(f"SimulatorConfig.sensor_switch_interval_s must be a number of seconds in "
+                             f"[0, 0.1] (0 = leave Python's), got {v!r}")
         for name in ("gps_rate_hz", "odometry_rate_hz", "joint_states_rate_hz", "ground_truth_rate_hz",
                      "contacts_rate_hz"):
             _positive_rate(name, getattr(self, name))
@@ -121,6 +171,15 @@ class SimulatorConfig:
         for name, cam in self.cameras:
             if not isinstance(cam, CameraConfig):
                 raise ValueError(f"SimulatorConfig.cameras['{name}'] must be a CameraConfig")
+        if self.sensor_workers > 1:
+            pybullet_users = [f"cameras['{name}'] (renderer {cam.renderer!r})" for name, cam in self.cameras
+                              if cam.renderer != "numba"]
+            if self.lidar_enabled and self.lidar.backend != "numba":
+                pybullet_users.append(f"lidar (backend {self.lidar.backend!r})")
+            if pybullet_users:
+                raise ValueError(f"SimulatorConfig.sensor_workers > 1 runs sensors at the same time, which the "
+                                 f"pybullet backends do not allow; use the numba ones or 1 worker: "
+                                 f"{', '.join(pybullet_users)}")
         if len(self.arm_initial_positions_rad) != 6:
             raise ValueError("SimulatorConfig.arm_initial_positions_rad needs 6 joint angles [rad]")
         if not isinstance(self.seed, int) or self.seed < 0:
@@ -234,6 +293,41 @@ class _Schedule:
         return self.active
 
 
+class _HeldReading:
+    """A place in the reading stream that ``step()`` has not returned yet (pipelined mode).
+
+    Either a worker's job (``future``: (reading, wall [s], thread CPU [s]))
+    or a reading made in the main thread that waits behind one.
+    deadline_s: sim time [s] at which the physics waits for the job
+    (its sensor's next due time, at most its stamp + the sensor's period); before_s: sim time [s] of the step
+    before the stamp (every reading up to it precedes this one).
+    """
+
+    __slots__ = ("stamp_s", "before_s", "deadline_s", "schedule", "future", "reading")
+
+    def __init__(self, stamp_s: float, before_s: float, deadline_s: float, schedule: Optional[_Schedule],
+                 future: Optional[Future], reading: object):
+        self.stamp_s = stamp_s
+        self.before_s = before_s
+        self.deadline_s = deadline_s
+        self.schedule = schedule
+        self.future = future
+        self.reading = reading
+
+
+def _timed_job(after: Optional[Future], produce: Callable[..., object], *args) -> Tuple[object, float, float]:
+    """Run a sensor job on a worker: (reading, wall [s], CPU of this thread [s]).
+
+    ``after``: the same sensor's previous job, which must finish first (its model and noise
+    generator are not shared); with one worker the queue's order already ensures that.
+    """
+    if after is not None:
+        futures_wait((after,))
+    t0, c0 = time.perf_counter(), time.thread_time()
+    reading = produce(*args)
+    return reading, time.perf_counter() - t0, time.thread_time() - c0
+
+
 class Simulator:
     """Steps farm, physics and sensors; see the module docstring."""
 
@@ -250,6 +344,7 @@ class Simulator:
 
         self.geodesy = HectorGeodesy(*cfg.geodesy_reference)
         self.gps_noise = GpsNoiseModel(cfg.gps_noise)
+        self._gps_variance_m2 = float(max(max(cfg.gps_noise.gaussian_noise_m), max(cfg.gps_noise.drift_m))) ** 2
         self.imu = ImuModel(cfg.imu)
         self.wheel_odometry = WheelOdometry(WheelOdometryConfig.from_husky(cfg.husky, cfg.drive_limits))
         self.ekf = OdometryEkf(cfg.ekf)
@@ -288,6 +383,11 @@ class Simulator:
         self._schedules["ground_truth"] = _Schedule("ground_truth", 1.0 / cfg.ground_truth_rate_hz)
         self._schedules["contacts"] = _Schedule("contacts", 1.0 / cfg.contacts_rate_hz)
         self._camera_cloud_wanted = {name: True for name, _ in cfg.cameras}
+        # sensor name -> (now, state) -> (function, args) of its reading: the part a worker can run
+        self._jobs: Dict[str, Callable] = {name: (lambda now, state, name=name: self._camera_job(name, now, state))
+                                           for name in self.cameras}
+        if self.lidar is not None:
+            self._jobs["lidar"] = self._lidar_job
         self._last_gps_s = 0.0
         self._last_odom_s = 0.0
         self._physics_wall_s = 0.0
@@ -295,6 +395,19 @@ class Simulator:
         self._next_due_s = 0.0      # earliest next_s of all schedules: steps before it skip the scan
         self._arm_dt_s = 0.0
         self._arm_idle = False      # at target and still: skip the 100 Hz arm update until command_arm
+        # pipelined sensors (sensor_workers > 0): the worker pool and the readings not yet returned
+        self._workers: Optional[ThreadPoolExecutor] = None
+        self._saved_switch_interval_s: Optional[float] = None     # Python's, while we changed it
+        if cfg.sensor_workers > 0 and (self.cameras or self.lidar is not None):
+            self._workers = ThreadPoolExecutor(max_workers=cfg.sensor_workers, thread_name_prefix="cottonsim-sensor")
+            if cfg.sensor_switch_interval_s > 0.0:
+                self._saved_switch_interval_s = sys.getswitchinterval()
+                sys.setswitchinterval(cfg.sensor_switch_interval_s)
+        self._held: Deque[_HeldReading] = deque()
+        self._last_job: Dict[str, Future] = {}  # each pipelined sensor's latest job
+        self._held_deadline_s = math.inf    # earliest deadline of a pending job in _held
+        self._delivered_s = 0.0             # stamp of the last reading returned
+        self._sensor_wait_s = 0.0           # wall time step() / flush_readings() waited for jobs [s]
 
     # ------------------------------------------------------------------ inputs
     @property
@@ -340,15 +453,44 @@ class Simulator:
         return list(self._schedules)
 
     def sensor_timing_ms(self) -> Dict[str, float]:
-        """Mean wall time per update of each sensor so far [ms] (0 if never run)."""
+        """Mean wall time per update of each sensor so far [ms] (0 if never run; pipelined: once returned)."""
         return {s.name: (1e3 * s.wall_s / s.count if s.count else 0.0) for s in self._schedules.values()}
 
     def sensor_cpu_ms(self) -> Dict[str, float]:
         """Mean process CPU time per update of each sensor so far [ms], summed over threads (0 if never run).
 
-        On a shared machine wall time includes waiting for a core; CPU time does not.
+        On a shared machine wall time includes waiting for a core; CPU time does not. Pipelined
+        (``sensor_workers`` > 0): CPU time of the thread that made the reading only, the worker's
+        for cameras / LiDAR (numba's own parallel threads not included), the main thread's for
+        the others.
         """
         return {s.name: (1e3 * s.cpu_s / s.count if s.count else 0.0) for s in self._schedules.values()}
+
+    @property
+    def pipelined(self) -> bool:
+        """Whether cameras and LiDAR run on worker threads (``SimulatorConfig.sensor_workers`` > 0)."""
+        return self._workers is not None
+
+    @property
+    def delivered_time_s(self) -> float:
+        """Sim time [s] up to which ``step()`` has returned every reading.
+
+        Equals ``time_s`` when serial or when nothing is pending; with
+        pipelined sensors it may lag ``time_s`` by up to one sensor period.
+        No reading returned so far is stamped later, none returned later
+        is stamped earlier: the bridge publishes it as /clock.
+        """
+        if not self._held:
+            return self.time_s
+        return max(self._delivered_s, self._held[0].before_s)
+
+    @property
+    def sensor_wait_s(self) -> float:
+        """Wall time [s] the stepping thread has waited for pipelined sensor jobs so far (0 when serial).
+
+        Near 0: the physics is the slower side; large: the sensor workers are.
+        """
+        return self._sensor_wait_s
 
     def physics_step_ms(self) -> float:
         steps = max(1, round(self.time_s / self.step_s))
@@ -360,7 +502,12 @@ class Simulator:
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> List[object]:
-        """Advance one physics step; return the readings due at the new time."""
+        """Advance one physics step; return the readings that are out, in order.
+
+        Serial: the readings due at the new time. Pipelined: also the
+        finished ones of earlier steps, and none after a pending one.
+        """
+        before = self.time_s
         t0 = time.perf_counter()
         self.physics.step()
         self._physics_wall_s += time.perf_counter() - t0
@@ -374,29 +521,105 @@ class Simulator:
             self._arm_dt_s = 0.0
         self._contacts.extend(self.physics.contacts_since_last_call())
         now = self.time_s
-        if now + 1e-9 < self._next_due_s:
-            return []
         readings: List[object] = []
+        held = self._held
+        if now + 1e-9 < self._next_due_s:
+            if held:
+                self._release_held(now, readings)
+            return readings
+        if held:
+            # only what is finished: a job whose deadline is now is waited for after this step's
+            # jobs are submitted, so that the worker goes on with them meanwhile
+            self._release_held(now, readings, wait=False)
         state: Optional[RobotState] = None
         next_due = math.inf
+        workers = self._workers
         for sched in self._schedules.values():
             if now + 1e-9 >= sched.next_s and sched.due(now):
                 if state is None:
                     state = self.physics.robot_state()
-                t1, c1 = time.perf_counter(), time.process_time()
-                reading = self._produce(sched.name, now, state)
-                sched.wall_s += time.perf_counter() - t1
-                sched.cpu_s += time.process_time() - c1
-                sched.count += 1
-                if reading is not None:
-                    readings.append(reading)
+                if workers is not None and sched.name in self._jobs:
+                    # Due again at next_s (<= now + period): the step that reaches it waits for
+                    # this job (after submitting the next one, which runs after it).
+                    produce, args = self._jobs[sched.name](now, state)
+                    previous = self._last_job.get(sched.name)
+                    if previous is not None and previous.done():
+                        previous = None
+                    future = workers.submit(_timed_job, previous, produce, *args)
+                    self._last_job[sched.name] = future
+                    held.append(_HeldReading(now, before, sched.next_s, sched, future, None))
+                    self._held_deadline_s = min(self._held_deadline_s, sched.next_s)
+                else:
+                    # pipelined: only this thread's CPU (the workers run meanwhile)
+                    cpu_clock = time.process_time if workers is None else time.thread_time
+                    t1, c1 = time.perf_counter(), cpu_clock()
+                    reading = self._produce(sched.name, now, state)
+                    sched.wall_s += time.perf_counter() - t1
+                    sched.cpu_s += cpu_clock() - c1
+                    sched.count += 1
+                    if reading is not None:
+                        if held:
+                            held.append(_HeldReading(now, before, math.inf, None, None, reading))
+                        else:
+                            readings.append(reading)
+                            self._delivered_s = now
             if sched.next_s < next_due:
                 next_due = sched.next_s
         self._next_due_s = next_due
+        if held:
+            self._release_held(now, readings)
         return readings
 
+    def _release_held(self, now: float, out: List[object], wait: bool = True) -> None:
+        """Append to ``out`` the held readings that are out at sim time ``now``, in order.
+
+        First (``wait``) waits for every job whose deadline has come (and for
+        what is before it), then takes the finished ones from the front.
+        """
+        held = self._held
+        n_before = len(out)
+        if wait and now + 1e-9 >= self._held_deadline_s:
+            last = -1
+            for i, slot in enumerate(held):
+                if slot.future is not None and slot.deadline_s <= now + 1e-9:
+                    last = i
+            for _ in range(last + 1):
+                out.append(self._finish(held.popleft()))
+        while held and (held[0].future is None or held[0].future.done()):
+            out.append(self._finish(held.popleft()))
+        if len(out) > n_before:
+            self._held_deadline_s = min((h.deadline_s for h in held if h.future is not None), default=math.inf)
+
+    def _finish(self, slot: _HeldReading) -> object:
+        """The reading of a held slot (waits for its job); books the job's cost to its sensor."""
+        if slot.future is None:
+            reading = slot.reading
+        else:
+            if not slot.future.done():
+                t0 = time.perf_counter()
+                slot.future.result()
+                self._sensor_wait_s += time.perf_counter() - t0
+            reading, wall_s, cpu_s = slot.future.result()
+            sched = slot.schedule
+            sched.wall_s += wall_s
+            sched.cpu_s += cpu_s
+            sched.count += 1
+        self._delivered_s = slot.stamp_s
+        return reading
+
+    def flush_readings(self) -> List[object]:
+        """Wait for every pending sensor job; the readings not returned yet, in order (end of a run)."""
+        out: List[object] = []
+        while self._held:
+            out.append(self._finish(self._held.popleft()))
+        self._held_deadline_s = math.inf
+        return out
+
     def step_for(self, duration_s: float) -> List[object]:
-        """Step for ``duration_s`` of sim time; all readings in order."""
+        """Step for ``duration_s`` of sim time; the readings returned meanwhile, in order.
+
+        Pipelined, the last ones may still be pending: ``flush_readings()`` returns them.
+        """
         out: List[object] = []
         end = self.time_s + duration_s
         while self.time_s < end - 1e-9:
@@ -404,10 +627,9 @@ class Simulator:
         return out
 
     def _produce(self, name: str, now: float, state: RobotState):
-        if name in self.cameras:
-            return self._camera(name, now, state)
-        if name == "lidar":
-            return self._lidar(now, state)
+        if name in self.cameras or name == "lidar":
+            produce, args = self._jobs[name](now, state)
+            return produce(*args)
         if name == "imu":
             m = self.imu.measure(now, state.orientation_xyzw, state.angular_velocity_body_rad_s,
                                  state.linear_acceleration_body_m_s2)
@@ -419,10 +641,10 @@ class Simulator:
             dt = now - self._last_gps_s
             self._last_gps_s = now
             noisy = self.gps_noise.apply(state.position_m, dt)
-            lat, lon, alt = self.geodesy.world_to_geodetic(noisy[0], noisy[1], noisy[2])
-            var = float(max(max(self.config.gps_noise.gaussian_noise_m), max(self.config.gps_noise.drift_m))) ** 2
+            x, y, z = noisy.tolist()
+            lat, lon, alt = self.geodesy.world_to_geodetic(x, y, z)
             # The original's hector plugin reports the base_link position (its bodyName); so do we.
-            return GpsReading(now, BASE_FRAME, float(lat), float(lon), float(alt), var)
+            return GpsReading(now, BASE_FRAME, lat, lon, alt, self._gps_variance_m2)
         if name == "odometry":
             dt = now - self._last_odom_s
             self._last_odom_s = now
@@ -482,27 +704,36 @@ class Simulator:
         n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
         if q[3] < 0.0:
             n = -n
-        return dataclasses.replace(
-            m, orientation_xyzw=np.array((q[0] / n, q[1] / n, q[2] / n, q[3] / n)),
+        return ImuMeasurement(
+            stamp_s=m.stamp_s, orientation_xyzw=np.array((q[0] / n, q[1] / n, q[2] / n, q[3] / n)),
             angular_velocity_rad_s=rotate(m.angular_velocity_rad_s),
             linear_acceleration_m_s2=rotate(m.linear_acceleration_m_s2),
             orientation_covariance=cov(m.orientation_covariance),
             angular_velocity_covariance=cov(m.angular_velocity_covariance),
             linear_acceleration_covariance=cov(m.linear_acceleration_covariance))
 
-    def _camera(self, name: str, now: float, state: RobotState) -> CameraReading:
-        camera = self.cameras[name]
+    # Cameras and LiDAR in two halves: what they need from the main thread, taken when they fall
+    # due (the sensor pose from the physics state, switches), and the work on it, which touches
+    # only that sensor's model (its scene is read-only), so a worker thread can run it.
+    def _camera_job(self, name: str, now: float, state: RobotState):
         world_T_optical = self.world_T_base(state) @ self.base_T_sensor[name]
+        return self._camera, (name, now, world_T_optical, self._camera_cloud_wanted[name])
+
+    def _lidar_job(self, now: float, state: RobotState):
+        world_T_lidar = self.world_T_base(state) @ self.base_T_sensor[LIDAR_FRAME]
+        return self._lidar, (now, world_T_lidar)
+
+    def _camera(self, name: str, now: float, world_T_optical: np.ndarray, cloud_wanted: bool) -> CameraReading:
+        camera = self.cameras[name]
         frame = camera.render(world_T_optical)
         reading = CameraReading(now, name, optical_frame(name), frame, camera.intrinsics())
-        if self._camera_cloud_wanted[name]:
+        if cloud_wanted:
             packed, reading.cloud_rgb = camera.point_cloud_xyzrgb(frame)
             reading.cloud_xyzrgb = packed
             reading.cloud_xyz = packed[:, :3]
         return reading
 
-    def _lidar(self, now: float, state: RobotState) -> LidarReading:
-        world_T_lidar = self.world_T_base(state) @ self.base_T_sensor[LIDAR_FRAME]
+    def _lidar(self, now: float, world_T_lidar: np.ndarray) -> LidarReading:
         scan = self.lidar.scan(world_T_lidar)
         kept = scan.points[original_passthrough_mask(scan.points, self.config.passthrough)]
         ranges = cloud_to_laserscan(scan.points, self.config.laserscan)
@@ -511,6 +742,18 @@ class Simulator:
                             ranges_360, self.config.laserscan_360)
 
     def close(self) -> None:
+        """Stop the sensor workers (pending readings are dropped) and free the sensor scene."""
+        if self._workers is not None:
+            for slot in self._held:
+                if slot.future is not None:
+                    slot.future.cancel()
+            self._workers.shutdown(wait=True)
+            self._workers = None
+            if self._saved_switch_interval_s is not None:
+                sys.setswitchinterval(self._saved_switch_interval_s)
+                self._saved_switch_interval_s = None
+            self._held.clear()
+            self._held_deadline_s = math.inf
         if self.sensor_scene is not None:
             self.sensor_scene.close()
             self.sensor_scene = None

@@ -122,3 +122,39 @@ def test_noise_bad_input():
         m.update(-0.1)
     with pytest.raises(ValueError, match="position_m"):
         m.apply([1.0, 2.0], 0.1)
+    for bad in (np.array([1.0, np.nan, 0.0]), [1.0, np.inf, 0.0]):     # the float64 fast path and the general one
+        with pytest.raises(ValueError, match="position_m"):
+            m.apply(bad, 0.1)
+
+
+@pytest.mark.parametrize("heading", [0.0, 37.0, -120.0])
+def test_float_fast_path_is_bit_identical_to_the_array_path(heading):
+    """Three floats take the plain-float path; it must give numpy's results exactly."""
+    g = HectorGeodesy(reference_heading_deg=heading, reference_altitude_m=3.5)
+    xyz = np.random.default_rng(2).uniform(-60, 60, size=(200, 3))
+    lat, lon, alt = g.world_to_geodetic(xyz[:, 0], xyz[:, 1], xyz[:, 2])
+    for i in range(len(xyz)):
+        fast = g.world_to_geodetic(float(xyz[i, 0]), float(xyz[i, 1]), float(xyz[i, 2]))
+        assert all(type(v) is float for v in fast)
+        assert fast == (lat[i], lon[i], alt[i])
+    with pytest.raises(ValueError, match="z_m"):
+        g.world_to_geodetic(1.0, 2.0, float("inf"))
+
+
+def test_noise_model_matches_the_vector_formula_exactly():
+    """The float implementation of GpsNoiseModel against the Gauss-Markov formula on numpy 3-vectors."""
+    cfg = GpsNoiseConfig(offset_m=(0.1, -0.2, 0.3), drift_m=(0.5, 0.4, 0.3), drift_frequency_hz=(0.1, 0.2, 0.3),
+                         gaussian_noise_m=(0.05, 0.06, 0.07), seed=9)
+    model = GpsNoiseModel(cfg)
+    rng = np.random.default_rng(9)
+    drift = np.zeros(3)
+    freq, std, off, noise = (np.array(v) for v in (cfg.drift_frequency_hz, cfg.drift_m, cfg.offset_m,
+                                                     cfg.gaussian_noise_m))
+    p = np.array([-6.0, 1.0, 0.2])
+    for dt in [0.025] * 5 + [0.05, 0.025, 0.0, 1.0]:
+        decay = np.exp(-freq * dt)
+        drift = drift * decay + std * np.sqrt(1.0 - decay ** 2) * rng.standard_normal(3)
+        expected = p + (off + drift + noise * rng.standard_normal(3))
+        got = model.apply(p, dt)
+        assert got.dtype == np.float64 and np.array_equal(got, expected)
+        assert np.array_equal(model.current_drift_m, drift)

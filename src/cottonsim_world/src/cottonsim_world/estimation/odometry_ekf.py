@@ -124,6 +124,18 @@ class FilteredOdometry:
         return (self.x_m, self.y_m, 0.0), self.orientation_xyzw
 
 
+def _tiny_diagonal_flat(indices: Sequence[int], tiny: float = 1e-9) -> List[float]:
+    """A flat row-major 6x6 zero matrix with ``tiny`` on the given diagonal entries."""
+    flat = [0.0] * 36
+    for i in indices:
+        flat[7 * i] = tiny
+    return flat
+
+
+_TWO_D_POSE_FLAT = _tiny_diagonal_flat((2, 3, 4))        # z, roll, pitch
+_TWO_D_TWIST_FLAT = _tiny_diagonal_flat((1, 2, 3, 4))    # vy, vz, roll and pitch rates
+
+
 def forward_acceleration(specific_force_m_s2: Sequence[float], orientation_xyzw: Optional[Sequence[float]],
                          gravity_m_s2: float = 9.8) -> float:
     """Forward (body x) acceleration [m/s^2] from an IMU's specific force (body axes, gravity included) and
@@ -365,17 +377,17 @@ class OdometryEkf:
     def output(self) -> FilteredOdometry:
         """Current estimate as /odometry/filtered contents."""
         p, s = self._p, self._s
-        tiny = 1e-9
-        pose = [[0.0] * 6 for _ in range(6)]
-        twist = [[0.0] * 6 for _ in range(6)]
-        for i in (2, 3, 4):
-            pose[i][i] = tiny                       # z, roll, pitch: unobserved in 2-D mode
-        for i in (1, 2, 3, 4):
-            twist[i][i] = tiny                      # vy, vz, roll and pitch rates
+        # flat row-major 6x6 lists, made into arrays in one flat pass (a nested list costs numpy
+        # a recursive shape discovery, ~2x the time at 50 Hz)
+        pose = _TWO_D_POSE_FLAT.copy()              # z, roll, pitch: tiny variance (unobserved in 2-D mode)
+        twist = _TWO_D_TWIST_FLAT.copy()            # vy, vz, roll and pitch rates: tiny
         for a, sa in zip((0, 1, 5), (X, Y, YAW)):
+            row = p[sa]
             for b, sb in zip((0, 1, 5), (X, Y, YAW)):
-                pose[a][b] = p[sa][sb]
+                pose[6 * a + b] = row[sb]
         for a, sa in zip((0, 5), (VX, VYAW)):
+            row = p[sa]
             for b, sb in zip((0, 5), (VX, VYAW)):
-                twist[a][b] = p[sa][sb]
-        return FilteredOdometry(s[X], s[Y], s[YAW], s[VX], s[VYAW], np.array(pose), np.array(twist))
+                twist[6 * a + b] = row[sb]
+        return FilteredOdometry(s[X], s[Y], s[YAW], s[VX], s[VYAW], np.array(pose).reshape(6, 6),
+                                np.array(twist).reshape(6, 6))

@@ -44,6 +44,11 @@ Parameters (private)
   ~urdf_file (str): robot URDF (default: cottonsim_description/urdf/cottonsim_robot.urdf)
   ~sim (dict): simulator settings, shaped as config/sim.yaml (farm, physics, cameras, lidar, ...)
   ~seed (int, 0): seed of every random process
+  ~sim/sensor_workers (int, 0): threads that render the cameras and scan the LiDAR beside the physics
+                               (SimulatorConfig.sensor_workers, 0 = serial); the readings and their
+                               stamps stay the same, /clock then follows the last complete stamp
+                               (Simulator.delivered_time_s), at most one sensor period behind the
+                               physics, which /cmd_vel and teleports act on
 """
 from __future__ import annotations
 
@@ -108,9 +113,9 @@ class SimBridgeNode:
         settings.setdefault("seed", int(rospy.get_param("~seed", 0)))
         config = simulator_config_from_dict(settings)
         self.sim = Simulator(config, UrdfModel.from_file(urdf_file))
-        rospy.loginfo("sim_bridge: farm of %d plants, %d cameras, lidar %s, physics step %.4f s, target RTF %s",
-                      len(self.sim.farm.plants), len(self.sim.cameras), self.sim.lidar is not None,
-                      self.sim.step_s, self.real_time_factor or "max")
+        rospy.loginfo("sim_bridge: farm of %d plants, %d cameras, lidar %s, physics step %.4f s, target RTF %s, "
+                      "sensor workers %d", len(self.sim.farm.plants), len(self.sim.cameras), self.sim.lidar is not None,
+                      self.sim.step_s, self.real_time_factor or "max", self.sim.config.sensor_workers)
         self._make_publishers()
         self._cmd_lock = threading.Lock()
         self._pending_cmd = None
@@ -212,9 +217,15 @@ class SimBridgeNode:
         clock_steps = max(1, int(round(self.clock_period_s / self.sim.step_s)))
         stats_steps = max(1, int(round(self.stats_period_s / self.sim.step_s)))
         demand_every_s, next_demand = 0.25, 0.0
-        wall0, sim0 = time.monotonic(), self.sim.time_s
-        window = (time.monotonic(), self.sim.time_s)
-        self.clock_pub.publish(conv.clock_msg(self.sim.time_s))
+        # /clock is the simulator's delivered_time_s: the sim time up to which every reading is out.
+        # Serial it is the physics time; with pipelined sensors (~sim/sensor_workers > 0) it lags
+        # the physics by the pending readings, so that no message is stamped after /clock and the
+        # readings go out in stamp order. Pacing (~real_time_factor) follows it too.
+        sim0 = self.sim.delivered_time_s
+        wall0 = time.monotonic()
+        window = (wall0, sim0)
+        clock_s = sim0
+        self.clock_pub.publish(conv.clock_msg(clock_s))
         step = 0
         while not rospy.is_shutdown():
             now_wall = time.monotonic()
@@ -224,20 +235,23 @@ class SimBridgeNode:
             self._apply_inputs()
             readings = self.sim.step()
             step += 1
-            if readings or step % clock_steps == 0:
-                self.clock_pub.publish(conv.clock_msg(self.sim.time_s))
+            delivered_s = self.sim.delivered_time_s
+            if (readings or step % clock_steps == 0) and delivered_s > clock_s:
+                clock_s = delivered_s
+                self.clock_pub.publish(conv.clock_msg(clock_s))
             for reading in readings:
                 self._publish(reading)
             if step % stats_steps == 0:
-                window = self._publish_stats(wall0, window)
+                window = self._publish_stats(wall0, window, clock_s)
             if self.real_time_factor > 0.0:
-                ahead = (self.sim.time_s - sim0) / self.real_time_factor - (time.monotonic() - wall0)
+                ahead = (delivered_s - sim0) / self.real_time_factor - (time.monotonic() - wall0)
                 if ahead > 0.0:
                     time.sleep(ahead)
         self.sim.close()
 
-    def _publish_stats(self, wall0: float, window):
-        now_wall, now_sim = time.monotonic(), self.sim.time_s
+    def _publish_stats(self, wall0: float, window, clock_s: float):
+        """/sim/stats over the window since the last one; stamped with the last /clock (clock_s)."""
+        now_wall, now_sim = time.monotonic(), clock_s
         rtf = (now_sim - window[1]) / max(now_wall - window[0], 1e-9)
         timing = self.sim.sensor_timing_ms()
         msg = SimStats(sim_time=now_sim, wall_time=now_wall - wall0, real_time_factor=rtf,

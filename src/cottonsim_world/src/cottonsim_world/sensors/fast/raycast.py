@@ -66,7 +66,7 @@ def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit):  # pragma: no cover
     return 1 if near <= far else 0
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
+@njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, node_count, node_near,
               out_range, out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
@@ -192,7 +192,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, n
                 out_hit[r0 + k] = HIT_NONE if far_hit else hit[k]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def gather_returns(ranges, hits, noise, min_m, max_m, dirs, ring, azimuth, g_semantic, g_plant, ground_class,
                    sky_class, reflectivity):  # pragma: no cover
     """The returns of a cast, packed: what ``lidar.Vlp16Model.scan`` publishes.
