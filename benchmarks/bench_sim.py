@@ -129,19 +129,7 @@ class JobBreakdown:
 
 def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, place: str = "headland",
         sensor_workers: int = 0, switch_interval_s=None, breakdown: bool = False):
-    settings = dict(PROFILES[profile])
-    if sensor_workers:
-        settings["sensor_workers"] = sensor_workers
-    if switch_interval_s is not None:
-        settings["sensor_switch_interval_s"] = switch_interval_s
-    config = simulator_config_from_dict(settings)
-    farm, (v_m_s, w_rad_s) = _place(config, place)
-    sim = Simulator(config, UrdfModel.from_file(URDF), farm=farm)
-    for cam in sim.cameras:
-        sim.set_camera_cloud_wanted(cam, clouds and profile == "all")
-    sim.step_for(0.2)                      # warm-up (first renders, JIT)
-    if hasattr(sim, "flush_readings"):
-        sim.flush_readings()
+    sim, (v_m_s, w_rad_s) = _make_sim(profile, place, clouds, sensor_workers, switch_interval_s)
     probe = JobBreakdown() if breakdown and sensor_workers else None
     if callgrind:
         _callgrind("on")
@@ -174,7 +162,8 @@ def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, pla
 def _make_sim(profile: str, place: str, clouds: bool, sensor_workers: int, switch_interval_s=None):
     """A warmed-up simulator of ``profile`` at ``place`` and the command it drives with."""
     settings = dict(PROFILES[profile])
-    settings["sensor_workers"] = sensor_workers
+    if sensor_workers:                     # (older trees lack the key: serial runs leave it out)
+        settings["sensor_workers"] = sensor_workers
     if switch_interval_s is not None:
         settings["sensor_switch_interval_s"] = switch_interval_s
     config = simulator_config_from_dict(settings)
@@ -182,8 +171,9 @@ def _make_sim(profile: str, place: str, clouds: bool, sensor_workers: int, switc
     sim = Simulator(config, UrdfModel.from_file(URDF), farm=farm)
     for cam in sim.cameras:
         sim.set_camera_cloud_wanted(cam, clouds and profile == "all")
-    sim.step_for(0.2)
-    sim.flush_readings()
+    sim.step_for(0.2)                      # warm-up (first renders, JIT)
+    if hasattr(sim, "flush_readings"):
+        sim.flush_readings()
     return sim, command
 
 
