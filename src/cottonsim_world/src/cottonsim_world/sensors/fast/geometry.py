@@ -94,6 +94,44 @@ def _mesh_parts(v: np.ndarray, f: np.ndarray) -> Tuple[int, np.ndarray]:
     return n_parts, label[f[:, 0]]
 
 
+def _split_parts(v: np.ndarray, f: np.ndarray):
+    """Each connected part of a mesh, in label order: (its face indices, its vertices, its faces indexing
+    those vertices, its surface area [m^2])."""
+    n_parts, face_part = _mesh_parts(v, f)
+    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    face_area = 0.5 * np.linalg.norm(cross, axis=1)
+    for part in range(n_parts):
+        fi = np.nonzero(face_part == part)[0]
+        if len(fi) == 0:
+            continue
+        vi = np.unique(f[fi])
+        remap = np.full(len(v), -1, dtype=np.int64)
+        remap[vi] = np.arange(len(vi))
+        yield fi, v[vi], remap[f[fi]], float(face_area[fi].sum())
+
+
+def _wind_outward(corners: np.ndarray, faces: np.ndarray, centre: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """(corners, faces) with every face of a closed proxy around ``centre`` counter-clockwise seen from outside."""
+    nrm = np.cross(corners[faces[:, 1]] - corners[faces[:, 0]], corners[faces[:, 2]] - corners[faces[:, 0]])
+    outward = np.einsum("ij,ij->i", nrm, corners[faces].mean(axis=1) - centre) > 0.0
+    return corners, np.where(outward[:, None], faces, faces[:, ::-1])
+
+
+def _assemble_parts(parts, sem: np.ndarray, rgb: np.ndarray) -> Tuple[np.ndarray, ...]:
+    """One model from (vertices, faces, first face of the source part) per part: the five arrays of
+    ``_model_arrays``, each part with the semantic class and base colour of its source part's first face."""
+    out_v, out_f, out_sem, out_rgb = [], [], [], []
+    count = 0
+    for pv, pf, face0 in parts:
+        out_v.append(pv)
+        out_f.append(pf + count)
+        out_sem.append(np.full(len(pf), sem[face0], dtype=np.uint8))
+        out_rgb.append(np.tile(rgb[face0], (len(pf), 1)))
+        count += len(pv)
+    return _with_normals(np.concatenate(out_v), np.concatenate(out_f), np.concatenate(out_sem),
+                         np.concatenate(out_rgb))
+
+
 def _part_proxy(pts: np.ndarray, part_faces: np.ndarray, area: float, flat_ratio: float, thin_ratio: float
                 ) -> Tuple[Optional[Tuple[np.ndarray, np.ndarray]], float]:
     """The far proxy of one part (see ``proxy_model_arrays``): ((corners, faces) or None, outline error bound [m]).
@@ -148,11 +186,7 @@ def _part_proxy(pts: np.ndarray, part_faces: np.ndarray, area: float, flat_ratio
             half = [k * math.sqrt(lam[a]) * axes[:, a] for a in range(3)]
             corners = np.array([centre + half[0], centre - half[0], centre + half[1], centre - half[1],
                                 centre + half[2], centre - half[2]])
-            faces = _octahedron_faces()
-            # wind every face counter-clockwise seen from outside
-            nrm = np.cross(corners[faces[:, 1]] - corners[faces[:, 0]], corners[faces[:, 2]] - corners[faces[:, 0]])
-            outward = np.einsum("ij,ij->i", nrm, corners[faces].mean(axis=1) - centre) > 0.0
-            proxy = corners, np.where(outward[:, None], faces, faces[:, ::-1])
+            proxy = _wind_outward(corners, _octahedron_faces(), centre)
         if proxy is not None:
             error_m = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     return proxy, error_m
@@ -197,34 +231,16 @@ def proxy_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.nd
     """
     if len(f) == 0:
         return v, f, sem, rgb, np.zeros((0, 3)), 0.0
-    n = len(v)
     error_m = 0.0
-    n_parts, face_part = _mesh_parts(v, f)
-    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    face_area = 0.5 * np.linalg.norm(cross, axis=1)
-    out_v, out_f, out_sem, out_rgb = [], [], [], []
-    count = 0
-    for part in range(n_parts):
-        fi = np.nonzero(face_part == part)[0]
-        if len(fi) == 0:
-            continue
-        vi = np.unique(f[fi])
-        remap = np.full(n, -1, dtype=np.int64)
-        remap[vi] = np.arange(len(vi))
-        pts = v[vi]
-        proxy, part_error_m = _part_proxy(pts, remap[f[fi]], float(face_area[fi].sum()), flat_ratio, thin_ratio)
+    parts = []
+    for fi, pts, pf, area in _split_parts(v, f):
+        proxy, part_error_m = _part_proxy(pts, pf, area, flat_ratio, thin_ratio)
         if proxy is None:                                 # keep the part as it is
-            proxy = pts, remap[f[fi]]
+            proxy = pts, pf
         else:
             error_m = max(error_m, part_error_m)
-        pv, pf = proxy
-        out_v.append(pv)
-        out_f.append(pf + count)
-        out_sem.append(np.full(len(pf), sem[fi[0]], dtype=np.uint8))
-        out_rgb.append(np.tile(rgb[fi[0]], (len(pf), 1)))
-        count += len(pv)
-    pv, pf = np.concatenate(out_v), np.concatenate(out_f)
-    return (*_with_normals(pv, pf, np.concatenate(out_sem), np.concatenate(out_rgb)), error_m)
+        parts.append((*proxy, fi[0]))
+    return (*_assemble_parts(parts, sem, rgb), error_m)
 
 
 def _with_normals(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.ndarray) -> Tuple[np.ndarray, ...]:
@@ -450,9 +466,7 @@ def _ellipsoid_proxy(pts: np.ndarray, surface_m2: float, n_lon: int = 6, n_lat: 
     area = 0.5 * float(np.linalg.norm(np.cross(local[faces[:, 1]] - local[faces[:, 0]],
                                                local[faces[:, 2]] - local[faces[:, 0]]), axis=1).sum())
     corners = centre + (math.sqrt(surface_m2 / area) * local) @ axes.T
-    nrm = np.cross(corners[faces[:, 1]] - corners[faces[:, 0]], corners[faces[:, 2]] - corners[faces[:, 0]])
-    outward = np.einsum("ij,ij->i", nrm, corners[faces].mean(axis=1) - centre) > 0.0
-    return corners, np.where(outward[:, None], faces, faces[:, ::-1])
+    return _wind_outward(corners, faces, centre)
 
 
 def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: float = 0.05,
@@ -468,18 +482,8 @@ def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: fl
     its outline strays seen from anywhere. Drawn faces count a two-sided
     pair once, as the rasteriser draws it.
     """
-    n_parts, face_part = _mesh_parts(v, f)
-    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    face_area = 0.5 * np.linalg.norm(cross, axis=1)
     out = []
-    for part in range(n_parts):
-        fi = np.nonzero(face_part == part)[0]
-        if len(fi) == 0:
-            continue
-        vi = np.unique(f[fi])
-        remap = np.full(len(v), -1, dtype=np.int64)
-        remap[vi] = np.arange(len(vi))
-        pts, pf = v[vi], remap[f[fi]]
+    for fi, pts, pf, area in _split_parts(v, f):
         first, twin = _pair_reversed_faces(pf)
         versions = [(len(first), 0.0, pts, pf)]
         two_sided = len(first) * 2 == len(pf) and np.all(twin >= 0)
@@ -487,7 +491,7 @@ def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: fl
         if not alternatives:
             # (a fan's rectangle proxy is left out: it has the area of the blade's convex hull, more than the
             # lobed blade's own, which the decimated fans keep)
-            proxy, _ = _part_proxy(pts, pf, float(face_area[fi].sum()), flat_ratio, thin_ratio)
+            proxy, _ = _part_proxy(pts, pf, area, flat_ratio, thin_ratio)
             if proxy is not None and len(proxy[1]) == 8:        # a solid part's octahedron: a round one instead
                 proxy = _ellipsoid_proxy(pts, _hull_area(pts))
             if proxy is not None and len(proxy[1]) < len(pf):
@@ -536,18 +540,12 @@ def simplified_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: 
         return v, f, sem, rgb, np.zeros((0, 3)), 0.0
     if levels is None:
         levels = part_levels(v, f, tolerance_m)
-    out_v, out_f, out_sem, out_rgb = [], [], [], []
-    count, error_m = 0, 0.0
+    parts, error_m = [], 0.0
     for face0, versions in levels:
         drawn, err, pv, pf = min((x for x in versions if x[1] <= tolerance_m), key=lambda x: (x[0], x[1]))
         error_m = max(error_m, err)
-        out_v.append(pv)
-        out_f.append(pf + count)
-        out_sem.append(np.full(len(pf), sem[face0], dtype=np.uint8))
-        out_rgb.append(np.tile(rgb[face0], (len(pf), 1)))
-        count += len(pv)
-    return (*_with_normals(np.concatenate(out_v), np.concatenate(out_f), np.concatenate(out_sem),
-                           np.concatenate(out_rgb)), error_m)
+        parts.append((pv, pf, face0))
+    return (*_assemble_parts(parts, sem, rgb), error_m)
 
 
 class InstancedPlants:
