@@ -22,18 +22,22 @@ and --callgrind-place restricts them to one place.
 import argparse
 import math
 import os
+import pathlib
 import platform
-import subprocess
+import sys
 import time
 
 import numpy as np
 
-from cottonsim_world.farm.generator import FarmConfig, generate_farm
-from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from bench_sim import _callgrind  # noqa: E402
+
+from cottonsim_world.farm.generator import FarmConfig, generate_farm  # noqa: E402
+from cottonsim_world.farm.model import SemanticClass  # noqa: E402
+from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,  # noqa: E402
                                                    original_passthrough_mask)
-from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
-from cottonsim_world.sensors.scene import SceneConfig, SensorScene
+from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model  # noqa: E402
+from cottonsim_world.sensors.scene import SceneConfig, SensorScene  # noqa: E402
 
 SENSOR_Z_M = 0.38
 LANE_X_M = -6.83
@@ -53,11 +57,6 @@ POSES = {
     "lane": [sensor_pose(LANE_X_M, 10.0 + 0.25 * k, math.pi / 2) for k in range(4)],
     "headland": [sensor_pose(-6.0, 1.0, math.pi / 2 + 0.15 * k) for k in range(4)],
 }
-
-
-def _callgrind(switch):
-    subprocess.run(["callgrind_control", "-i", switch, str(os.getpid())], stdout=subprocess.DEVNULL,
-                   stderr=subprocess.DEVNULL, check=False)
 
 
 def main():
