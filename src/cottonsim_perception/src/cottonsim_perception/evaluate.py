@@ -15,7 +15,7 @@ Layers:
 * :func:`main` is the ``rosrun cottonsim_perception evaluate`` CLI::
 
     evaluate --task seg|det --data DIR --weights W --json OUT
-             [--split valid,test] [--conf 0.001] [--iou 0.7]
+             [--split valid,test] [--conf 0.001] [--iou 0.7] [--no-ignore]
 
   It prints one table per split (class, images, instances, P, R, mAP50,
   mAP50-95; for 'seg' both mask and box metrics) and writes the same to JSON.
@@ -26,7 +26,7 @@ Layers:
 
 Result dict layout (also the JSON)::
 
-    {"task": "seg", "class_names": [...], "num_images": 20,
+    {"task": "seg", "class_names": [...], "num_images": 20, "ignored_predictions": 0,
      "mask": {"conf_threshold": 0.41, "rows": [row_all, row_class0, ...]},
      "box":  {...same...}}            # "mask" only for task 'seg'
 
@@ -35,7 +35,9 @@ Result dict layout (also the JSON)::
            "ap50_eq3": float, "tp": int, "fp": int, "fn": int}
 
 P / R / mAP are fractions (0..1); classes without ground truth have null
-metrics and are left out of the 'all' row.
+metrics and are left out of the 'all' row. ``ignored_predictions`` counts
+the predictions dropped because they lie on an image's ignore boxes
+(``yolo_format.ignore_path_for``; simulator boll labels only).
 """
 from __future__ import annotations
 
@@ -100,6 +102,7 @@ def evaluate_predictions(detections: Sequence[Detections], ground_truths: Sequen
     tps = {k: [] for k in kinds}
     confs, pcls, gcls = [], [], []
     images_per_class = np.zeros(nc, dtype=np.int64)
+    num_ignored = 0
     for i, (det, gt) in enumerate(zip(detections, ground_truths)):
         for what, cls in (("prediction", det.classes), ("ground truth", gt.classes)):
             if len(cls) and (cls.min() < 0 or cls.max() >= nc):
@@ -120,14 +123,25 @@ def evaluate_predictions(detections: Sequence[Detections], ground_truths: Sequen
                 iou = M.box_iou(det.boxes_xyxy, gt.boxes_xyxy)
             tps[kind].append(M.match_predictions(det.classes, gt.classes, iou, thr,
                                                  scores=det.scores, method=matching))
-        confs.append(np.asarray(det.scores, dtype=np.float64))
-        pcls.append(np.asarray(det.classes, dtype=np.int64))
+        keep = np.ones(len(det), dtype=bool)
+        if gt.ignore_boxes_xyxy is not None and len(gt.ignore_boxes_xyxy) and len(det):
+            # unmatched (in every kind) predictions on don't-care regions count nowhere
+            matched = np.zeros(len(det), dtype=bool)
+            for kind in kinds:
+                matched |= tps[kind][-1][:, 0]
+            keep = ~M.on_ignore_regions(det.boxes_xyxy, matched, gt.ignore_boxes_xyxy)
+            for kind in kinds:
+                tps[kind][-1] = tps[kind][-1][keep]
+            num_ignored += int(np.count_nonzero(~keep))
+        confs.append(np.asarray(det.scores, dtype=np.float64)[keep])
+        pcls.append(np.asarray(det.classes, dtype=np.int64)[keep])
         gcls.append(np.asarray(gt.classes, dtype=np.int64))
     conf = np.concatenate(confs) if confs else np.zeros(0)
     pc = np.concatenate(pcls) if pcls else np.zeros(0, np.int64)
     gc = np.concatenate(gcls) if gcls else np.zeros(0, np.int64)
     result: Dict[str, object] = {"task": task, "class_names": [str(n) for n in class_names],
                                  "num_images": len(detections),
+                                 "ignored_predictions": num_ignored,
                                  "iou_thresholds": [float(t) for t in thr],
                                  "matching": matching, "ap_method": ap_method}
     for kind in kinds:
@@ -158,9 +172,12 @@ def format_table(result: Dict[str, object], title: str = "") -> str:
     return "\n".join(lines)
 
 
-def load_ground_truth(root: str, split: str, task: str,
-                      class_names: Sequence[str]) -> List[Tuple[str, np.ndarray, GroundTruth]]:
+def load_ground_truth(root: str, split: str, task: str, class_names: Sequence[str],
+                      use_ignore: bool = True) -> List[Tuple[str, np.ndarray, GroundTruth]]:
     """(image_path, image_rgb, GroundTruth) of every image of a split, in original pixels.
+
+    use_ignore: read the images' ignore boxes (``yolo_format.ignore_path_for``)
+    when they have them; False evaluates as if there were none.
 
     Raises yolo_format.LabelFormatError for a missing split, no images, an
     unreadable image or a malformed label.
@@ -176,12 +193,14 @@ def load_ground_truth(root: str, split: str, task: str,
         h, w = rgb.shape[:2]
         insts = yf.read_label_file(pair.label_path, task, len(class_names))
         boxes, classes, masks = yf.instances_to_pixels(insts, w, h, with_masks=(task == "seg"))
-        out.append((pair.image_path, rgb, GroundTruth(boxes, classes, masks)))
+        ignore = yf.read_ignore_boxes(pair.image_path, w, h) if use_ignore else np.zeros((0, 4))
+        out.append((pair.image_path, rgb, GroundTruth(boxes, classes, masks,
+                                                      ignore if len(ignore) else None)))
     return out
 
 
 def evaluate_split(predictor, root: str, split: str, task: str, class_names: Sequence[str],
-                   conf_threshold: float = 0.0, **kwargs):
+                   conf_threshold: float = 0.0, use_ignore: bool = True, **kwargs):
     """Run ``predictor.predict`` over a split and evaluate (kwargs go to evaluate_predictions).
 
     Returns (result dict, list of Detections, list of GroundTruth).
@@ -189,7 +208,7 @@ def evaluate_split(predictor, root: str, split: str, task: str, class_names: Seq
     Predictions below ``conf_threshold`` are dropped (the predictor may
     already do it).
     """
-    items = load_ground_truth(root, split, task, class_names)
+    items = load_ground_truth(root, split, task, class_names, use_ignore)
     dets, gts = [], []
     for _path, rgb, gt in items:
         det = predictor.predict(rgb)
@@ -218,6 +237,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--split", default="valid,test", help="comma-separated splits (default valid,test)")
     p.add_argument("--conf", type=float, default=0.001, help="confidence threshold (default 0.001)")
     p.add_argument("--iou", type=float, default=0.7, help="NMS IoU threshold (default 0.7)")
+    p.add_argument("--no-ignore", action="store_true",
+                   help="count predictions on the images' ignore boxes as false positives "
+                        "(default: drop them, see the module docstring)")
     return p
 
 
@@ -257,11 +279,12 @@ def main(argv: Optional[Sequence[str]] = None,
             yf.list_pairs(args.data, s)
         out: Dict[str, object] = {"weights": os.path.abspath(args.weights),
                                   "data": os.path.abspath(args.data),
-                                  "conf": args.conf, "iou": args.iou, "splits": {}}
+                                  "conf": args.conf, "iou": args.iou,
+                                  "ignore_boxes": not args.no_ignore, "splits": {}}
         all_dets, all_gts = [], []
         for s in splits:
             res, dets, gts = evaluate_split(predictor, args.data, s, args.task, names,
-                                            conf_threshold=args.conf)
+                                            conf_threshold=args.conf, use_ignore=not args.no_ignore)
             out["splits"][s] = res
             all_dets += dets
             all_gts += gts

@@ -242,8 +242,9 @@ def init_from_checkpoint(model: YoloModel, path: str) -> str:
 
 def _to_loss_targets(targets: Dict[str, Any]) -> Dict[str, torch.Tensor]:
     out = {k: targets[k] for k in ("batch_idx", "classes", "boxes_xyxy")}
-    if "masks" in targets:
-        out["masks"] = targets["masks"]
+    for k in ("masks", "ignore_batch_idx", "ignore_boxes_xyxy"):
+        if k in targets:
+            out[k] = targets[k]
     return out
 
 

@@ -83,15 +83,25 @@ class GroundTruth:
     """Labelled instances of one image, in original image pixels.
 
     boxes_xyxy: (M, 4) float [px]; classes: (M,) int64; masks: (M, H, W)
-    bool of the original image size (segmentation labels) or None.
+    bool of the original image size (segmentation labels) or None;
+    ignore_boxes_xyxy: (K, 4) float [px] don't-care regions (objects outside
+    the labelling rules, e.g. bolls beyond the working range; see
+    ``yolo_format.ignore_path_for``) or None: an unmatched prediction lying
+    on one is neither a true nor a false positive.
     """
 
     boxes_xyxy: np.ndarray
     classes: np.ndarray
     masks: Optional[np.ndarray] = None
+    ignore_boxes_xyxy: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         _check_common("GroundTruth", self.boxes_xyxy, self.classes, self.masks)
+        ign = self.ignore_boxes_xyxy
+        if ign is not None and (not isinstance(ign, np.ndarray) or ign.ndim != 2 or ign.shape[1] != 4
+                                or not np.all(np.isfinite(ign))):
+            raise ValueError(f"GroundTruth.ignore_boxes_xyxy must be a finite (K, 4) array or None, "
+                             f"got {getattr(ign, 'shape', type(ign))}")
 
     def __len__(self) -> int:
         return int(self.boxes_xyxy.shape[0])

@@ -143,3 +143,47 @@ def test_real_predictor_on_garbage_weights_exits_2(tmp_path, capsys):
                     "--json", str(tmp_path / "r.json")])
     assert code == 2
     assert "cannot load weights" in capsys.readouterr().err
+
+
+class ExtraBoxStub(StubPredictor):
+    """The perfect predictions plus one extra 'plant' box at (40, 2)-(50, 12), scored highest."""
+
+    def predict(self, image_rgb):
+        d = super().predict(image_rgb)
+        extra = np.array([[40, 2, 50, 12]], np.float32)
+        return Detections(np.concatenate([extra, d.boxes_xyxy]), np.concatenate([[0.95], d.scores]).astype(np.float32),
+                          np.concatenate([[0], d.classes]).astype(np.int64))
+
+
+@pytest.mark.parametrize("no_ignore", [False, True])
+def test_predictions_on_ignore_boxes_count_nowhere(tmp_path, no_ignore):
+    data = str(tmp_path / "data")
+    _write_dataset(data, "det")
+    # image 40 (valid) gets an ignore box around the extra prediction; image 80 none
+    yf.write_label_file(os.path.join(data, "valid", "ignore", "img40.txt"),
+                        [yf.LabelInstance(0, np.array([45 / W, 7 / H, 12 / W, 12 / H]))], "det")
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"stub")
+    out = str(tmp_path / "r.json")
+    argv = ["--task", "det", "--data", data, "--weights", str(weights), "--json", out, "--split", "valid"]
+    assert ev.main(argv + (["--no-ignore"] if no_ignore else []),
+                   predictor_factory=lambda w, c, i: ExtraBoxStub("det")) == 0
+    res = json.load(open(out))["splits"]["valid"]
+    plant = {r["class"]: r for r in res["box"]["rows"]}["plant"]
+    # the extra box on image 80 (no ignore file) is a false positive either way
+    assert plant["tp"] == 2 and plant["fn"] == 0
+    assert res["ignored_predictions"] == (0 if no_ignore else 1)
+    assert plant["fp"] == (2 if no_ignore else 1)
+
+
+def test_ignore_regions_rule():
+    from cottonsim_perception.evaluation import metrics as M
+    preds = np.array([[0, 0, 10, 10], [0, 0, 10, 10], [8, 0, 18, 10], [100, 100, 110, 110]], float)
+    matched = np.array([True, False, False, False])
+    ignore = np.array([[0, 0, 12, 12]], float)
+    # matched predictions stay; the unmatched one inside stays out; 20 % inside and outside stay
+    assert M.on_ignore_regions(preds, matched, ignore).tolist() == [False, True, False, False]
+    assert M.box_ioa(preds[2:3], ignore)[0, 0] == pytest.approx(0.4)
+    assert M.on_ignore_regions(preds, matched, np.zeros((0, 4))).tolist() == [False] * 4
+    with pytest.raises(ValueError):
+        M.on_ignore_regions(preds, matched[:2], ignore)

@@ -69,6 +69,9 @@ def test_layout_counts_and_labels_parse(dataset):
                     assert {i.class_id for i in inst} >= {1}
                 else:
                     assert all(i.polygon is None for i in inst)
+                    # every det image has its ignore file (possibly empty), also YOLO box lines
+                    assert os.path.isfile(yf.ignore_path_for(pair.image_path))
+                    yf.read_ignore_boxes(pair.image_path, 640, 480)
     det_instances = sum(summary.instances["det"].values())
     assert det_instances > 0, "side/close views of plants with bolls must label some bolls"
 
@@ -112,7 +115,7 @@ def test_same_seed_gives_identical_output(tmp_path):
     b = g.generate_dataset(_config(tmp_path / "b", **kw), progress=False)
     assert a.images == b.images == 4
     for task in ("seg", "det"):
-        for sub in ("images", "labels"):
+        for sub in ("images", "labels", "ignore") if task == "det" else ("images", "labels"):
             da, db = tmp_path / "a" / task / sub / "train", tmp_path / "b" / task / sub / "train"
             names = sorted(os.listdir(da))
             assert names == sorted(os.listdir(db)) and len(names) == 2
@@ -188,8 +191,10 @@ def test_every_labelled_box_holds_visible_boll_pixels(base_T_optical):
     total = 0
     for frame, pose, shot in frames:
         assert shot.camera in g.CAMERAS
-        bolls = g.boll_boxes(frame.semantic, frame.depth_m, frame.plant_id, farm, pose, K)
+        bolls = [b for b in g.boll_boxes(frame.semantic, frame.depth_m, frame.plant_id, farm, pose, K)
+                 if not b.ignore]
         for b in bolls:
+            assert b.depth_m <= g.LabelConfig().max_boll_depth_m
             x1, y1, x2, y2 = (int(v) for v in b.box_xyxy_px)
             assert 0 <= x1 < x2 <= W and 0 <= y1 < y2 <= H
             assert x2 - x1 >= 4 and y2 - y1 >= 4
@@ -252,6 +257,15 @@ def test_boll_hidden_behind_a_leaf_is_not_labelled(leaf):
         K = cam.intrinsics().K
     bolls = g.boll_boxes(frame.semantic, frame.depth_m, frame.plant_id, farm, pose, K)
     assert sorted(b.boll_index for b in bolls) == ([1] if leaf else [0, 1])
+    assert not any(b.ignore for b in bolls)
+    # beyond the working range (1 m away here) the same bolls become ignore boxes
+    far = g.boll_boxes(frame.semantic, frame.depth_m, frame.plant_id, farm, pose, K,
+                       g.LabelConfig(max_boll_depth_m=0.9))
+    assert [b.box_xyxy_px for b in far] == [b.box_xyxy_px for b in bolls]
+    assert all(b.ignore for b in far)
+    lines = g.detection_instances(far, frame.semantic.shape[1], frame.semantic.shape[0])
+    ignore_lines = g.detection_instances(far, frame.semantic.shape[1], frame.semantic.shape[0], ignored=True)
+    assert lines == [] and len(ignore_lines) == len(bolls)
     # the open boll's box surrounds its projection: centre column of a point at y = 0.35 m, 1 m away
     fx, cx = K[0, 0], K[0, 2]
     u_open = fx * (-(0.35 - 0.15)) / 1.0 + cx

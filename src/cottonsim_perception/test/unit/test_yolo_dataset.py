@@ -149,3 +149,24 @@ def test_mosaic_labels_follow_the_pasted_objects(tmp_path, task):
 def test_mosaic_probability_is_validated():
     with pytest.raises(ValueError, match="mosaic_prob"):
         AugmentConfig(mosaic_prob=1.5)
+
+
+def test_ignore_boxes_travel_with_the_image_and_stay_out_of_the_labels(tmp_path):
+    root = str(tmp_path)
+    _make(root, "det")
+    # a don't-care box at (50, 5)-(70, 15) of image a
+    yf.write_label_file(os.path.join(root, "train", "ignore", "a.txt"),
+                        [yf.LabelInstance(0, np.array([60 / W0, 10 / H0, 20 / W0, 10 / H0]))], "det")
+    ds = YoloDataset(root, "train", "det", imgsz=(W0, H0), class_names=("a", "b"))
+    _, t = ds[0]
+    assert t["classes"].tolist() == [1]
+    np.testing.assert_allclose(t["ignore_boxes_xyxy"].numpy(), [[50, 5, 70, 15]], atol=0.5)
+    assert ds.instance_counts().tolist() == [0, 1]
+    cfg = AugmentConfig(flip_lr_prob=1.0, hsv_h=0, hsv_s=0, hsv_v=0, scale=0, translate=0)
+    flipped = YoloDataset(root, "train", "det", imgsz=(W0, H0), augment=True, class_names=("a", "b"),
+                          augment_config=cfg)
+    _, tf = flipped[0]
+    np.testing.assert_allclose(tf["ignore_boxes_xyxy"].numpy(), [[10, 5, 30, 15]], atol=0.5)
+    _, batch = collate([ds[1], ds[0]])
+    assert batch["ignore_batch_idx"].tolist() == [1] and batch["ignore_boxes_xyxy"].shape == (1, 4)
+    assert batch["batch_idx"].tolist() == [1]

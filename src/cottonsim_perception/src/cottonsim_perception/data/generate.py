@@ -11,6 +11,7 @@ What it writes (``generate_dataset``), per task under ``out_dir/<task>/``::
     data.yaml                      path, train, val, test, nc, names
     images/{train,val,test}/s<farm seed>_<index>.jpg
     labels/{train,val,test}/s<farm seed>_<index>.txt
+    ignore/{train,val,test}/s<farm seed>_<index>.txt   (det only: don't-care boll boxes)
     manifest.csv                   one row per image: farm, camera, pose, light, label stats
 
 * task 'seg' (scene segmentation): the primary (front) camera of a robot
@@ -19,7 +20,9 @@ What it writes (``generate_dataset``), per task under ``out_dir/<task>/``::
   with zero-width bridges (see ``mask_to_label_polygons``).
 * task 'det' (boll detection): the side cameras (realsense_secondary /
   tertiary) beside a row, or the front camera close to one plant's canopy;
-  class 0 cotton boll, one box per *visible* boll (see ``boll_boxes``).
+  class 0 cotton boll, one box per *visible* boll within the working range
+  (``LabelConfig.max_boll_depth_m``); other visible bolls become ignore boxes
+  (see ``boll_boxes``).
 
 How an image is made
 --------------------
@@ -150,6 +153,14 @@ class LabelConfig:
         min_boll_visible_fraction: fewest visible pixels as a fraction of the
             boll's projected disc (of radius boll radius, inside the image);
             a boll peeking through a leaf with less is not labelled.
+        max_boll_depth_m: working range [m]: bolls whose centre lies farther
+            than this along the camera's optical axis are not labelled (they
+            belong to the rows behind the one the camera faces, out of the
+            arm's reach; at 640x480 they are a few pixels wide). Like every
+            visible boll that misses the rules above, they are written as
+            *ignore* boxes (``ignore/`` beside ``labels/``): evaluation and
+            training neither reward nor penalise predictions there.
+            ``inf`` labels every depth.
     """
 
     polygon_epsilon_px: float = 0.3
@@ -161,6 +172,7 @@ class LabelConfig:
     min_boll_box_px: float = 4.0
     min_boll_visible_px: int = 8
     min_boll_visible_fraction: float = 0.15
+    max_boll_depth_m: float = 1.5
 
     def __post_init__(self) -> None:
         _check_number("polygon_epsilon_px", self.polygon_epsilon_px, 0.0, 10.0)
@@ -174,6 +186,10 @@ class LabelConfig:
         _check_number("min_boll_box_px", self.min_boll_box_px, 0.0, 1e4)
         _check_int("min_boll_visible_px", self.min_boll_visible_px, 1)
         _check_number("min_boll_visible_fraction", self.min_boll_visible_fraction, 0.0, 1.0)
+        if (isinstance(self.max_boll_depth_m, bool) or not isinstance(self.max_boll_depth_m, (int, float))
+                or not self.max_boll_depth_m > 0):     # inf allowed: label every depth
+            raise ValueError(f"max_boll_depth_m must be a number > 0 (inf: no limit), "
+                             f"got {self.max_boll_depth_m!r}")
 
 
 @dataclass(frozen=True)
@@ -830,7 +846,9 @@ class BollLabel:
     box_xyxy_px: (x1, y1, x2, y2) in pixel-edge coordinates (tight around
     the visible pixels); plant_id / boll_index: which boll of the farm;
     depth_m: the boll centre's depth along the optical axis; visible_px:
-    its visible pixel count; visible_fraction: of its projected disc.
+    its visible pixel count; visible_fraction: of its projected disc;
+    ignore: True for a visible boll that is not labelled (outside the
+    working range or below the visibility rules of ``LabelConfig``).
     """
 
     box_xyxy_px: Tuple[float, float, float, float]
@@ -839,6 +857,7 @@ class BollLabel:
     depth_m: float
     visible_px: int
     visible_fraction: float
+    ignore: bool = False
 
 
 def boll_boxes(semantic: np.ndarray, depth_m: np.ndarray, plant_id: Optional[np.ndarray], farm: Farm,
@@ -854,10 +873,13 @@ def boll_boxes(semantic: np.ndarray, depth_m: np.ndarray, plant_id: Optional[np.
     claimed by two bolls goes to the nearer centre. So a boll hidden behind
     a leaf has no pixels (the leaf's pixels are PLANT, and a boll seen
     through a gap that is farther away is too far from c). The boll is
-    labelled when it has >= ``min_boll_visible_px`` pixels, they cover >=
-    ``min_boll_visible_fraction`` of its projected disc (radius f R / z,
-    clipped to the image) and their box is >= ``min_boll_box_px`` wide and
-    high. The box is the visible pixels' extent (x2 = last column + 1).
+    labelled when its centre depth is <= ``max_boll_depth_m``, it has >=
+    ``min_boll_visible_px`` pixels, they cover >= ``min_boll_visible_fraction``
+    of its projected disc (radius f R / z, clipped to the image) and their box
+    is >= ``min_boll_box_px`` wide and high. The box is the visible pixels'
+    extent (x2 = last column + 1). Every other boll with a visible pixel is
+    returned with ``ignore=True`` (a don't-care region for evaluation and
+    training).
     """
     sem = np.asarray(semantic)
     depth = np.asarray(depth_m, dtype=np.float64)
@@ -936,14 +958,12 @@ def boll_boxes(semantic: np.ndarray, depth_m: np.ndarray, plant_id: Optional[np.
     for k, (r0, r1, c0, c1) in windows.items():
         mine = claim[r0:r1, c0:c1] == k
         n_px = int(np.count_nonzero(mine))
-        if n_px < config.min_boll_visible_px:
+        if n_px == 0:       # every pixel went to a nearer boll
             continue
         rows = np.nonzero(mine.any(axis=1))[0]
         cols = np.nonzero(mine.any(axis=0))[0]
         x1, x2 = c0 + cols[0], c0 + cols[-1] + 1
         y1, y2 = r0 + rows[0], r0 + rows[-1] + 1
-        if x2 - x1 < config.min_boll_box_px or y2 - y1 < config.min_boll_box_px:
-            continue
         # the boll's projected disc (radius f R / z) inside the image
         rd = fx * radius[k] / z[k]
         d0, d1 = max(0, int(math.floor(u[k] - rd))), min(w, int(math.ceil(u[k] + rd)) + 1)
@@ -955,18 +975,24 @@ def boll_boxes(semantic: np.ndarray, depth_m: np.ndarray, plant_id: Optional[np.
         else:
             disc = 0
         frac = n_px / max(disc, 1)
-        if frac < config.min_boll_visible_fraction:
-            continue
+        labelled = (z[k] <= config.max_boll_depth_m
+                    and n_px >= config.min_boll_visible_px
+                    and x2 - x1 >= config.min_boll_box_px and y2 - y1 >= config.min_boll_box_px
+                    and frac >= config.min_boll_visible_fraction)
         out.append(BollLabel((float(x1), float(y1), float(x2), float(y2)), int(owner[k]), int(index[k]),
-                             float(z[k]), n_px, float(min(frac, 9.99))))
+                             float(z[k]), n_px, float(min(frac, 9.99)), ignore=not labelled))
     out.sort(key=lambda b: (b.box_xyxy_px[1], b.box_xyxy_px[0]))
     return out
 
 
-def detection_instances(bolls: Sequence[BollLabel], width: int, height: int) -> List[yf.LabelInstance]:
-    """YOLO box labels (class 0 cotton boll, normalised) of ``boll_boxes``' output."""
+def detection_instances(bolls: Sequence[BollLabel], width: int, height: int,
+                        ignored: bool = False) -> List[yf.LabelInstance]:
+    """YOLO box lines (class 0 cotton boll, normalised) of ``boll_boxes``' output:
+    the labelled bolls, or with ``ignored`` the ignore boxes."""
     out = []
     for b in bolls:
+        if b.ignore != ignored:
+            continue
         x1, y1, x2, y2 = b.box_xyxy_px
         out.append(yf.LabelInstance(0, np.array([(x1 + x2) / 2 / width, (y1 + y2) / 2 / height,
                                                  (x2 - x1) / width, (y2 - y1) / height])))
@@ -1044,8 +1070,11 @@ def render_farm_job(config: DatasetConfig, job: FarmJob,
         root = os.path.join(config.out_dir, task)
         img_dir = os.path.join(root, "images", job.split)
         lbl_dir = os.path.join(root, "labels", job.split)
+        ign_dir = os.path.join(root, yf.IGNORE_FOLDER, job.split)
         os.makedirs(img_dir, exist_ok=True)
         os.makedirs(lbl_dir, exist_ok=True)
+        if task == "det":
+            os.makedirs(ign_dir, exist_ok=True)
         for s0 in range(0, count, config.images_per_scene):
             scene_idx = s0 // config.images_per_scene
             srng = _rng(config.dataset_seed, _SCENE_STREAM, job.farm_seed, _TASK_CODE[task], scene_idx)
@@ -1069,12 +1098,16 @@ def render_farm_job(config: DatasetConfig, job: FarmJob,
                         bolls = boll_boxes(frame.semantic, frame.depth_m, frame.plant_id, farm, pose, K,
                                            config.labels)
                         instances = detection_instances(bolls, config.width, config.height)
+                        ignored = detection_instances(bolls, config.width, config.height, ignored=True)
                         worst = float("nan")
                     rgb = apply_photometric(frame.rgb, irng, config.variation)
                     name = _image_name(job.farm_seed, index, ext)
                     _write_image(os.path.join(img_dir, name), rgb, config)
                     yf.write_label_file(os.path.join(lbl_dir, os.path.splitext(name)[0] + ".txt"),
                                         instances, task)
+                    if task == "det":
+                        yf.write_label_file(os.path.join(ign_dir, os.path.splitext(name)[0] + ".txt"),
+                                            ignored, task)
                     yaw = math.atan2(shot.world_T_base[1, 0], shot.world_T_base[0, 0])
                     records.append(ImageRecord(
                         task, job.split, f"images/{job.split}/{name}", job.farm_seed, scene_idx, shot.camera,

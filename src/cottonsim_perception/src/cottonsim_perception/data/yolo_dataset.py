@@ -14,6 +14,9 @@ Item: ``(image, targets)`` with image a (3, H, W) float32 tensor in [0, 1]
 * ``classes``: (M,) int64;
 * ``boxes_xyxy``: (M, 4) float32 [px] in the letterboxed image;
 * ``masks``: (M, H, W) uint8 (0/1) at the letterboxed size (task 'seg' only);
+* ``ignore_boxes_xyxy``: (K, 4) float32 [px] don't-care boxes (task 'det':
+  the image's ignore file, ``yolo_format.ignore_path_for``; empty without
+  one), moved by the same augmentation as the boxes;
 * ``image_path`` (str), ``orig_hw`` ((H0, W0) of the file), ``letterbox``
   (the :class:`LetterboxTransform` that maps original to input pixels).
 
@@ -25,6 +28,7 @@ Instances that end up (almost) outside the image are dropped.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -35,6 +39,10 @@ from torch.utils.data import Dataset
 
 from cottonsim_perception.data import yolo_format as yf
 from cottonsim_perception.nn.letterbox import PAD_VALUE, LetterboxTransform, letterbox
+
+
+#: Class id that marks an ignore box inside the dataset's arrays (never in a target's classes).
+IGNORE_CLASS = -1
 
 
 @dataclass(frozen=True)
@@ -167,6 +175,7 @@ class YoloDataset(Dataset):
         self.pairs = yf.list_pairs(root, split)
         self.labels = [yf.read_label_file(p.label_path, task, len(self.class_names))
                        for p in self.pairs]
+        self.ignores = [self._read_ignore(p.image_path) for p in self.pairs]
         self._epoch = 0
 
     def set_epoch(self, epoch: int) -> None:
@@ -183,6 +192,12 @@ class YoloDataset(Dataset):
             for inst in labels:
                 counts[inst.class_id] += 1
         return counts
+
+    def _read_ignore(self, image_path: str) -> List[yf.LabelInstance]:
+        path = yf.ignore_path_for(image_path)
+        if self.task != "det" or not os.path.isfile(path):
+            return []
+        return yf.read_label_file(path, "det", 1)
 
     def load_image(self, index: int) -> np.ndarray:
         """The original image of item ``index`` as uint8 RGB (H0, W0, 3)."""
@@ -202,9 +217,11 @@ class YoloDataset(Dataset):
             if mrng.random() < self.augment_config.mosaic_prob:
                 img, classes, boxes, masks = self._mosaic(index, mrng, (img, classes, boxes, masks))
         tensor = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float().div_(255.0)
+        ignored = classes == IGNORE_CLASS
         targets: Dict[str, object] = {
-            "classes": torch.from_numpy(classes),
-            "boxes_xyxy": torch.from_numpy(boxes.astype(np.float32)),
+            "classes": torch.from_numpy(classes[~ignored]),
+            "boxes_xyxy": torch.from_numpy(boxes[~ignored].astype(np.float32)),
+            "ignore_boxes_xyxy": torch.from_numpy(boxes[ignored].astype(np.float32).reshape(-1, 4)),
             "image_path": self.pairs[index].image_path,
             "orig_hw": (h0, w0),
             "letterbox": lb,
@@ -249,6 +266,7 @@ class YoloDataset(Dataset):
                 wh = b[:, 2:] - b[:, :2]
                 keep = (wh[:, 0] > min_px) & (wh[:, 1] > min_px) & \
                     (wh[:, 0] * wh[:, 1] >= min_vis * np.maximum(area0, 1e-9))
+                keep |= (cls == IGNORE_CLASS) & (wh[:, 0] > 0) & (wh[:, 1] > 0)
                 cut = None
             out_cls.append(cls[keep])
             out_boxes.append(b[keep].astype(np.float32))
@@ -267,8 +285,9 @@ class YoloDataset(Dataset):
         h0, w0 = image.shape[:2]
         img, lb = letterbox(image, self.width, self.height)
         affine = lb.affine()                     # original px -> input px
-        instances = self.labels[index]
-        classes = np.array([inst.class_id for inst in instances], dtype=np.int64)
+        instances = self.labels[index] + self.ignores[index]
+        classes = np.array([inst.class_id for inst in self.labels[index]]
+                           + [IGNORE_CLASS] * len(self.ignores[index]), dtype=np.int64)
         flip = False
         if rng is not None:  # (the draws keep their order: same jitter as before mosaics existed)
             cfg = self.augment_config
@@ -304,6 +323,7 @@ class YoloDataset(Dataset):
 
         wh = boxes[:, 2:] - boxes[:, :2]
         keep = (wh[:, 0] > max(min_px, 0.0)) & (wh[:, 1] > max(min_px, 0.0))
+        keep |= (classes == IGNORE_CLASS) & (wh[:, 0] > 0) & (wh[:, 1] > 0)
         if masks is not None:
             keep &= masks.reshape(len(masks), self.height * self.width).any(axis=1)
         boxes, classes = boxes[keep], classes[keep]
@@ -327,6 +347,7 @@ def collate(batch: List[Tuple[torch.Tensor, Dict[str, object]]]):
     with the instances of all images concatenated (Ultralytics' convention):
     ``batch_idx`` (N,) int64 (which image), ``classes`` (N,) int64,
     ``boxes_xyxy`` (N, 4) float32 [px], ``masks`` (N, H, W) uint8 (seg only),
+    ``ignore_batch_idx`` (K,) int64 and ``ignore_boxes_xyxy`` (K, 4) float32 [px],
     plus per-image lists ``image_paths``, ``orig_hw``, ``letterbox``.
     """
     if not batch:
@@ -338,6 +359,9 @@ def collate(batch: List[Tuple[torch.Tensor, Dict[str, object]]]):
                                 for i, t in enumerate(targets)]),
         "classes": torch.cat([t["classes"] for t in targets]),
         "boxes_xyxy": torch.cat([t["boxes_xyxy"] for t in targets]).reshape(-1, 4),
+        "ignore_batch_idx": torch.cat([torch.full((len(t["ignore_boxes_xyxy"]),), i, dtype=torch.int64)
+                                       for i, t in enumerate(targets)]),
+        "ignore_boxes_xyxy": torch.cat([t["ignore_boxes_xyxy"] for t in targets]).reshape(-1, 4),
         "image_paths": [t["image_path"] for t in targets],
         "orig_hw": [t["orig_hw"] for t in targets],
         "letterbox": [t["letterbox"] for t in targets],

@@ -289,6 +289,9 @@ def class_names_for(root: str, task: str) -> Tuple[str, ...]:
 
 # --------------------------------------------------------------------------- layouts
 
+#: Folder of the ignore-box files, beside ``labels`` (see :func:`ignore_path_for`).
+IGNORE_FOLDER = "ignore"
+
 @dataclass(frozen=True)
 class ImageLabelPair:
     """One image file and the label file that belongs to it (which may not exist)."""
@@ -297,16 +300,47 @@ class ImageLabelPair:
     label_path: str
 
 
-def label_path_for(image_path: str) -> str:
-    """Ultralytics' rule: the last '/images/' folder becomes '/labels/', extension '.txt'."""
+def _sibling_txt_path(image_path: str, folder: str) -> str:
+    """The image's path with its last 'images' folder renamed ``folder`` and extension '.txt'."""
     head, name = os.path.split(image_path)
     parts = head.split(os.sep)
     for i in range(len(parts) - 1, -1, -1):
         if parts[i] == "images":
-            parts[i] = "labels"
+            parts[i] = folder
             break
     stem = os.path.splitext(name)[0]
     return os.path.join(os.sep.join(parts), stem + ".txt")
+
+
+def label_path_for(image_path: str) -> str:
+    """Ultralytics' rule: the last '/images/' folder becomes '/labels/', extension '.txt'."""
+    return _sibling_txt_path(image_path, "labels")
+
+
+def ignore_path_for(image_path: str) -> str:
+    """The image's ignore-box file: the last '/images/' folder becomes '/ignore/'.
+
+    Ignore boxes (our extension of the format, written by the dataset
+    generator for bolls outside its labelling rules; Ultralytics does not
+    read them) are YOLO box lines of objects that are neither required nor
+    forbidden: an unmatched prediction lying on one is not a false positive
+    (``evaluate``), and the training loss does not push the anchors inside
+    one towards background (``nn.loss``).
+    """
+    return _sibling_txt_path(image_path, IGNORE_FOLDER)
+
+
+def read_ignore_boxes(image_path: str, width: int, height: int) -> np.ndarray:
+    """(K, 4) float32 ignore boxes xyxy [px] of an image (empty when it has no ignore file).
+
+    Raises :class:`LabelFormatError` for a malformed ignore file.
+    """
+    path = ignore_path_for(image_path)
+    if not os.path.isfile(path):
+        return np.zeros((0, 4), dtype=np.float32)
+    insts = read_label_file(path, "det", 1)
+    return np.array([inst.box_xyxy_px(width, height) for inst in insts],
+                    dtype=np.float32).reshape(-1, 4)
 
 
 def _list_images(folder: str) -> List[str]:

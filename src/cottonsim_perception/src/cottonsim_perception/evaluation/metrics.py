@@ -34,6 +34,10 @@ is the mean of the class recalls (66.7, 100, 100). We follow Ultralytics:
    ground truth is the best candidate of several overlapping predictions.
    Boxes use :func:`box_iou`, masks :func:`mask_iou` (Ultralytics compares masks
    at a quarter of the input resolution; we use the full original image).
+   Our extension for simulator labels: a prediction that matches nothing and
+   lies on an ignore box (:func:`on_ignore_regions`; bolls the labelling
+   rules leave out) is dropped before step 2, as COCO drops detections on
+   'crowd' regions. The paper's images have no ignore boxes.
 2. Per class (:func:`ap_per_class`), predictions of all images sorted by
    descending confidence give the cumulative precision / recall curve.
    AP (:func:`compute_ap`, method 'ultralytics'): append (recall 0,
@@ -67,6 +71,9 @@ import numpy as np
 #: IoU thresholds 0.50, 0.55, ..., 0.95 of mAP50-95.
 IOU_THRESHOLDS = np.round(np.linspace(0.5, 0.95, 10), 2)
 
+#: Share of a prediction's box inside an ignore box that makes it "on" the ignore region.
+IGNORE_MIN_IOA = 0.5
+
 _EPS = 1e-16
 
 
@@ -98,6 +105,44 @@ def box_iou(boxes_a, boxes_b) -> np.ndarray:
     inter = wh[..., 0] * wh[..., 1]
     union = area_a[:, None] + area_b[None, :] - inter
     return np.where(union > 0, inter / np.maximum(union, _EPS), 0.0)
+
+
+def box_ioa(boxes_a, boxes_b) -> np.ndarray:
+    """Intersection over the area of a of every pair of boxes: (N, 4), (M, 4) -> (N, M).
+
+    How much of each box a lies inside box b (1 when a is inside b); a
+    degenerate a gives 0.
+    """
+    a = _as_boxes("boxes_a", boxes_a)
+    b = _as_boxes("boxes_b", boxes_b)
+    if a.shape[0] == 0 or b.shape[0] == 0:
+        return np.zeros((a.shape[0], b.shape[0]))
+    area_a = np.clip(a[:, 2] - a[:, 0], 0, None) * np.clip(a[:, 3] - a[:, 1], 0, None)
+    lt = np.maximum(a[:, None, :2], b[None, :, :2])
+    rb = np.minimum(a[:, None, 2:], b[None, :, 2:])
+    wh = np.clip(rb - lt, 0, None)
+    inter = wh[..., 0] * wh[..., 1]
+    return np.where(area_a[:, None] > 0, inter / np.maximum(area_a[:, None], _EPS), 0.0)
+
+
+def on_ignore_regions(pred_boxes, matched_at_first_threshold, ignore_boxes,
+                      min_ioa: float = IGNORE_MIN_IOA) -> np.ndarray:
+    """Which predictions to leave out of P / R / AP because they lie on a don't-care region.
+
+    A prediction is left out when it matched no ground truth at the first
+    (loosest) IoU threshold and at least ``min_ioa`` of its box lies inside
+    one ignore box (COCO's rule for 'crowd' regions, here for objects the
+    labelling rules exclude, e.g. bolls beyond the working range). Returns
+    (N,) bool.
+    """
+    p = _as_boxes("pred_boxes", pred_boxes)
+    matched = np.asarray(matched_at_first_threshold, dtype=bool).reshape(-1)
+    if matched.shape[0] != p.shape[0]:
+        raise ValueError(f"{matched.shape[0]} match flags for {p.shape[0]} predictions")
+    ign = _as_boxes("ignore_boxes", ignore_boxes)
+    if p.shape[0] == 0 or ign.shape[0] == 0:
+        return np.zeros(p.shape[0], dtype=bool)
+    return ~matched & (box_ioa(p, ign).max(axis=1) >= float(min_ioa))
 
 
 def mask_iou(masks_a, masks_b, chunk: int = 64) -> np.ndarray:

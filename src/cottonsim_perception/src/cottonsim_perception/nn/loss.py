@@ -15,7 +15,12 @@ Targets are a flat batch (the same layout the data loader's collate yields):
 ``batch_idx (N,)`` int64 image of each gt, ``classes (N,)`` int64,
 ``boxes_xyxy (N, 4)`` float [network-input px], and for segmentation
 ``masks (N, h, w)`` float 0..1 at any resolution proportional to the input
-(resized to the prototype grid here).
+(resized to the prototype grid here). Optional don't-care regions:
+``ignore_batch_idx (K,)`` and ``ignore_boxes_xyxy (K, 4)`` [network-input px]:
+anchors whose centre lies in one (grown by half the anchor's stride, so that
+boxes smaller than a cell still cover their cell) and that the assigner did
+not make positive get no classification loss, i.e. are not pushed towards
+background (objects the labelling rules leave out, e.g. far bolls).
 """
 from __future__ import annotations
 
@@ -76,6 +81,29 @@ def dfl_loss(pred_distri: torch.Tensor, target_dist: torch.Tensor, reg_max: int)
     return loss.reshape(-1, 4).mean(dim=-1)
 
 
+def anchors_in_ignore_boxes(centres_px: torch.Tensor, strides_px: torch.Tensor, batch_size: int,
+                            batch_index: torch.Tensor, boxes_xyxy: torch.Tensor) -> torch.Tensor:
+    """(B, A) bool: anchor centre (A, 2) [px] inside one of its image's ignore boxes.
+
+    Each box is grown by half the anchor's stride (strides_px (A, 1) [px]) on
+    every side, so a box smaller than a grid cell still covers the cell it
+    lies in.
+    """
+    if boxes_xyxy.ndim != 2 or boxes_xyxy.shape[1] != 4 or batch_index.shape != (boxes_xyxy.shape[0],):
+        raise ValueError("ignore targets: ignore_batch_idx (K,) and ignore_boxes_xyxy (K, 4) must agree in K")
+    half = 0.5 * strides_px.reshape(-1)                                    # (A,)
+    x, y = centres_px[:, 0], centres_px[:, 1]
+    b = boxes_xyxy[:, :, None]                                             # (K, 4, 1)
+    inside = ((x >= b[:, 0] - half) & (x <= b[:, 2] + half) &
+              (y >= b[:, 1] - half) & (y <= b[:, 3] + half))               # (K, A)
+    out = torch.zeros(batch_size, centres_px.shape[0], dtype=torch.bool, device=centres_px.device)
+    for i in range(batch_size):
+        sel = batch_index == i
+        if bool(sel.any()):
+            out[i] = inside[sel].any(dim=0)
+    return out
+
+
 def _check_targets(targets: Dict[str, torch.Tensor], need_masks: bool) -> None:
     for key in ("batch_idx", "classes", "boxes_xyxy") + (("masks",) if need_masks else ()):
         if key not in targets:
@@ -119,9 +147,15 @@ class YoloLoss:
         asg = self.assigner(pred_logits.detach().sigmoid(), (pred_boxes.detach() * strides).to(gt_boxes.dtype),
                             points * strides, labels, gt_boxes, valid)
         score_sum = asg.scores.sum().clamp(min=1.0)
-        loss_cls = F.binary_cross_entropy_with_logits(pred_logits, asg.scores, reduction="sum") / score_sum
-
         fg = asg.fg_mask
+        bce = F.binary_cross_entropy_with_logits(pred_logits, asg.scores, reduction="none")
+        ignore_boxes = targets.get("ignore_boxes_xyxy")
+        if ignore_boxes is not None and ignore_boxes.shape[0]:
+            dont_care = anchors_in_ignore_boxes(points * strides, strides, bsz,
+                                                targets["ignore_batch_idx"].long(), ignore_boxes.to(flat.dtype))
+            bce = bce * (~(dont_care & ~fg)).to(bce.dtype)[..., None]
+        loss_cls = bce.sum() / score_sum
+
         zero = flat.sum() * 0.0
         loss_box, loss_dfl, loss_mask = zero, zero, zero
         if bool(fg.any()):

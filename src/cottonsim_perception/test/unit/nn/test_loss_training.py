@@ -74,3 +74,28 @@ def test_bad_targets_and_config_are_clear_errors():
     with pytest.raises(ValueError, match="masks"):
         YoloLoss(1)(out, {"batch_idx": torch.tensor([0]), "classes": torch.tensor([0]),
                           "boxes_xyxy": torch.tensor([[0.0, 0.0, 8.0, 8.0]])})
+
+
+def test_ignore_boxes_remove_only_the_background_loss_inside_them():
+    from cottonsim_perception.nn.loss import anchors_in_ignore_boxes
+    cfg = ModelConfig(task="det", num_classes=1, class_names=("a",), input_width=64, input_height=64,
+                      width_multiple=0.0625)
+    model = build_model(cfg).train()
+    out = model(torch.rand(2, 3, 64, 64))
+    empty = {"batch_idx": torch.zeros(0, dtype=torch.long), "classes": torch.zeros(0, dtype=torch.long),
+             "boxes_xyxy": torch.zeros(0, 4)}
+    loss_fn = YoloLoss(1)
+    _, plain = loss_fn(out, empty)
+    # a whole-image ignore box on image 0: only image 1's background loss is left
+    whole = dict(empty, ignore_batch_idx=torch.tensor([0]), ignore_boxes_xyxy=torch.tensor([[0.0, 0.0, 64.0, 64.0]]))
+    _, half = loss_fn(out, whole)
+    _, only_img1 = loss_fn(tuple(m[1:] for m in out) if isinstance(out, tuple) else [m[1:] for m in out], empty)
+    assert 0.0 < half["cls"] < plain["cls"]
+    assert half["cls"] == pytest.approx(only_img1["cls"], rel=1e-5)
+    # a box smaller than a cell still covers the anchor of its cell (stride 8: centre (4, 4))
+    centres = torch.tensor([[4.0, 4.0], [12.0, 4.0]])
+    strides = torch.tensor([[8.0], [8.0]])
+    got = anchors_in_ignore_boxes(centres, strides, 2, torch.tensor([1]), torch.tensor([[1.0, 1.0, 3.0, 3.0]]))
+    assert got.tolist() == [[False, False], [True, False]]
+    with pytest.raises(ValueError, match="ignore"):
+        anchors_in_ignore_boxes(centres, strides, 2, torch.tensor([0, 1]), torch.tensor([[1.0, 1.0, 3.0, 3.0]]))
