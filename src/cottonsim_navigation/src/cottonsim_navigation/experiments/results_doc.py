@@ -129,7 +129,10 @@ def _perception_section(results_root: str) -> List[str]:
            f"Command: `{COMMANDS['perception']}` (writes `results/perception/`): the evaluate command "
            "(`rosrun cottonsim_perception evaluate`) with the shipped weights on the original's images "
            "(valid split beside the paper's Table 2, test split beside Table 3) and on held-out synthetic frames "
-           "from farm seeds never used in training. Masks for segmentation, boxes for detection; P / R / mAP50 in %.",
+           "from farm seeds never used in training. Masks for segmentation, boxes for detection; P / R / mAP50 in %. "
+           "Synthetic boll labels cover the bolls within 1.5 m of the camera (the row it faces); visible bolls "
+           "farther away are ignore boxes: `det_synthetic` leaves predictions on them out, "
+           "`det_synthetic_no_ignore` counts them as false positives (docs/perception_data.md).",
            ""]
     summary = read_report(os.path.join(results_root, "perception", "summary.json"))
     if summary is None:
