@@ -203,7 +203,9 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
             t2 = rot[2, 0] * px + rot[2, 1] * py + trans[2]
             vb = model_vbase[m]
             for i in range(model_vcount[m]):
-                lx, ly, lz = model_verts[vb + i, 0], model_verts[vb + i, 1], model_verts[vb + i, 2]
+                # unsigned indices here and below: numba adds no wrap-around code for negative ones
+                vi = np.uint64(vb + i)
+                lx, ly, lz = model_verts[vi, 0], model_verts[vi, 1], model_verts[vi, 2]
                 x = m00 * lx + m01 * ly + m02 * lz + t0
                 y = m10 * lx + m11 * ly + m12 * lz + t1
                 z = m20 * lx + m21 * ly + m22 * lz + t2
@@ -218,9 +220,10 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
             fb = draw_base[m]
             gb = vis_gbase[j]
             for f in range(draw_count[m]):
-                ia = draw_faces[fb + f, 0] - vb
-                ib_ = draw_faces[fb + f, 1] - vb
-                ic = draw_faces[fb + f, 2] - vb
+                fi = np.uint64(fb + f)
+                ia = np.uint64(draw_faces[fi, 0] - vb)
+                ib_ = np.uint64(draw_faces[fi, 1] - vb)
+                ic = np.uint64(draw_faces[fi, 2] - vb)
                 za, zb_, zc = sc[ia, 2], sc[ib_, 2], sc[ic, 2]
                 if za >= near and zb_ >= near and zc >= near:
                     if za > far and zb_ > far and zc > far:
@@ -233,12 +236,12 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
                     if area == 0.0 or not math.isfinite(area):
                         continue
                     if area > 0.0:                                      # seen from behind
-                        twin = draw_twin[fb + f]
+                        twin = draw_twin[fi]
                         if twin < 0:
                             continue
                         gid = gb + twin
                     else:
-                        gid = gb + draw_local[fb + f]
+                        gid = gb + draw_local[fi]
                     _fill(ua, va, sc[ia, 5], ub, vb_, sc[ib_, 5], uc, vc, sc[ic, 5], area, x_lo, x_hi, y_lo, y_hi,
                           gid, zb, ib, w_min, w_max)
                     continue
@@ -250,12 +253,12 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
                 ny = e1z * e2x - e1x * e2z
                 nz = e1x * e2y - e1y * e2x
                 if nx * sc[ia, 0] + ny * sc[ia, 1] + nz * za >= 0.0:     # seen from behind
-                    twin = draw_twin[fb + f]
+                    twin = draw_twin[fi]
                     if twin < 0:
                         continue
                     gid = gb + twin
                 else:
-                    gid = gb + draw_local[fb + f]
+                    gid = gb + draw_local[fi]
                 _clip_near_and_draw(sc[ia, :3], sc[ib_, :3], sc[ic, :3], near, fx, fy, cx, cy, gid,
                                     zb, ib, w_min, w_max)
 
