@@ -94,14 +94,16 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
         if xb > x_hi:
             xb = x_hi
         wrow = wy * y + wc
+        uy = np.uint64(y)                 # unsigned pixel indices: no wrap-around code for negative ones
         for x in range(xa, xb + 1):
             # exact inside test (the span may be off by rounding at its ends)
             if ax0 * x + r0 < -eps or ax1 * x + r1 < -eps or ax2 * x + r2 < -eps:
                 continue
             w = wx * x + wrow
-            if w > zb[y, x] and w_min <= w <= w_max:
-                zb[y, x] = w
-                ib[y, x] = gid
+            ux = np.uint64(x)
+            if w > zb[uy, ux] and w_min <= w <= w_max:
+                zb[uy, ux] = w
+                ib[uy, ux] = gid
 
 
 @njit(cache=True, nogil=True, inline="always")
