@@ -25,9 +25,9 @@ How a frame is made (``FastRasterCamera.render``):
    coordinates, so it is interpolated exactly and gives the metric depth
    along the optical axis of the triangle's plane;
 3. ``_compose`` (parallel over blocks of rows): per row the threads'
-   samples are merged first (``_nearest_of_threads``: the nearest wins, as
-   selects over the whole row, which vectorise; the thread buffers are
-   cleared on the way); then per pixel (``_compose_row``) the winning
+   samples are merged first (``_nearest_of_threads``: the nearest wins, one
+   tight loop of selects per thread instead of a branchy loop over the
+   threads per pixel; the thread buffers are cleared on the way); then per pixel (``_compose_row``) the winning
    triangle id gives colour, SemanticClass and plant id, and pixels
    without a triangle get the ground or sky as
    ``SensorScene.ground_and_sky`` computes them (plane z = 0 with the
@@ -379,7 +379,8 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
 def _nearest_of_threads(zbuf, ibuf, y, nearest_w, nearest_id):  # pragma: no cover
     """Row y of the threads' buffers merged: per pixel the largest 1/z (0 = none) and its id; clears the row.
 
-    On equal 1/z the lower thread wins. Written as selects over whole rows, which LLVM vectorises.
+    On equal 1/z the lower thread wins. One loop of selects per thread over the row (LLVM keeps it
+    scalar, but it has no data-dependent branch).
     """
     n_threads, _, width = zbuf.shape
     for x in range(width):
