@@ -27,9 +27,10 @@ How a frame is made (``FastRasterCamera.render``):
 3. ``_compose`` (parallel over blocks of rows): per row the threads'
    samples are merged first (``_nearest_of_threads``: the nearest wins, one
    tight loop of selects per thread instead of a branchy loop over the
-   threads per pixel; the thread buffers are cleared on the way); then per pixel (``_compose_row``) the winning
-   triangle id gives colour, SemanticClass and plant id, and pixels
-   without a triangle get the ground or sky as
+   threads per pixel; the thread buffers are cleared on the way); then per
+   pixel (``_compose_row``) the winning triangle id gives colour,
+   SemanticClass and plant id, and pixels without a triangle get the
+   ground or sky as
    ``SensorScene.ground_and_sky`` computes them (plane z = 0 with the
    bilinear-sampled soil texture, tiled by ``tile_texture``, weights in
    1/256 steps, the three channels blended in 16-bit lanes of one integer;
