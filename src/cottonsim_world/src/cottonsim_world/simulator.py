@@ -65,7 +65,7 @@ from cottonsim_world.physics.wheel_odometry import OdometryEstimate, WheelOdomet
 from cottonsim_world.robot.ur5e import JOINT_NAMES as ARM_JOINTS, Ur5eArm
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.sensors.camera import CameraConfig, CameraFrame, CameraIntrinsics, CameraModel
-from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
+from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscans,
                                                    original_passthrough_mask)
 from cottonsim_world.sensors.lidar import LidarConfig, LidarScan, Vlp16Model
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene
@@ -736,8 +736,7 @@ class Simulator:
     def _lidar(self, now: float, world_T_lidar: np.ndarray) -> LidarReading:
         scan = self.lidar.scan(world_T_lidar)
         kept = scan.points[original_passthrough_mask(scan.points, self.config.passthrough)]
-        ranges = cloud_to_laserscan(scan.points, self.config.laserscan)
-        ranges_360 = cloud_to_laserscan(scan.points, self.config.laserscan_360)
+        ranges, ranges_360 = cloud_to_laserscans(scan.points, (self.config.laserscan, self.config.laserscan_360))
         return LidarReading(now, LIDAR_FRAME, scan, kept, ranges, self.config.laserscan,
                             ranges_360, self.config.laserscan_360)
 

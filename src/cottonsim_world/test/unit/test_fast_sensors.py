@@ -97,3 +97,40 @@ def test_near_plane_clipping_of_a_wall_through_the_camera():
     rays_w = rays_o @ pose[:3, :3].T
     depth = (n_w @ (np.array([0.0, 1.0, 0.0]) - pose[:3, 3])) / (rays_w @ n_w)
     np.testing.assert_allclose(frame.depth_m[rows, cols], depth, rtol=1e-4, atol=1e-4)
+
+
+def test_ground_texels_and_blend_match_the_per_channel_bilinear_rule():
+    # _compose reads the 2 x 2 texels of a ground point from the tiled, spread texture (with shortcuts for the
+    # neighbours across tile edges) and blends the three channels in 16-bit lanes of one integer; both must give
+    # exactly OpenCV's reflected-border texel choice and the per-channel (w00 p00 + ... + 2^15) >> 16
+    from numba import njit
+
+    from cottonsim_world.sensors.fast import raster
+
+    @njit
+    def quads_and_blends(tex_flat, ixs, iys, axs, ays, tiles_x, tile_row, tex_w, tex_h):
+        out = np.empty((len(ixs), 3), np.int64)
+        for i in range(len(ixs)):
+            p00, p01, p10, p11 = raster._texel_quad(tex_flat, ixs[i], iys[i], tiles_x, tile_row, tex_w, tex_h)
+            out[i, 0], out[i, 1], out[i, 2] = raster._bilinear_spread(p00, p01, p10, p11, axs[i], ays[i])
+        return out
+
+    rng = np.random.default_rng(5)
+    image = rng.integers(0, 256, (37, 45, 3), dtype=np.uint8)        # not a multiple of the 8-texel tiles
+    tiled = raster.tile_texture(image)
+    ixs = np.concatenate([rng.integers(-50, 95, 3000), np.arange(0, 45), np.full(37, 7), [-1, 44, 100]])
+    iys = np.concatenate([rng.integers(-40, 80, 3000), np.full(45, 15), np.arange(0, 37), [36, -1, -100]])
+    axs = np.concatenate([rng.integers(0, 257, 3000), np.full(45 + 37 + 3, 256)])
+    ays = np.concatenate([rng.integers(0, 257, 3000), np.full(45, 255), np.full(37 + 3, 1)])
+    got = quads_and_blends(tiled.reshape(-1), ixs, iys, axs, ays, tiled.shape[1], tiled.shape[1] * 64, 45, 37)
+
+    def reflect(i, n):                                                # OpenCV BORDER_REFLECT
+        i %= 2 * n
+        return 2 * n - 1 - i if i >= n else i
+
+    for (ix, iy, ax, ay), rgb in zip(zip(ixs, iys, axs, ays), got):
+        c0, c1, r0, r1 = reflect(ix, 45), reflect(ix + 1, 45), reflect(iy, 37), reflect(iy + 1, 37)
+        p = image.astype(np.int64)
+        blend = ((256 - ay) * (256 - ax) * p[r0, c0] + (256 - ay) * ax * p[r0, c1] + ay * (256 - ax) * p[r1, c0]
+                 + ay * ax * p[r1, c1] + 32768) >> 16
+        assert tuple(rgb) == tuple(blend), (ix, iy, ax, ay)

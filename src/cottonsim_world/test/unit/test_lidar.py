@@ -6,7 +6,7 @@ import pytest
 
 from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
-                                                   original_passthrough_mask, passthrough)
+                                                   cloud_to_laserscans, original_passthrough_mask, passthrough)
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene, standin_plant_model
 
@@ -131,6 +131,27 @@ def test_laserscan_bins_height_slice_and_inf():
     assert np.all(np.isinf(cloud_to_laserscan(np.zeros((0, 3)), cfg)))
     with pytest.raises(ValueError, match="angle_increment_rad"):
         LaserScanConfig(angle_increment_rad=0.0)
+
+
+def test_laserscans_of_one_cloud_match_a_point_by_point_reference():
+    # the bridge's two scans share the ranges and angles of one cloud; each must be what a plain loop gives
+    rng = np.random.default_rng(3)
+    pts = np.concatenate([rng.uniform(-12.0, 12.0, (3000, 2)), rng.uniform(-0.4, 0.3, (3000, 1))], axis=1)
+    pts = pts.astype(np.float32)
+    configs = (LaserScanConfig(), LaserScanConfig(min_height_m=-0.25, angle_min_rad=-math.pi,
+                                                  angle_max_rad=math.pi, use_inf=False))
+    scans = cloud_to_laserscans(pts, configs)
+    assert len(scans) == 2
+    for cfg, ranges in zip(configs, scans):
+        expected = np.full(cfg.bin_count, np.inf if cfg.use_inf else cfg.range_max_m + 1.0)
+        for x, y, z in pts.astype(np.float64):
+            r, a = math.hypot(x, y), math.atan2(y, x)
+            if (cfg.min_height_m <= z <= cfg.max_height_m and cfg.range_min_m <= r <= cfg.range_max_m
+                    and cfg.angle_min_rad <= a <= cfg.angle_max_rad):
+                b = min(int((a - cfg.angle_min_rad) / cfg.angle_increment_rad), cfg.bin_count - 1)
+                expected[b] = min(expected[b], r)
+        np.testing.assert_allclose(ranges, expected.astype(np.float32), rtol=1e-6)
+        assert np.count_nonzero(np.isfinite(ranges) & (ranges < cfg.range_max_m)) > cfg.bin_count // 4
 
 
 def test_lidar_config_validation():

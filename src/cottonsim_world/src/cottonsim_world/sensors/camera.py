@@ -29,6 +29,7 @@ corrects (see ``CameraModel.__init__``). (Gazebo's plugin writes
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
@@ -155,6 +156,10 @@ class CameraFrame:
 _WARM_UP_POSE = np.array([[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
 
 
+# per scene its soil texture in _compose's tiled layout (8 bytes a texel: built once, shared by the cameras)
+_TILED_SOIL = weakref.WeakKeyDictionary()
+
+
 class _FastBuffers:
     """Per-camera state of the numba renderer: the scene's instanced plants and z-buffers per thread."""
 
@@ -162,7 +167,9 @@ class _FastBuffers:
         import numba
         self.plants = scene.fast_plants
         tex, *rest = scene.background_layer()
-        self.background = (tile_texture(tex), tex.shape[1], tex.shape[0], *rest)
+        if scene not in _TILED_SOIL:
+            _TILED_SOIL[scene] = tile_texture(tex)
+        self.background = (_TILED_SOIL[scene], tex.shape[1], tex.shape[0], *rest)
         threads = numba.get_num_threads()
         self.zbuf = np.zeros((threads, height, width), np.float32)     # 1/z [1/m], 0 = empty
         self.ibuf = np.zeros((threads, height, width), np.int32)       # global triangle id

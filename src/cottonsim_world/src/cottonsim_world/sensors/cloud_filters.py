@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Tuple, Union
+from typing import List, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -121,18 +121,32 @@ class LaserScanConfig:
 
 def cloud_to_laserscan(points: np.ndarray, config: LaserScanConfig = LaserScanConfig()) -> np.ndarray:
     """Ranges (bin_count,) float32 [m] of the nearest point per angle bin."""
+    return cloud_to_laserscans(points, (config,))[0]
+
+
+def cloud_to_laserscans(points: np.ndarray, configs: Sequence[LaserScanConfig]) -> List[np.ndarray]:
+    """``cloud_to_laserscan`` of one cloud for several configurations (same results, one call each).
+
+    The planar range and the angle of every point are computed once and
+    shared by the scans (the bridge makes the forward and the 360 deg scan
+    of each VLP-16 revolution).
+    """
     pts = _check_points(points).astype(np.float64, copy=False)
-    empty = np.inf if config.use_inf else config.range_max_m + 1.0
-    ranges = np.full(config.bin_count, empty, dtype=np.float64)
     x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
     with np.errstate(invalid="ignore"):
-        keep = (z >= config.min_height_m) & (z <= config.max_height_m)
         r = np.hypot(x, y)
-        keep &= (r >= config.range_min_m) & (r <= config.range_max_m)
         ang = np.arctan2(y, x)
-        keep &= (ang >= config.angle_min_rad) & (ang <= config.angle_max_rad)
-    if np.any(keep):
-        idx = ((ang[keep] - config.angle_min_rad) / config.angle_increment_rad).astype(np.int64)
-        idx = np.minimum(idx, config.bin_count - 1)
-        np.minimum.at(ranges, idx, r[keep])
-    return ranges.astype(np.float32)
+    scans = []
+    for config in configs:
+        empty = np.inf if config.use_inf else config.range_max_m + 1.0
+        ranges = np.full(config.bin_count, empty, dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            keep = (z >= config.min_height_m) & (z <= config.max_height_m)
+            keep &= (r >= config.range_min_m) & (r <= config.range_max_m)
+            keep &= (ang >= config.angle_min_rad) & (ang <= config.angle_max_rad)
+        if np.any(keep):
+            idx = ((ang[keep] - config.angle_min_rad) / config.angle_increment_rad).astype(np.int64)
+            idx = np.minimum(idx, config.bin_count - 1)
+            np.minimum.at(ranges, idx, r[keep])
+        scans.append(ranges.astype(np.float32))
+    return scans

@@ -24,13 +24,17 @@ How a frame is made (``FastRasterCamera.render``):
    buffers per thread mean no write races; 1/z is affine in the pixel
    coordinates, so it is interpolated exactly and gives the metric depth
    along the optical axis of the triangle's plane;
-3. ``_compose`` (parallel over rows): per pixel the nearest of the threads'
-   samples wins; its triangle id gives colour, SemanticClass and plant id;
-   pixels without a triangle get the ground or sky as
+3. ``_compose`` (parallel over blocks of rows): per row the threads'
+   samples are merged first (``_nearest_of_threads``: the nearest wins, one
+   tight loop of selects per thread instead of a branchy loop over the
+   threads per pixel; the thread buffers are cleared on the way); then per
+   pixel (``_compose_row``) the winning triangle id gives colour,
+   SemanticClass and plant id, and pixels without a triangle get the
+   ground or sky as
    ``SensorScene.ground_and_sky`` computes them (plane z = 0 with the
    bilinear-sampled soil texture, tiled by ``tile_texture``, weights in
-   1/256 steps; sky gradient over the ray elevation). The thread buffers
-   are cleared on the way.
+   1/256 steps, the three channels blended in 16-bit lanes of one integer;
+   sky gradient over the ray elevation).
 4. ``_fill_cloud_xyzrgb``: the depth point cloud in one pass over the
    pixels, straight into PointCloud2's x, y, z, rgb byte layout (into
    buffers with room for every pixel; the caller keeps the first N rows).
@@ -91,14 +95,16 @@ def _fill(u0, v0, w0, u1, v1, w1, u2, v2, w2, area, x_lo, x_hi, y_lo, y_hi, gid,
         if xb > x_hi:
             xb = x_hi
         wrow = wy * y + wc
+        uy = np.uint64(y)                 # unsigned pixel indices: no wrap-around code for negative ones
         for x in range(xa, xb + 1):
             # exact inside test (the span may be off by rounding at its ends)
             if ax0 * x + r0 < -eps or ax1 * x + r1 < -eps or ax2 * x + r2 < -eps:
                 continue
             w = wx * x + wrow
-            if w > zb[y, x] and w_min <= w <= w_max:
-                zb[y, x] = w
-                ib[y, x] = gid
+            ux = np.uint64(x)
+            if w > zb[uy, ux] and w_min <= w <= w_max:
+                zb[uy, ux] = w
+                ib[uy, ux] = gid
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -200,7 +206,9 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
             t2 = rot[2, 0] * px + rot[2, 1] * py + trans[2]
             vb = model_vbase[m]
             for i in range(model_vcount[m]):
-                lx, ly, lz = model_verts[vb + i, 0], model_verts[vb + i, 1], model_verts[vb + i, 2]
+                # unsigned indices here and below: numba adds no wrap-around code for negative ones
+                vi = np.uint64(vb + i)
+                lx, ly, lz = model_verts[vi, 0], model_verts[vi, 1], model_verts[vi, 2]
                 x = m00 * lx + m01 * ly + m02 * lz + t0
                 y = m10 * lx + m11 * ly + m12 * lz + t1
                 z = m20 * lx + m21 * ly + m22 * lz + t2
@@ -215,9 +223,10 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
             fb = draw_base[m]
             gb = vis_gbase[j]
             for f in range(draw_count[m]):
-                ia = draw_faces[fb + f, 0] - vb
-                ib_ = draw_faces[fb + f, 1] - vb
-                ic = draw_faces[fb + f, 2] - vb
+                fi = np.uint64(fb + f)
+                ia = np.uint64(draw_faces[fi, 0] - vb)
+                ib_ = np.uint64(draw_faces[fi, 1] - vb)
+                ic = np.uint64(draw_faces[fi, 2] - vb)
                 za, zb_, zc = sc[ia, 2], sc[ib_, 2], sc[ic, 2]
                 if za >= near and zb_ >= near and zc >= near:
                     if za > far and zb_ > far and zc > far:
@@ -230,12 +239,12 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
                     if area == 0.0 or not math.isfinite(area):
                         continue
                     if area > 0.0:                                      # seen from behind
-                        twin = draw_twin[fb + f]
+                        twin = draw_twin[fi]
                         if twin < 0:
                             continue
                         gid = gb + twin
                     else:
-                        gid = gb + draw_local[fb + f]
+                        gid = gb + draw_local[fi]
                     _fill(ua, va, sc[ia, 5], ub, vb_, sc[ib_, 5], uc, vc, sc[ic, 5], area, x_lo, x_hi, y_lo, y_hi,
                           gid, zb, ib, w_min, w_max)
                     continue
@@ -247,12 +256,12 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
                 ny = e1z * e2x - e1x * e2z
                 nz = e1x * e2y - e1y * e2x
                 if nx * sc[ia, 0] + ny * sc[ia, 1] + nz * za >= 0.0:     # seen from behind
-                    twin = draw_twin[fb + f]
+                    twin = draw_twin[fi]
                     if twin < 0:
                         continue
                     gid = gb + twin
                 else:
-                    gid = gb + draw_local[fb + f]
+                    gid = gb + draw_local[fi]
                 _clip_near_and_draw(sc[ia, :3], sc[ib_, :3], sc[ic, :3], near, fx, fy, cx, cy, gid,
                                     zb, ib, w_min, w_max)
 
@@ -270,24 +279,75 @@ def _reflect(i, n):  # pragma: no cover
 
 
 TILE = 8    # texture tile edge [texels]
+_LANE_MASK_R_B = 0x0000FFFF0000FFFF     # the red and blue lanes of a spread texel (bits 0-15 and 32-47)
+_ROUND_R_B = 0x0000800000008000         # 1/2 in 1/65536 steps in the red and blue lanes
+_ROWS_PER_ITEM = 8                      # image rows per parallel work item of _compose
 
 
 def tile_texture(image: np.ndarray) -> np.ndarray:
-    """(h, w, 3) uint8 -> (ceil(h / 8), ceil(w / 8), 64) uint32, the texture layout of ``_compose``.
+    """(h, w, 3) uint8 -> (ceil(h / 8), ceil(w / 8), 64) int64, the texture layout of ``_compose``.
 
-    Each texel is packed as r | g << 8 | b << 16, and the texture is stored
-    in 8 x 8 tiles (row-major inside a tile, tiles row-major), so that
-    texels near each other on the ground are near each other in memory
-    whatever the direction the camera looks in (row-major storage costs a
-    cache and TLB miss per pixel when an image row runs along a texture
-    column).
+    Each texel is *spread* into three 16-bit lanes, r | g << 16 | b << 32,
+    so that ``_compose`` blends all three channels with one integer
+    multiplication per texel (the lanes leave room for the weighted sums),
+    and the texture is stored in 8 x 8 tiles (row-major inside a tile,
+    tiles row-major), so that texels near each other on the ground are
+    near each other in memory whatever the direction the camera looks in
+    (row-major storage costs a cache and TLB miss per pixel when an image
+    row runs along a texture column).
     """
-    image = np.asarray(image, dtype=np.uint32)
+    image = np.asarray(image, dtype=np.int64)
     h, w = image.shape[:2]
     ty, tx = -(-h // TILE), -(-w // TILE)
-    packed = np.zeros((ty * TILE, tx * TILE), dtype=np.uint32)
-    packed[:h, :w] = image[..., 0] | (image[..., 1] << 8) | (image[..., 2] << 16)
-    return np.ascontiguousarray(packed.reshape(ty, TILE, tx, TILE).transpose(0, 2, 1, 3).reshape(ty, tx, TILE * TILE))
+    spread = np.zeros((ty * TILE, tx * TILE), dtype=np.int64)
+    spread[:h, :w] = image[..., 0] | (image[..., 1] << 16) | (image[..., 2] << 32)
+    return np.ascontiguousarray(spread.reshape(ty, TILE, tx, TILE).transpose(0, 2, 1, 3).reshape(ty, tx, TILE * TILE))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _texel_index(row, col, tiles_x):  # pragma: no cover
+    """Flat index of texel (row, col) in the tiled layout of ``tile_texture``."""
+    return (((row >> 3) * tiles_x + (col >> 3)) << 6) | ((row & 7) << 3) | (col & 7)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _texel_quad(tex_flat, ix, iy, tiles_x, tile_row, tex_w, tex_h):  # pragma: no cover
+    """Texels (iy, ix), (iy, ix + 1), (iy + 1, ix), (iy + 1, ix + 1) of the flat tiled texture.
+
+    Outside the texture (or on its last row / column) the indices are
+    mirrored as OpenCV's BORDER_REFLECT does. tiles_x: tiles per row of
+    tiles; tile_row: texels in one row of tiles.
+    """
+    if 0 <= ix and ix + 1 < tex_w and 0 <= iy and iy + 1 < tex_h:   # inside: no border rule needed
+        # unsigned indices: numba adds no wrap-around of negative ones
+        i00 = np.uint64(_texel_index(iy, ix, tiles_x))
+        # the right neighbour: next in the tile's row, or the first of the next tile's row
+        right = np.uint64(1) if (ix & 7) != 7 else np.uint64(57)
+        # the lower one: next row of the tile, or the first row of the tile below
+        down = np.uint64(8) if (iy & 7) != 7 else np.uint64(tile_row - 56)
+        return tex_flat[i00], tex_flat[i00 + right], tex_flat[i00 + down], tex_flat[i00 + down + right]
+    c0, c1 = _reflect(ix, tex_w), _reflect(ix + 1, tex_w)
+    r0, r1 = _reflect(iy, tex_h), _reflect(iy + 1, tex_h)
+    return (tex_flat[np.uint64(_texel_index(r0, c0, tiles_x))], tex_flat[np.uint64(_texel_index(r0, c1, tiles_x))],
+            tex_flat[np.uint64(_texel_index(r1, c0, tiles_x))], tex_flat[np.uint64(_texel_index(r1, c1, tiles_x))])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bilinear_spread(p00, p01, p10, p11, ax, ay):  # pragma: no cover
+    """Blend four spread texels (r | g << 16 | b << 32) with weights in 1/256 steps; returns r, g, b.
+
+    ax, ay in 0..256: the weight of the right (p01, p11) and of the lower
+    (p10, p11) texels. The same integers as blending each channel with the
+    product weights (256 - ay)(256 - ax), ... and rounding (+ 2^15) >> 16:
+    first along x (each lane <= 255 * 256 < 2^16: no carry between lanes),
+    then along y with red and blue in 32-bit lanes (<= 2^24) and green alone.
+    """
+    bx, by = 256 - ax, 256 - ay
+    top = p00 * bx + p01 * ax
+    bottom = p10 * bx + p11 * ax
+    rb = (top & _LANE_MASK_R_B) * by + (bottom & _LANE_MASK_R_B) * ay + _ROUND_R_B
+    g = ((top >> 16) & 0xFFFF) * by + ((bottom >> 16) & 0xFFFF) * ay + 32768
+    return (rb >> 16) & 255, g >> 16, (rb >> 48) & 255
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -298,93 +358,109 @@ def _compose(zbuf, ibuf, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fx, fy, cx, c
 
     rot_wo (3, 3), t_wo (3,): world_T_optical. Depth outside [near, far]
     becomes NaN (sky: NaN, semantic SKY). texture: the soil texture of
-    tex_w x tex_h texels in the tiled, packed layout of ``tile_texture``.
+    tex_w x tex_h texels in the tiled, spread layout of ``tile_texture``.
     """
-    n_threads, height, width = zbuf.shape
+    _, height, width = zbuf.shape
     tiles_x = texture.shape[1]
+    tile_row = tiles_x * TILE * TILE                    # texels in one row of tiles
     tex_flat = texture.reshape(texture.size)           # the same texels, one index
-    cam_h = t_wo[2]
     inv_fx, inv_rx, inv_ry = 1.0 / fx, 1.0 / tex_res_x, 1.0 / tex_res_y
-    for y in prange(height):
-        ry = (y - cy) / fy
-        # world ray of pixel (x, y) = row_* + x * step_* (affine in x)
-        row_x = rot_wo[0, 0] * (-cx * inv_fx) + rot_wo[0, 1] * ry + rot_wo[0, 2]
-        row_y = rot_wo[1, 0] * (-cx * inv_fx) + rot_wo[1, 1] * ry + rot_wo[1, 2]
-        row_z = rot_wo[2, 0] * (-cx * inv_fx) + rot_wo[2, 1] * ry + rot_wo[2, 2]
-        step_x, step_y, step_z = rot_wo[0, 0] * inv_fx, rot_wo[1, 0] * inv_fx, rot_wo[2, 0] * inv_fx
+    n_items = (height + _ROWS_PER_ITEM - 1) // _ROWS_PER_ITEM
+    for item in prange(n_items):
+        nearest_w = np.empty(width, np.float32)       # per pixel of a row: the largest 1/z of the threads
+        nearest_id = np.empty(width, np.int32)        # ... and its triangle id (-1: none)
+        for y in range(item * _ROWS_PER_ITEM, min(height, (item + 1) * _ROWS_PER_ITEM)):
+            _nearest_of_threads(zbuf, ibuf, y, nearest_w, nearest_id)
+            _compose_row(y, nearest_w, nearest_id, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fy, cx, cy, near, far,
+                         tex_flat, tiles_x, tile_row, tex_w, tex_h, tex_x0, tex_y0, inv_fx, inv_rx, inv_ry, sky_lut,
+                         ground_class, sky_class, out_rgb, out_depth, out_sem, out_plant)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _nearest_of_threads(zbuf, ibuf, y, nearest_w, nearest_id):  # pragma: no cover
+    """Row y of the threads' buffers merged: per pixel the largest 1/z (0 = none) and its id; clears the row.
+
+    On equal 1/z the lower thread wins. One loop of selects per thread over the row (LLVM keeps it
+    scalar, but it has no data-dependent branch).
+    """
+    n_threads, _, width = zbuf.shape
+    for x in range(width):
+        nearest_w[x] = 0.0
+        nearest_id[x] = -1
+    for k in range(n_threads):
+        zrow = zbuf[k, y]
+        irow = ibuf[k, y]
         for x in range(width):
-            best = 0.0
-            gid = -1
-            for k in range(n_threads):
-                w = zbuf[k, y, x]
-                if w > best:
-                    best = w
-                    gid = ibuf[k, y, x]
-                zbuf[k, y, x] = 0.0
-            if gid >= 0:
-                d = 1.0 / best
-                out_depth[y, x] = d if near <= d <= far else np.nan
-                out_rgb[y, x, 0] = g_rgb[gid, 0]
-                out_rgb[y, x, 1] = g_rgb[gid, 1]
-                out_rgb[y, x, 2] = g_rgb[gid, 2]
-                out_sem[y, x] = g_semantic[gid]
-                out_plant[y, x] = g_plant[gid]
-                continue
-            out_plant[y, x] = -1
-            # ray K^-1 (x, y, 1) in the world
-            dxw = row_x + x * step_x
-            dyw = row_y + x * step_y
-            dzw = row_z + x * step_z
-            if dzw < -1e-9 and cam_h > 0.0:
-                d = -cam_h / dzw
-                out_depth[y, x] = d if near <= d <= far else np.nan
-                out_sem[y, x] = ground_class
-                gx = (t_wo[0] + d * dxw - tex_x0) * inv_rx
-                gy = (t_wo[1] + d * dyw - tex_y0) * inv_ry
-                if not (abs(gx) < 1e9 and abs(gy) < 1e9):
-                    gx, gy = 0.0, 0.0
-                fxi = math.floor(gx)
-                fyi = math.floor(gy)
-                ix, iy = int(fxi), int(fyi)
-                # bilinear weights in 1/256 steps (OpenCV's warps use 1/32)
-                ax = int((gx - fxi) * 256.0)
-                ay = int((gy - fyi) * 256.0)
-                if 0 <= ix and ix + 1 < tex_w and 0 <= iy and iy + 1 < tex_h:   # inside: no border rule needed
-                    c0, c1, r0, r1 = ix, ix + 1, iy, iy + 1
-                    one_tile = (ix & 7) != 7 and (iy & 7) != 7
-                else:
-                    c0, c1 = _reflect(ix, tex_w), _reflect(ix + 1, tex_w)
-                    r0, r1 = _reflect(iy, tex_h), _reflect(iy + 1, tex_h)
-                    one_tile = False
-                if one_tile:
-                    # the 2 x 2 texels in one tile: the right neighbour at +1, the lower ones at +8 and +9
-                    i00 = (((r0 >> 3) * tiles_x + (c0 >> 3)) << 6) | ((r0 & 7) << 3) | (c0 & 7)
-                    p00 = np.int64(tex_flat[i00])
-                    p01 = np.int64(tex_flat[i00 + 1])
-                    p10 = np.int64(tex_flat[i00 + 8])
-                    p11 = np.int64(tex_flat[i00 + 9])
-                else:
-                    p00 = np.int64(texture[r0 >> 3, c0 >> 3, ((r0 & 7) << 3) | (c0 & 7)])
-                    p01 = np.int64(texture[r0 >> 3, c1 >> 3, ((r0 & 7) << 3) | (c1 & 7)])
-                    p10 = np.int64(texture[r1 >> 3, c0 >> 3, ((r1 & 7) << 3) | (c0 & 7)])
-                    p11 = np.int64(texture[r1 >> 3, c1 >> 3, ((r1 & 7) << 3) | (c1 & 7)])
-                w00, w01 = (256 - ay) * (256 - ax), (256 - ay) * ax
-                w10, w11 = ay * (256 - ax), ay * ax
-                for ch in range(3):
-                    sh = 8 * ch
-                    v = (w00 * ((p00 >> sh) & 255) + w01 * ((p01 >> sh) & 255)
-                         + w10 * ((p10 >> sh) & 255) + w11 * ((p11 >> sh) & 255) + 32768) >> 16
-                    out_rgb[y, x, ch] = np.uint8(v)
-            else:
-                out_depth[y, x] = np.nan
-                out_sem[y, x] = sky_class
-                rx = (x - cx) * inv_fx
-                norm = math.sqrt(rx * rx + ry * ry + 1.0)
-                s = min(1.0, max(0.0, dzw / norm))
-                idx = int(s * 255.0)
-                out_rgb[y, x, 0] = sky_lut[idx, 0]
-                out_rgb[y, x, 1] = sky_lut[idx, 1]
-                out_rgb[y, x, 2] = sky_lut[idx, 2]
+            w = zrow[x]
+            nearer = w > nearest_w[x]
+            nearest_w[x] = w if nearer else nearest_w[x]
+            nearest_id[x] = irow[x] if nearer else nearest_id[x]
+            zrow[x] = 0.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _compose_row(y, nearest_w, nearest_id, g_rgb, g_semantic, g_plant, rot_wo, t_wo, fy, cx, cy, near, far, tex_flat,
+                 tiles_x, tile_row, tex_w, tex_h, tex_x0, tex_y0, inv_fx, inv_rx, inv_ry, sky_lut, ground_class,
+                 sky_class, out_rgb, out_depth, out_sem, out_plant):  # pragma: no cover
+    """Image row y of ``_compose`` from the row's merged nearest samples (``_nearest_of_threads``).
+
+    tex_flat: the tiled texture as one flat array; tiles_x tiles per row of
+    tiles, tile_row texels in one row of tiles; inv_*: 1 / fx, 1 / the
+    texture's resolution along x and y.
+    """
+    cam_h = t_wo[2]
+    width = nearest_w.shape[0]
+    ry = (y - cy) / fy
+    # world ray of pixel (x, y) = row_* + x * step_* (affine in x)
+    row_x = rot_wo[0, 0] * (-cx * inv_fx) + rot_wo[0, 1] * ry + rot_wo[0, 2]
+    row_y = rot_wo[1, 0] * (-cx * inv_fx) + rot_wo[1, 1] * ry + rot_wo[1, 2]
+    row_z = rot_wo[2, 0] * (-cx * inv_fx) + rot_wo[2, 1] * ry + rot_wo[2, 2]
+    step_x, step_y, step_z = rot_wo[0, 0] * inv_fx, rot_wo[1, 0] * inv_fx, rot_wo[2, 0] * inv_fx
+    for x in range(width):
+        gid = nearest_id[x]
+        if gid >= 0:
+            d = 1.0 / np.float64(nearest_w[x])
+            out_depth[y, x] = d if near <= d <= far else np.nan
+            out_rgb[y, x, 0] = g_rgb[gid, 0]
+            out_rgb[y, x, 1] = g_rgb[gid, 1]
+            out_rgb[y, x, 2] = g_rgb[gid, 2]
+            out_sem[y, x] = g_semantic[gid]
+            out_plant[y, x] = g_plant[gid]
+            continue
+        out_plant[y, x] = -1
+        # ray K^-1 (x, y, 1) in the world
+        dxw = row_x + x * step_x
+        dyw = row_y + x * step_y
+        dzw = row_z + x * step_z
+        if dzw < -1e-9 and cam_h > 0.0:
+            d = -cam_h / dzw
+            out_depth[y, x] = d if near <= d <= far else np.nan
+            out_sem[y, x] = ground_class
+            gx = (t_wo[0] + d * dxw - tex_x0) * inv_rx
+            gy = (t_wo[1] + d * dyw - tex_y0) * inv_ry
+            if not (abs(gx) < 1e9 and abs(gy) < 1e9):
+                gx, gy = 0.0, 0.0
+            fxi = math.floor(gx)
+            fyi = math.floor(gy)
+            ix, iy = int(fxi), int(fyi)
+            # bilinear weights in 1/256 steps (OpenCV's warps use 1/32)
+            ax = int((gx - fxi) * 256.0)
+            ay = int((gy - fyi) * 256.0)
+            p00, p01, p10, p11 = _texel_quad(tex_flat, ix, iy, tiles_x, tile_row, tex_w, tex_h)
+            r, g, b = _bilinear_spread(p00, p01, p10, p11, ax, ay)
+            out_rgb[y, x, 0] = np.uint8(r)
+            out_rgb[y, x, 1] = np.uint8(g)
+            out_rgb[y, x, 2] = np.uint8(b)
+        else:
+            out_depth[y, x] = np.nan
+            out_sem[y, x] = sky_class
+            rx = (x - cx) * inv_fx
+            norm = math.sqrt(rx * rx + ry * ry + 1.0)
+            s = min(1.0, max(0.0, dzw / norm))
+            idx = int(s * 255.0)
+            out_rgb[y, x, 0] = sky_lut[idx, 0]
+            out_rgb[y, x, 1] = sky_lut[idx, 1]
+            out_rgb[y, x, 2] = sky_lut[idx, 2]
 
 
 @njit(cache=True, nogil=True)
