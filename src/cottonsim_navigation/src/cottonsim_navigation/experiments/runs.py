@@ -310,8 +310,14 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
 PERCEPTION_TABLES = (
     ("seg_original", "seg", "Segmentation", "valid,test"),
     ("det_original", "det", "Detection", "valid,test"),
+    ("det_original_sim_weights", "det", "Detection", "valid,test"),
 )
-WEIGHTS = {"seg": "weights/scene_segmenter.pt", "det": "weights/boll_detector.pt"}
+# Weights of each table (relative to cottonsim_perception): one scene segmenter; two boll
+# detectors, one trained for the paper's images and one for the simulator's (weights/README.md).
+DEFAULT_WEIGHTS = {"seg": "weights/scene_segmenter.pt", "det": "weights/boll_detector.pt"}
+TABLE_WEIGHTS = {"det_original_sim_weights": "weights/boll_detector_sim.pt",
+                 "det_synthetic": "weights/boll_detector_sim.pt",
+                 "det_synthetic_no_ignore": "weights/boll_detector_sim.pt"}
 
 
 def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[str] = None,
@@ -347,7 +353,7 @@ def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[s
     summary = {"experiment": "perception", "tables": {}}
     for name, task, data, split, extra_args in tables:
         out_json = os.path.join(out_dir, f"{name}.json")
-        weights = os.path.join(ws.perception, WEIGHTS[task])
+        weights = os.path.join(ws.perception, TABLE_WEIGHTS.get(name, DEFAULT_WEIGHTS[task]))
         print(f"perception: {name} ({task}, {data}, split {split})", flush=True)
         t0 = time.monotonic()
         proc = subprocess.run([sys.executable, os.path.join(ws.perception, "scripts", "evaluate"), "--task", task,
