@@ -88,21 +88,24 @@ def _as_boxes(name: str, boxes) -> np.ndarray:
     return b
 
 
-def box_iou(boxes_a, boxes_b) -> np.ndarray:
-    """IoU of every pair of (x1, y1, x2, y2) boxes: (N, 4), (M, 4) -> (N, M) float64.
-
-    Degenerate boxes (zero area) have IoU 0 with everything.
-    """
+def _pairwise_intersection(boxes_a, boxes_b):
+    """(N, M) intersection areas of (N, 4) and (M, 4) xyxy boxes, and their (N,), (M,) areas."""
     a = _as_boxes("boxes_a", boxes_a)
     b = _as_boxes("boxes_b", boxes_b)
-    if a.shape[0] == 0 or b.shape[0] == 0:
-        return np.zeros((a.shape[0], b.shape[0]))
     area_a = np.clip(a[:, 2] - a[:, 0], 0, None) * np.clip(a[:, 3] - a[:, 1], 0, None)
     area_b = np.clip(b[:, 2] - b[:, 0], 0, None) * np.clip(b[:, 3] - b[:, 1], 0, None)
     lt = np.maximum(a[:, None, :2], b[None, :, :2])
     rb = np.minimum(a[:, None, 2:], b[None, :, 2:])
     wh = np.clip(rb - lt, 0, None)
-    inter = wh[..., 0] * wh[..., 1]
+    return wh[..., 0] * wh[..., 1], area_a, area_b
+
+
+def box_iou(boxes_a, boxes_b) -> np.ndarray:
+    """IoU of every pair of (x1, y1, x2, y2) boxes: (N, 4), (M, 4) -> (N, M) float64.
+
+    Degenerate boxes (zero area) have IoU 0 with everything.
+    """
+    inter, area_a, area_b = _pairwise_intersection(boxes_a, boxes_b)
     union = area_a[:, None] + area_b[None, :] - inter
     return np.where(union > 0, inter / np.maximum(union, _EPS), 0.0)
 
@@ -113,15 +116,7 @@ def box_ioa(boxes_a, boxes_b) -> np.ndarray:
     How much of each box a lies inside box b (1 when a is inside b); a
     degenerate a gives 0.
     """
-    a = _as_boxes("boxes_a", boxes_a)
-    b = _as_boxes("boxes_b", boxes_b)
-    if a.shape[0] == 0 or b.shape[0] == 0:
-        return np.zeros((a.shape[0], b.shape[0]))
-    area_a = np.clip(a[:, 2] - a[:, 0], 0, None) * np.clip(a[:, 3] - a[:, 1], 0, None)
-    lt = np.maximum(a[:, None, :2], b[None, :, :2])
-    rb = np.minimum(a[:, None, 2:], b[None, :, 2:])
-    wh = np.clip(rb - lt, 0, None)
-    inter = wh[..., 0] * wh[..., 1]
+    inter, area_a, _ = _pairwise_intersection(boxes_a, boxes_b)
     return np.where(area_a[:, None] > 0, inter / np.maximum(area_a[:, None], _EPS), 0.0)
 
 
