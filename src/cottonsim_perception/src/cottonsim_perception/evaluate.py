@@ -193,9 +193,8 @@ def load_ground_truth(root: str, split: str, task: str, class_names: Sequence[st
         h, w = rgb.shape[:2]
         insts = yf.read_label_file(pair.label_path, task, len(class_names))
         boxes, classes, masks = yf.instances_to_pixels(insts, w, h, with_masks=(task == "seg"))
-        ignore = yf.read_ignore_boxes(pair.image_path, w, h) if use_ignore else np.zeros((0, 4))
-        out.append((pair.image_path, rgb, GroundTruth(boxes, classes, masks,
-                                                      ignore if len(ignore) else None)))
+        ignore = yf.read_ignore_boxes(pair.image_path, w, h) if use_ignore else None
+        out.append((pair.image_path, rgb, GroundTruth(boxes, classes, masks, ignore)))
     return out
 
 

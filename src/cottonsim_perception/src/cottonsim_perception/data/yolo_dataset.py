@@ -28,7 +28,6 @@ Instances that end up (almost) outside the image are dropped.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -175,7 +174,8 @@ class YoloDataset(Dataset):
         self.pairs = yf.list_pairs(root, split)
         self.labels = [yf.read_label_file(p.label_path, task, len(self.class_names))
                        for p in self.pairs]
-        self.ignores = [self._read_ignore(p.image_path) for p in self.pairs]
+        self.ignores = [yf.read_ignore_instances(p.image_path) if task == "det" else []
+                        for p in self.pairs]
         self._epoch = 0
 
     def set_epoch(self, epoch: int) -> None:
@@ -192,12 +192,6 @@ class YoloDataset(Dataset):
             for inst in labels:
                 counts[inst.class_id] += 1
         return counts
-
-    def _read_ignore(self, image_path: str) -> List[yf.LabelInstance]:
-        path = yf.ignore_path_for(image_path)
-        if self.task != "det" or not os.path.isfile(path):
-            return []
-        return yf.read_label_file(path, "det", 1)
 
     def load_image(self, index: int) -> np.ndarray:
         """The original image of item ``index`` as uint8 RGB (H0, W0, 3)."""

@@ -330,16 +330,18 @@ def ignore_path_for(image_path: str) -> str:
     return _sibling_txt_path(image_path, IGNORE_FOLDER)
 
 
-def read_ignore_boxes(image_path: str, width: int, height: int) -> np.ndarray:
-    """(K, 4) float32 ignore boxes xyxy [px] of an image (empty when it has no ignore file).
+def read_ignore_instances(image_path: str) -> List[LabelInstance]:
+    """The image's ignore boxes as box lines (normalised; empty when it has no ignore file).
 
     Raises :class:`LabelFormatError` for a malformed ignore file.
     """
     path = ignore_path_for(image_path)
-    if not os.path.isfile(path):
-        return np.zeros((0, 4), dtype=np.float32)
-    insts = read_label_file(path, "det", 1)
-    return np.array([inst.box_xyxy_px(width, height) for inst in insts],
+    return read_label_file(path, "det", 1) if os.path.isfile(path) else []
+
+
+def read_ignore_boxes(image_path: str, width: int, height: int) -> np.ndarray:
+    """(K, 4) float32 ignore boxes xyxy [px] of an image (empty when it has no ignore file)."""
+    return np.array([inst.box_xyxy_px(width, height) for inst in read_ignore_instances(image_path)],
                     dtype=np.float32).reshape(-1, 4)
 
 
