@@ -70,7 +70,10 @@ class TrainConfig:
     class names must agree); mosaic_prob: probability that a training item is
     a 2x2 mosaic of four images (YOLOv8's mosaic, see YoloDataset; 0 = off);
     proto_stride: segmenter prototype stride (4 or 2 input px; None = the
-    preset's 4). init_weights of the same network with another proto_stride
+    preset's 4); device: torch device to train on ('cpu', 'cuda', 'cuda:1';
+    checkpoints are always written as CPU tensors); workers: DataLoader
+    worker processes (0 = load in the training process; the augmentation of
+    item i in epoch e is the same either way, see YoloDataset). init_weights of the same network with another proto_stride
     is accepted: every tensor whose name and shape match is loaded, the new
     Proto layers start from their random initialisation (logged).
     """
@@ -97,6 +100,8 @@ class TrainConfig:
     extra_data_dirs: Tuple[str, ...] = ()
     mosaic_prob: float = 0.0
     proto_stride: Optional[int] = None
+    device: str = "cpu"
+    workers: int = 0
 
     def __post_init__(self) -> None:
         if self.task not in ("seg", "det"):
@@ -138,6 +143,14 @@ class TrainConfig:
         if self.proto_stride is not None and (self.task != "seg" or self.proto_stride not in (2, 4)):
             raise ValueError(f"TrainConfig.proto_stride must be None, or 2 or 4 for task 'seg', "
                              f"got {self.proto_stride!r} for task {self.task!r}")
+        if not isinstance(self.workers, int) or self.workers < 0:
+            raise ValueError(f"TrainConfig.workers must be an int >= 0, got {self.workers!r}")
+        try:
+            dev = torch.device(self.device)
+        except (RuntimeError, TypeError) as exc:
+            raise ValueError(f"TrainConfig.device is not a torch device: {self.device!r}") from exc
+        if dev.type == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"TrainConfig.device {self.device!r}: this torch has no CUDA device")
         if not (isinstance(self.mosaic_prob, (int, float)) and 0.0 <= self.mosaic_prob <= 1.0):
             raise ValueError(f"TrainConfig.mosaic_prob must be in [0, 1], got {self.mosaic_prob!r}")
 
@@ -240,21 +253,23 @@ def init_from_checkpoint(model: YoloModel, path: str) -> str:
                      f"(task / imgsz / width / classes must match to fine-tune)")
 
 
-def _to_loss_targets(targets: Dict[str, Any]) -> Dict[str, torch.Tensor]:
+def _to_loss_targets(targets: Dict[str, Any], device: torch.device = torch.device("cpu")) -> Dict[str, torch.Tensor]:
+    """The loss's inputs of a collated batch, on ``device``."""
     out = {k: targets[k] for k in ("batch_idx", "classes", "boxes_xyxy")}
     for k in ("masks", "ignore_batch_idx", "ignore_boxes_xyxy"):
         if k in targets:
             out[k] = targets[k]
-    return out
+    return {k: v.to(device, non_blocking=True) for k, v in out.items()}
 
 
 @torch.no_grad()
 def validation_loss(model: YoloModel, loader: DataLoader, loss_fn: YoloLoss) -> float:
     """Mean loss over a loader with eval-mode BatchNorm (no augmentation)."""
     model.eval()
+    device = next(model.parameters()).device
     total, n = 0.0, 0
     for images, targets in loader:
-        loss, _ = loss_fn(model.raw(images), _to_loss_targets(targets))
+        loss, _ = loss_fn(model.raw(images.to(device, non_blocking=True)), _to_loss_targets(targets, device))
         total += float(loss) * images.shape[0]
         n += images.shape[0]
     return total / max(n, 1)
@@ -270,6 +285,9 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
 
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
+    device = torch.device(cfg.device)
+    if device.type == "cuda":
+        torch.backends.cudnn.benchmark = True      # fixed input sizes: let cuDNN pick its kernels
     np.random.seed(cfg.seed)
     preset = ModelConfig.scene_segmenter() if cfg.task == "seg" else ModelConfig.boll_detector()
     width, height = cfg.imgsz if cfg.imgsz is not None else (preset.input_width, preset.input_height)
@@ -286,6 +304,7 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
     model = build_model(model_cfg)
     if cfg.init_weights and not cfg.resume:
         log(init_from_checkpoint(model, cfg.init_weights))
+    model.to(device)
     optimizer = torch.optim.AdamW(_param_groups(model, cfg.weight_decay), lr=cfg.lr, betas=(0.9, 0.999))
     ema = ModelEMA(model, cfg.ema_decay, cfg.ema_tau)
     loss_fn = YoloLoss(model_cfg.num_classes, model_cfg.reg_max, model.strides)
@@ -301,7 +320,7 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
         if not isinstance(state, dict) or "model" not in state:
             raise ValueError(f"{cfg.resume}: no optimizer state to resume from (use a last.pt)")
         model.load_state_dict(state["model"])
-        optimizer.load_state_dict(state["optimizer"])
+        optimizer.load_state_dict(state["optimizer"])      # moves its state to the parameters' device
         ema.ema.load_state_dict(ckpt["state_dict"])
         ema.updates = int(state["ema_updates"])
         meta = ckpt["train"]
@@ -312,20 +331,23 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
 
     iters_per_epoch = math.ceil(len(train_set) / cfg.batch)
     total_iters = cfg.epochs * iters_per_epoch
-    val_loader = DataLoader(val_set, batch_size=cfg.batch, shuffle=False, collate_fn=collate)
+    loader_options = dict(collate_fn=collate, num_workers=cfg.workers, pin_memory=device.type == "cuda",
+                          persistent_workers=False)
+    val_loader = DataLoader(val_set, batch_size=cfg.batch, shuffle=False, **loader_options)
     t_start = time.time()
     meta: Dict[str, Any] = {}
     for epoch in range(start_epoch, cfg.epochs):
         train_set.set_epoch(epoch)
         gen = torch.Generator().manual_seed(cfg.seed * 100003 + epoch)
-        loader = DataLoader(train_set, batch_size=cfg.batch, shuffle=True, generator=gen, collate_fn=collate)
+        loader = DataLoader(train_set, batch_size=cfg.batch, shuffle=True, generator=gen, **loader_options)
         model.train()
         running, seen = 0.0, 0
         for i, (images, targets) in enumerate(loader):
             it = epoch * iters_per_epoch + i
             for g in optimizer.param_groups:
                 g["lr"] = _lr_at(cfg, it, total_iters)
-            loss, parts = loss_fn(model(images), _to_loss_targets(targets))
+            images = images.to(device, non_blocking=True)
+            loss, parts = loss_fn(model(images), _to_loss_targets(targets, device))
             if not torch.isfinite(loss):
                 raise RuntimeError(f"loss became {float(loss)} at epoch {epoch + 1} step {i}: lower lr")
             optimizer.zero_grad(set_to_none=True)

@@ -103,3 +103,24 @@ def test_fine_tuning_to_finer_prototypes_keeps_every_matching_tensor(tmp_path):
     assert torch.allclose(p2, p4.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3), atol=1e-5)
     with pytest.raises(ValueError, match="model_config differs"):
         init_from_checkpoint(build_model(ModelConfig.scene_segmenter(width_multiple=0.125, proto_stride=2)), path)
+
+
+def test_worker_processes_load_the_same_batches_as_the_training_process(tmp_path):
+    # the augmentation of item i in epoch e does not depend on who loads it: two workers train
+    # the same weights as loading in-process (seeded run, deterministic CPU kernels)
+    _dataset(str(tmp_path / "a"), ["cotton boll"], 0)
+    train(_cfg(tmp_path, "inproc", seed=3, epochs=2, mosaic_prob=0.5), log=lambda s: None)
+    train(_cfg(tmp_path, "workers", seed=3, epochs=2, mosaic_prob=0.5, workers=2), log=lambda s: None)
+    w0, w1 = _weights(str(tmp_path / "inproc" / "last.pt")), _weights(str(tmp_path / "workers" / "last.pt"))
+    assert max(float((w0[k] - w1[k]).abs().max()) for k in w0) < 1e-6
+
+
+def test_device_and_workers_are_checked(tmp_path):
+    _dataset(str(tmp_path / "a"), ["cotton boll"], 0)
+    with pytest.raises(ValueError, match="workers"):
+        _cfg(tmp_path, "x", workers=-1)
+    with pytest.raises(ValueError, match="device"):
+        _cfg(tmp_path, "x", device="not-a-device")
+    if not torch.cuda.is_available():
+        with pytest.raises(ValueError, match="no CUDA device"):
+            _cfg(tmp_path, "x", device="cuda")
