@@ -10,6 +10,8 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
 APT_PACKAGES=(
+  # catkin_make's toolchain: a bare debian:bookworm has no make or C/C++ compiler
+  cmake make g++
   catkin ros-message-generation ros-message-runtime
   ros-std-msgs ros-geometry-msgs ros-sensor-msgs ros-nav-msgs
   libstd-msgs-dev libgeometry-msgs-dev libsensor-msgs-dev libnav-msgs-dev
