@@ -123,7 +123,9 @@ def test_vertices_on_and_behind_the_camera_plane_leave_the_visible_faces_alone()
     front = [[-0.5, -0.5, 2.0], [0.0, 0.5, 2.0], [0.5, -0.5, 2.0]]                 # seen from the camera
     behind = [[0.0, 0.0, 0.0], [1.0, 0.0, -1.0], [0.0, 1.0, -1.0]]                 # (0, 0, 0) is on z = 0
     zb_ref, ib_ref = _draw_one_model(front, [[0, 1, 2]])
-    assert np.count_nonzero(zb_ref) > 100
+    # the face at z = 2 m projects to a 20 x 20 px isosceles triangle of 200 px, all at 1/z = 0.5
+    assert 180 < np.count_nonzero(zb_ref) < 220
+    assert np.all(zb_ref[zb_ref > 0] == np.float32(0.5))
     # behind-camera vertices first, so that the visible face reads vertices 3..5 of the same scratch rows
     zb, ib = _draw_one_model(behind + front, [[0, 1, 2], [3, 4, 5]])
     np.testing.assert_array_equal(zb, zb_ref)
