@@ -99,6 +99,42 @@ def test_near_plane_clipping_of_a_wall_through_the_camera():
     np.testing.assert_allclose(frame.depth_m[rows, cols], depth, rtol=1e-4, atol=1e-4)
 
 
+def _draw_one_model(xyz, faces, near_m=0.05):
+    """``raster._draw_plants`` on one plant (identity pose) of one model, camera at the origin looking
+    along +z (optical = world); returns the thread buffers (1/z, triangle id) of a 64 x 48 frame."""
+    from cottonsim_world.sensors.fast import raster
+
+    xyz = np.ascontiguousarray(np.asarray(xyz, np.float64).T)              # (3, V): one coordinate per row
+    faces = np.asarray(faces, np.int32)
+    zbuf = np.zeros((1, 48, 64), np.float32)
+    ibuf = np.zeros((1, 48, 64), np.int32)
+    one = np.zeros(1, np.int64)
+    raster._draw_plants(one, one, one, np.array([[0.0, 0.0, 1.0, 0.0]]), one, np.array([xyz.shape[1]]), one,
+                        np.array([len(faces)]), xyz, faces, np.arange(len(faces), dtype=np.int32),
+                        np.full(len(faces), -1, np.int32), np.eye(3), np.zeros(3), 40.0, 40.0, 31.5, 23.5,
+                        near_m, 50.0, zbuf, ibuf, np.zeros((1, 6, xyz.shape[1])))
+    return zbuf[0], ibuf[0]
+
+
+def test_vertices_on_and_behind_the_camera_plane_leave_the_visible_faces_alone():
+    """The vertex loop projects every vertex without a branch (so that it vectorises), also those at or behind
+    the camera: a vertex exactly on the camera plane (z = 0: 1/z = inf, u = NaN) must neither raise nor leak
+    into a face in front, and a face behind the near plane draws nothing."""
+    front = [[-0.5, -0.5, 2.0], [0.0, 0.5, 2.0], [0.5, -0.5, 2.0]]                 # seen from the camera
+    behind = [[0.0, 0.0, 0.0], [1.0, 0.0, -1.0], [0.0, 1.0, -1.0]]                 # (0, 0, 0) is on z = 0
+    zb_ref, ib_ref = _draw_one_model(front, [[0, 1, 2]])
+    # the face at z = 2 m projects to a 20 x 20 px isosceles triangle of 200 px, all at 1/z = 0.5
+    assert 180 < np.count_nonzero(zb_ref) < 220
+    assert np.all(zb_ref[zb_ref > 0] == np.float32(0.5))
+    # behind-camera vertices first, so that the visible face reads vertices 3..5 of the same scratch rows
+    zb, ib = _draw_one_model(behind + front, [[0, 1, 2], [3, 4, 5]])
+    np.testing.assert_array_equal(zb, zb_ref)
+    np.testing.assert_array_equal(ib[zb > 0], 1)
+    # a face with a corner on z = 0 and two in front straddles the near plane: clipped, drawn where z >= near
+    zb, _ = _draw_one_model([[0.3, 0.2, 0.0], [0.5, -0.5, 2.0], [0.0, 0.5, 2.0]], [[0, 1, 2]])
+    assert np.count_nonzero(zb) > 50 and np.all(zb <= 1.0 / 0.05)
+
+
 def test_ground_texels_and_blend_match_the_per_channel_bilinear_rule():
     # _compose reads the 2 x 2 texels of a ground point from the tiled, spread texture (with shortcuts for the
     # neighbours across tile edges) and blends the three channels in 16-bit lanes of one integer; both must give

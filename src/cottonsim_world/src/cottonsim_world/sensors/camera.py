@@ -173,7 +173,7 @@ class _FastBuffers:
         threads = numba.get_num_threads()
         self.zbuf = np.zeros((threads, height, width), np.float32)     # 1/z [1/m], 0 = empty
         self.ibuf = np.zeros((threads, height, width), np.int32)       # global triangle id
-        self.scratch = np.zeros((threads, max(1, self.plants.max_model_verts), 6))
+        self.scratch = np.zeros((threads, 6, max(1, self.plants.max_model_verts)))   # see _draw_plants
 
 
 class CameraModel:
@@ -314,7 +314,7 @@ class CameraModel:
         trans = -rot @ pose[:3, 3]
         intr = self._intr
         _draw_plants(visible, slot, gbase, inst.plant_pose,
-                     inst.model_vbase, inst.model_vcount, inst.draw_base, inst.draw_count, inst.model_verts, inst.draw_faces,
+                     inst.model_vbase, inst.model_vcount, inst.draw_base, inst.draw_count, inst.model_xyz, inst.draw_faces,
                      inst.draw_local, inst.draw_twin, rot, trans, intr.fx, intr.fy, intr.cx, intr.cy,
                      cfg.near_m, cfg.far_m, fb.zbuf, fb.ibuf, fb.scratch)
         rgb = np.empty((cfg.height, cfg.width, 3), np.uint8)

@@ -562,8 +562,10 @@ class InstancedPlants:
     per-model arrays.
 
     Arrays (M models, P plants, L = ``LEVELS`` levels, G = global triangle ids):
-    model_verts (sum V, 3) float64 [m]; model_faces (sum F, 3) int32
-    (indices into model_verts, already offset by the slot's vertex base);
+    model_verts (sum V, 3) float64 [m]; model_xyz (3, sum V) float64 the
+    same vertices one coordinate per row (the rasteriser's vertex loop reads
+    them with unit stride, so LLVM vectorises it); model_faces (sum F, 3)
+    int32 (indices into model_verts, already offset by the slot's vertex base);
     model_vbase/model_vcount/model_fbase/model_fcount (L * M,) int64;
     plant_model (P,) int64 level-0 slot = model index; plant_pose (P, 4)
     float64 = x [m], y [m], cos(yaw), sin(yaw); plant_gbase (P,) int64
@@ -622,6 +624,7 @@ class InstancedPlants:
         else:
             self.model_verts = np.zeros((0, 3))
             self.model_faces = np.zeros((0, 3), np.int32)
+        self.model_xyz = np.ascontiguousarray(self.model_verts.T)
         self.max_model_verts = int(self.model_vcount.max()) if m else 0
         # draw list: a face and its reverse-wound twin (two-sided leaves) are drawn as one triangle
         # that takes the twin's id when seen from behind; faces without a twin are culled from behind

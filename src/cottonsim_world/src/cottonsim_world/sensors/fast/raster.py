@@ -140,12 +140,13 @@ def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no c
 
 
 @njit(cache=True, nogil=True)
-def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
-    """Clip triangle (a, b, c) (camera frame) to z >= near and draw the 1-2 pieces."""
+def _clip_near_and_draw(ax, ay, az, bx, by, bz, cx_, cy_, cz, near, fx, fy, cx, cy, gid, zb, ib, w_min,
+                        w_max):  # pragma: no cover
+    """Clip triangle (a, b, c) (camera frame [m]) to z >= near and draw the 1-2 pieces."""
     src = np.empty((3, 3))
-    src[0] = a
-    src[1] = b
-    src[2] = c
+    src[0, 0], src[0, 1], src[0, 2] = ax, ay, az
+    src[1, 0], src[1, 1], src[1, 2] = bx, by, bz
+    src[2, 0], src[2, 1], src[2, 2] = cx_, cy_, cz
     poly = np.empty((4, 3))
     n = 0
     for i in range(3):
@@ -167,9 +168,9 @@ def _clip_near_and_draw(a, b, c, near, fx, fy, cx, cy, gid, zb, ib, w_min, w_max
         _project_draw(tri, fx, fy, cx, cy, gid, zb, ib, w_min, w_max)
 
 
-@njit(parallel=True, cache=True, nogil=True)
+@njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_vcount, draw_base, draw_count,
-                 model_verts, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
+                 model_xyz, draw_faces, draw_local, draw_twin, rot, trans, fx, fy, cx, cy, near, far,
                  zbuf, ibuf, scratch):  # pragma: no cover
     """Rasterise the visible plants into per-thread buffers zbuf/ibuf (T, H, W).
 
@@ -182,13 +183,20 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
     z > 0), done after the cheaper test whether its screen box holds any
     sample point at all: most faces of a far plant hold none.
 
-    rot (3, 3), trans (3,): optical_T_world. scratch (T, max verts, 6) holds
-    each thread's transformed vertices (x, y, z, u, v, 1/z).
+    model_xyz (3, sum V): the plant-local vertices, one coordinate per row.
+    rot (3, 3), trans (3,): optical_T_world. scratch (T, 6, max verts)
+    holds each thread's transformed vertices as rows x, y, z, u, v, 1/z.
+    The vertex loop has no branch and reads and writes with unit stride,
+    so LLVM vectorises it (4 vertices per AVX2 instruction); u, v and 1/z
+    of a vertex behind the near plane are garbage (z may even be 0: hence
+    error_model "numpy", a division by zero gives inf instead of raising)
+    and are read only for faces with every corner at z >= near.
     """
     n_threads, height, width = zbuf.shape
     w_min, w_max = 1.0 / far, 1.0 / near
     for k in prange(n_threads):
         zb, ib, sc = zbuf[k], ibuf[k], scratch[k]
+        sx, sy, sz, su, sv, sw = sc[0], sc[1], sc[2], sc[3], sc[4], sc[5]
         for j in range(k, visible.shape[0], n_threads):
             p = visible[j]
             m = vis_model[j]
@@ -205,33 +213,33 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
             t1 = rot[1, 0] * px + rot[1, 1] * py + trans[1]
             t2 = rot[2, 0] * px + rot[2, 1] * py + trans[2]
             vb = model_vbase[m]
-            for i in range(model_vcount[m]):
-                # unsigned indices here and below: numba adds no wrap-around code for negative ones
-                vi = np.uint64(vb + i)
-                lx, ly, lz = model_verts[vi, 0], model_verts[vi, 1], model_verts[vi, 2]
+            nv = model_vcount[m]
+            mx, my, mz = model_xyz[0, vb:vb + nv], model_xyz[1, vb:vb + nv], model_xyz[2, vb:vb + nv]
+            for i in range(nv):
+                lx, ly, lz = mx[i], my[i], mz[i]
                 x = m00 * lx + m01 * ly + m02 * lz + t0
                 y = m10 * lx + m11 * ly + m12 * lz + t1
                 z = m20 * lx + m21 * ly + m22 * lz + t2
-                sc[i, 0] = x
-                sc[i, 1] = y
-                sc[i, 2] = z
-                if z >= near:
-                    iz = 1.0 / z
-                    sc[i, 3] = fx * x * iz + cx
-                    sc[i, 4] = fy * y * iz + cy
-                    sc[i, 5] = iz
+                iz = 1.0 / z
+                sx[i] = x
+                sy[i] = y
+                sz[i] = z
+                su[i] = fx * x * iz + cx
+                sv[i] = fy * y * iz + cy
+                sw[i] = iz
             fb = draw_base[m]
             gb = vis_gbase[j]
             for f in range(draw_count[m]):
+                # unsigned indices: numba adds no wrap-around code for negative ones
                 fi = np.uint64(fb + f)
                 ia = np.uint64(draw_faces[fi, 0] - vb)
                 ib_ = np.uint64(draw_faces[fi, 1] - vb)
                 ic = np.uint64(draw_faces[fi, 2] - vb)
-                za, zb_, zc = sc[ia, 2], sc[ib_, 2], sc[ic, 2]
+                za, zb_, zc = sz[ia], sz[ib_], sz[ic]
                 if za >= near and zb_ >= near and zc >= near:
                     if za > far and zb_ > far and zc > far:
                         continue
-                    ua, va, ub, vb_, uc, vc = sc[ia, 3], sc[ia, 4], sc[ib_, 3], sc[ib_, 4], sc[ic, 3], sc[ic, 4]
+                    ua, va, ub, vb_, uc, vc = su[ia], sv[ia], su[ib_], sv[ib_], su[ic], sv[ic]
                     x_lo, x_hi, y_lo, y_hi = _sample_box(ua, va, ub, vb_, uc, vc, width, height)
                     if x_lo > x_hi or y_lo > y_hi:
                         continue
@@ -245,25 +253,25 @@ def _draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_v
                         gid = gb + twin
                     else:
                         gid = gb + draw_local[fi]
-                    _fill(ua, va, sc[ia, 5], ub, vb_, sc[ib_, 5], uc, vc, sc[ic, 5], area, x_lo, x_hi, y_lo, y_hi,
+                    _fill(ua, va, sw[ia], ub, vb_, sw[ib_], uc, vc, sw[ic], area, x_lo, x_hi, y_lo, y_hi,
                           gid, zb, ib, w_min, w_max)
                     continue
                 if za < near and zb_ < near and zc < near:
                     continue
-                e1x, e1y, e1z = sc[ib_, 0] - sc[ia, 0], sc[ib_, 1] - sc[ia, 1], zb_ - za
-                e2x, e2y, e2z = sc[ic, 0] - sc[ia, 0], sc[ic, 1] - sc[ia, 1], zc - za
+                e1x, e1y, e1z = sx[ib_] - sx[ia], sy[ib_] - sy[ia], zb_ - za
+                e2x, e2y, e2z = sx[ic] - sx[ia], sy[ic] - sy[ia], zc - za
                 nx = e1y * e2z - e1z * e2y
                 ny = e1z * e2x - e1x * e2z
                 nz = e1x * e2y - e1y * e2x
-                if nx * sc[ia, 0] + ny * sc[ia, 1] + nz * za >= 0.0:     # seen from behind
+                if nx * sx[ia] + ny * sy[ia] + nz * za >= 0.0:     # seen from behind
                     twin = draw_twin[fi]
                     if twin < 0:
                         continue
                     gid = gb + twin
                 else:
                     gid = gb + draw_local[fi]
-                _clip_near_and_draw(sc[ia, :3], sc[ib_, :3], sc[ic, :3], near, fx, fy, cx, cy, gid,
-                                    zb, ib, w_min, w_max)
+                _clip_near_and_draw(sx[ia], sy[ia], za, sx[ib_], sy[ib_], zb_, sx[ic], sy[ic], zc, near, fx, fy, cx,
+                                    cy, gid, zb, ib, w_min, w_max)
 
 
 @njit(cache=True, nogil=True, inline="always")
