@@ -20,7 +20,6 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 from ..types import Detections
 from .assigner import bbox_iou
@@ -87,12 +86,30 @@ def batched_nms(boxes: torch.Tensor, scores: torch.Tensor, classes: torch.Tensor
 
 
 def crop_masks(masks: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
-    """Zero (n, h, w) masks outside their boxes (xyxy in mask pixels)."""
-    _, h, w = masks.shape
-    xs = torch.arange(w, dtype=masks.dtype, device=masks.device)[None, None, :] + 0.5
-    ys = torch.arange(h, dtype=masks.dtype, device=masks.device)[None, :, None] + 0.5
-    x1, y1, x2, y2 = (boxes[:, i, None, None] for i in range(4))
-    return masks * ((xs >= x1) & (xs < x2) & (ys >= y1) & (ys < y2))
+    """Zero (n, h, w) masks outside their boxes (xyxy in mask pixels); returns a new tensor.
+
+    A pixel is kept when its centre lies in the box. The kept pixels of a box
+    are one row range times one column range, so the outside is zeroed by
+    slices: the same values as multiplying by a full-size box mask, which
+    cost ~2 ms per frame for 320x256 masks (proto_stride 1).
+    """
+    n, h, w = masks.shape
+    xs = torch.arange(w, dtype=masks.dtype, device=masks.device)[None, :] + 0.5
+    ys = torch.arange(h, dtype=masks.dtype, device=masks.device)[None, :] + 0.5
+    cols = ((xs >= boxes[:, 0:1]) & (xs < boxes[:, 2:3])).tolist()         # (n, w), one run of True
+    rows = ((ys >= boxes[:, 1:2]) & (ys < boxes[:, 3:4])).tolist()
+    out = masks.clone()
+    for i in range(n):
+        if True not in cols[i] or True not in rows[i]:
+            out[i] = 0.0
+            continue
+        c0, c1 = cols[i].index(True), w - cols[i][::-1].index(True)
+        r0, r1 = rows[i].index(True), h - rows[i][::-1].index(True)
+        out[i, :r0] = 0.0
+        out[i, r1:] = 0.0
+        out[i, :, :c0] = 0.0
+        out[i, :, c1:] = 0.0
+    return out
 
 
 def instance_mask_logits(extra: torch.Tensor, protos: torch.Tensor,
@@ -117,7 +134,9 @@ def instance_mask_logits(extra: torch.Tensor, protos: torch.Tensor,
         raise ValueError(f"detail features {tuple(detail.shape)} do not fit prototypes {tuple(protos.shape)} "
                          f"and {extra.shape[1]} coefficient columns (need k + d + 1 = {k + d + 1})")
     fine = (extra[:, k:k + d] @ detail.reshape(d, -1)).reshape(-1, h, w) + extra[:, k + d, None, None]
-    return F.interpolate(logits[None], scale_factor=2.0, mode="nearest")[0] + fine
+    # + nearest x2 upsampling of the coarse logits, as a broadcast add (no upsampled copy)
+    fine.view(-1, hp, 2, wp, 2).add_(logits[:, :, None, :, None])
+    return fine
 
 
 def postprocess(predictions: torch.Tensor, num_classes: int, transforms: Sequence[LetterboxTransform],

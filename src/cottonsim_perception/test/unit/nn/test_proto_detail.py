@@ -140,3 +140,21 @@ def test_bad_stride_and_detail_settings_are_clear_errors():
         instance_mask_logits(torch.rand(2, 4 + 3 + 1), torch.rand(4, 8, 8), torch.rand(3, 8, 8))
     with pytest.raises(ValueError, match="do not fit"):          # too few coefficient columns
         instance_mask_logits(torch.rand(2, 4), torch.rand(4, 8, 8), torch.rand(3, 16, 16))
+
+
+def test_crop_masks_by_slices_equals_the_full_size_box_product():
+    # crop_masks zeroes by row / column slices (cheap at 320x256); it must keep exactly the pixels
+    # whose centre is in the box, as the former full-size product did: random, empty, tied boxes
+    from cottonsim_perception.nn.postprocess import crop_masks
+    g = torch.Generator().manual_seed(0)
+    for _ in range(100):
+        n = int(torch.randint(0, 6, (1,), generator=g))
+        masks = torch.rand(n, 37, 53, generator=g)
+        boxes = torch.rand(n, 4, generator=g) * torch.tensor([70.0, 50, 70, 50]) - torch.tensor([10.0, 8, 10, 8])
+        boxes[:, 2:] = torch.maximum(boxes[:, 2:], boxes[:, :2] - 1)          # some empty
+        boxes[::3] = boxes[::3].round() * 0.5                                  # edges on pixel centres
+        xs = torch.arange(53.0)[None, None, :] + 0.5
+        ys = torch.arange(37.0)[None, :, None] + 0.5
+        x1, y1, x2, y2 = (boxes[:, i, None, None] for i in range(4))
+        expected = masks * ((xs >= x1) & (xs < x2) & (ys >= y1) & (ys < y2))
+        assert torch.equal(crop_masks(masks, boxes), expected)
