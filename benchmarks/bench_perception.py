@@ -26,6 +26,11 @@ ms per frame over the rounds: on a shared machine the fairest A/B figure.
 
   python benchmarks/bench_perception.py [--frames 40] [--random-weights] [--only seg|det] [--eager]
   python benchmarks/bench_perception.py --compare [--rounds 10] [--only seg]
+  python benchmarks/bench_perception.py --compare --only seg --seg-weights-b OTHER.pt
+
+With --seg-weights-b, --compare runs the frozen predictors of --seg-weights
+and of those weights in alternation instead (A/B of two segmenter
+architectures, e.g. proto_stride 2 vs 1, on the same frames and load).
 """
 import argparse
 import glob
@@ -119,6 +124,8 @@ def main() -> int:
     ap.add_argument("--threads", default="1,2", help="torch thread counts to time, comma-separated (default 1,2)")
     ap.add_argument("--seg-weights", default=os.path.join(WEIGHTS, "scene_segmenter.pt"))
     ap.add_argument("--det-weights", default=os.path.join(WEIGHTS, "boll_detector.pt"))
+    ap.add_argument("--seg-weights-b", default=None,
+                    help="with --compare: frozen --seg-weights vs frozen these weights (A/B of two segmenters)")
     ap.add_argument("--seg-images", default=os.path.join(ORIGINAL, "Segmentation", "valid", "images"))
     ap.add_argument("--det-images", default=os.path.join(ORIGINAL, "Detection", "valid", "images"))
     ap.add_argument("--seg-width", type=float, default=None, help="with --random-weights")
@@ -159,8 +166,12 @@ def main() -> int:
             frames, source = load_frames(a.seg_images if task == "seg" else a.det_images)
             if a.compare:
                 for threads in thread_counts:
-                    preds = {"eager": Predictor(path, threads=threads, optimise=False),
-                             "frozen": Predictor(path, threads=threads, optimise=True)}
+                    if task == "seg" and a.seg_weights_b:
+                        preds = {os.path.basename(q): Predictor(q, threads=threads, optimise=True)
+                                 for q in (path, a.seg_weights_b)}
+                    else:
+                        preds = {"eager": Predictor(path, threads=threads, optimise=False),
+                                 "frozen": Predictor(path, threads=threads, optimise=True)}
                     variants = {}
                     for name, p in preds.items():
                         if task == "seg":

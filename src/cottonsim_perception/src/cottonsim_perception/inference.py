@@ -94,9 +94,10 @@ class Predictor:
         with torch.inference_mode():
             out = self._network(x)
             if self.config.task == "seg":
-                pred, protos = out
+                pred, protos = out[0], out[1]
+                detail = out[2].float().cpu() if len(out) > 2 else None      # proto_stride 1
                 return postprocess(pred.float().cpu(), self.config.num_classes, [tf], protos.float().cpu(),
-                                   self.post_config)[0]
+                                   self.post_config, detail)[0]
             return postprocess(out.float().cpu(), self.config.num_classes, [tf], None, self.post_config)[0]
 
 

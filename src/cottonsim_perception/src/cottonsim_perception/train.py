@@ -28,6 +28,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader
 
+from .nn.heads import PROTO_STRIDES
 from .nn.loss import YoloLoss
 from .nn.models import ModelConfig, YoloModel, build_model, load_checkpoint, save_checkpoint
 
@@ -69,8 +70,8 @@ class TrainConfig:
     added to data_dir's (e.g. the paper's images + simulator images; the
     class names must agree); mosaic_prob: probability that a training item is
     a 2x2 mosaic of four images (YOLOv8's mosaic, see YoloDataset; 0 = off);
-    proto_stride: segmenter prototype stride (4 or 2 input px; None = the
-    preset's 4); device: torch device to train on ('cpu', 'cuda', 'cuda:1';
+    proto_stride: segmenter prototype stride (4, 2 or 1 input px; None = the
+    preset's 4; 1 adds the full-resolution detail path, see heads.Proto); device: torch device to train on ('cpu', 'cuda', 'cuda:1';
     checkpoints are always written as CPU tensors); workers: DataLoader
     worker processes (0 = load in the training process; the augmentation of
     item i in epoch e is the same either way, see YoloDataset).
@@ -141,8 +142,8 @@ class TrainConfig:
         for d in self.extra_data_dirs:
             if not os.path.isdir(d):
                 raise ValueError(f"TrainConfig.extra_data_dirs: not a folder: {d!r}")
-        if self.proto_stride is not None and (self.task != "seg" or self.proto_stride not in (2, 4)):
-            raise ValueError(f"TrainConfig.proto_stride must be None, or 2 or 4 for task 'seg', "
+        if self.proto_stride is not None and (self.task != "seg" or self.proto_stride not in PROTO_STRIDES):
+            raise ValueError(f"TrainConfig.proto_stride must be None, or one of {PROTO_STRIDES} for task 'seg', "
                              f"got {self.proto_stride!r} for task {self.task!r}")
         if not isinstance(self.workers, int) or self.workers < 0:
             raise ValueError(f"TrainConfig.workers must be an int >= 0, got {self.workers!r}")
@@ -234,16 +235,19 @@ def init_from_checkpoint(model: YoloModel, path: str) -> str:
     """Load a checkpoint's weights into ``model`` (fine-tuning start); returns a log line.
 
     The checkpoint's model configuration must equal ``model.config``, except
-    that a segmenter's proto_stride may differ: then every tensor whose name
-    and shape match is loaded and the other Proto layers keep their random
-    initialisation. Raises ValueError otherwise.
+    that a segmenter's proto_stride (and detail_channels) may differ: then every tensor whose name
+    and shape match is loaded and the other Proto layers keep their own
+    initialisation, which for a finer stride is the identity (nearest-
+    neighbour copy, zero detail): the finer network starts with the coarse
+    one's masks, upsampled. Raises ValueError otherwise.
     """
     init = load_checkpoint(path)
     init_cfg = ModelConfig.from_dict(init["model_config"])
     if init_cfg == model.config:
         model.load_state_dict(init["state_dict"])
         return f"initialised from {path}"
-    if replace(init_cfg, proto_stride=model.config.proto_stride) == model.config:
+    if replace(init_cfg, proto_stride=model.config.proto_stride,
+               detail_channels=model.config.detail_channels) == model.config:
         own = model.state_dict()
         loaded = {k: v for k, v in init["state_dict"].items() if k in own and own[k].shape == v.shape}
         model.load_state_dict(loaded, strict=False)

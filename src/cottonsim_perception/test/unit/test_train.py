@@ -103,6 +103,28 @@ def test_fine_tuning_to_finer_prototypes_keeps_every_matching_tensor(tmp_path):
     assert torch.allclose(p2, p4.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3), atol=1e-5)
     with pytest.raises(ValueError, match="model_config differs"):
         init_from_checkpoint(build_model(ModelConfig.scene_segmenter(width_multiple=0.125, proto_stride=2)), path)
+    # and on to stride 1: only the detail path is new (the stride-2 stage is loaded), masks kept exactly
+    path2 = str(tmp_path / "fine.pt")
+    save_checkpoint(path2, fine.eval())
+    torch.manual_seed(2)
+    full = build_model(ModelConfig.scene_segmenter(width_multiple=0.0625, proto_stride=1, detail_channels=4))
+    line = init_from_checkpoint(full, path2)
+    own = full.state_dict()
+    fresh = sorted(k for k in own if k not in fine.state_dict())
+    assert fresh and all(k.startswith(("head.proto.detail.", "head.proto.detail_out.")) for k in fresh)
+    assert f"{len(fresh)} new" in line and "proto_stride 2 -> 1" in line
+    with torch.no_grad():
+        p1 = full.eval().raw(x)[2]
+        p2 = fine.raw(x)[2]
+    assert torch.equal(p1, p2.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3))
+
+
+def test_train_config_accepts_stride_one_for_the_segmenter_only(tmp_path):
+    _dataset(str(tmp_path / "a"), ["box"], 0)
+    assert _cfg(tmp_path, "s", task="seg", proto_stride=1).proto_stride == 1
+    for task, stride in (("det", 1), ("seg", 3)):
+        with pytest.raises(ValueError, match="proto_stride"):
+            _cfg(tmp_path, "s", task=task, proto_stride=stride)
 
 
 def test_worker_processes_load_the_same_batches_as_the_training_process(tmp_path):

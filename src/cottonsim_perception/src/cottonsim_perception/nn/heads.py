@@ -10,16 +10,18 @@ each one the head predicts
 * class logits (sigmoid per class, no objectness);
 * for segmentation, ``num_prototypes`` mask coefficients; a separate 'Proto'
   branch turns the stride-8 features into ``num_prototypes`` prototype masks at
-  stride 4 (or 2, ``Proto(stride=2)``), and an instance mask is sigmoid(coefficients . prototypes).
+  stride 4 (or 2, or 1 with a full-resolution detail path from the input
+  image, see :class:`Proto`), and an instance mask is sigmoid(coefficients . prototypes).
 Box and class branches are separate ('decoupled'), each two 3x3 Convs + a 1x1.
 """
 from __future__ import annotations
 
 import math
-from typing import List, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple
 
 import torch
 import torch.nn as nn
+import torch.nn.functional as F
 
 from .blocks import Conv
 
@@ -112,11 +114,11 @@ class DetectHead(nn.Module):
         return torch.cat((boxes, logits.sigmoid()), dim=-1)
 
 
-PROTO_STRIDES = (4, 2)
+PROTO_STRIDES = (4, 2, 1)
 
 
 class Proto(nn.Module):
-    """Prototype-mask branch: stride-8 features -> k prototypes at stride 4 (or 2).
+    """Prototype-mask branch: stride-8 features -> k prototypes at stride 4, 2 or 1.
 
     stride 4 (YOLOv8): 3x3 conv, x2 transposed conv, 3x3 conv, 1x1 conv to k.
     stride 2 adds one more x2 stage before the 1x1: a 2x2 stride-2 transposed
@@ -127,17 +129,36 @@ class Proto(nn.Module):
     stride-4 masks exactly, upsampled; fine-tuning then learns the detail.
     Masks at 1/2 of the network input; no 3x3 conv at 4x the pixels (it
     cost ~30 % more per frame).
+
+    stride 1 (thin stems of defoliated plants, 1-2 input px wide, are below
+    the stride-2 grid): the stride-2 prototypes, repeated 2 x 2 (nearest
+    neighbour) to the full input, plus a cheap detail path computed from the
+    letterboxed input image itself: a 3x3 conv 3 -> ``detail_channels`` with
+    BN + SiLU at full resolution, then a 1x1 conv (with bias) to k. The
+    coarse prototypes say 'near a plant', the detail says 'stem-coloured
+    pixel here'; nothing at hidden width runs at full resolution. The detail
+    is added after the prototypes' SiLU, i.e. linearly, so that an instance's
+    mask logit c . protos = up(c . coarse) + (W^T c) . detail + c . bias
+    can be evaluated per instance after NMS (see :meth:`parts` and
+    ``postprocess``) instead of on k full-resolution prototype maps, which
+    cost ~60 % more per frame when the network output them. The 1x1 conv starts at zero, so a
+    stride-1 network initialised from stride-2 weights first reproduces the
+    stride-2 prototypes exactly, each pixel repeated 2 x 2.
+    forward(x, image) needs the network input image for stride 1.
     """
 
-    def __init__(self, c_in: int, hidden: int = 64, num_prototypes: int = 32, stride: int = 4):
+    def __init__(self, c_in: int, hidden: int = 64, num_prototypes: int = 32, stride: int = 4,
+                 detail_channels: int = 8):
         super().__init__()
         if stride not in PROTO_STRIDES:
             raise ValueError(f"Proto stride must be one of {PROTO_STRIDES}, got {stride!r}")
+        if not isinstance(detail_channels, int) or detail_channels < 1:
+            raise ValueError(f"Proto detail_channels must be a positive int, got {detail_channels!r}")
         self.stride = int(stride)
         self.cv1 = Conv(c_in, hidden, 3)
         self.upsample = nn.ConvTranspose2d(hidden, hidden, 2, 2, 0, bias=True)
         self.cv2 = Conv(hidden, hidden, 3)
-        if self.stride == 2:
+        if self.stride <= 2:
             self.upsample2 = nn.ConvTranspose2d(hidden, hidden, 2, 2, 0, bias=True)
             with torch.no_grad():
                 self.upsample2.weight.zero_()
@@ -145,34 +166,71 @@ class Proto(nn.Module):
                 idx = torch.arange(hidden)
                 self.upsample2.weight[idx, idx] = 1.0          # (in, out, 2, 2): copy to all 4 sub-pixels
         self.cv3 = Conv(hidden, num_prototypes, 1)
+        if self.stride == 1:
+            self.detail = Conv(3, detail_channels, 3)                          # full input resolution
+            self.detail_out = nn.Conv2d(detail_channels, num_prototypes, 1, bias=True)
+            nn.init.zeros_(self.detail_out.weight)                             # start: no detail
+            nn.init.zeros_(self.detail_out.bias)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, image: Optional[torch.Tensor] = None) -> torch.Tensor:
         y = self.cv2(self.upsample(self.cv1(x)))
-        if self.stride == 2:
+        if self.stride <= 2:
             y = self.upsample2(y)
-        return self.cv3(y)
+        if self.stride != 1:
+            return self.cv3(y)
+        coarse, detail = self._coarse_detail(y, image)
+        return F.interpolate(coarse, scale_factor=2.0, mode="nearest") + self.detail_out(detail)
+
+    def _coarse_detail(self, y: torch.Tensor, image: Optional[torch.Tensor]):
+        if image is None:
+            raise ValueError("Proto(stride=1) needs the network input image for its detail path")
+        return self.cv3(y), self.detail(image)
+
+    def parts(self, x: torch.Tensor, image: torch.Tensor):
+        """Stride 1 only, for inference: (coarse prototypes (B, k, H/2, W/2),
+        detail features (B, detail_channels, H, W)); forward() is
+        up(coarse) + detail_out(detail)."""
+        if self.stride != 1:
+            raise ValueError(f"Proto.parts is for stride 1 only, this branch has stride {self.stride}")
+        return self._coarse_detail(self.upsample2(self.cv2(self.upsample(self.cv1(x)))), image)
+
+    def detail_coefficients(self, coeffs: torch.Tensor) -> torch.Tensor:
+        """Stride 1: per-anchor detail coefficients of mask coefficients (B, k, A)
+        -> (B, detail_channels + 1, A): W^T c and the bias term b . c, so that
+        c . forward() = up(c . coarse) + (W^T c) . detail + b . c."""
+        w = self.detail_out.weight[:, :, 0, 0]                                 # (k, d)
+        return torch.cat((torch.einsum("kd,bka->bda", w, coeffs),
+                          torch.einsum("k,bka->ba", self.detail_out.bias, coeffs)[:, None]), dim=1)
 
 
 class SegmentHead(nn.Module):
     """Detection head plus per-anchor mask coefficients and the Proto branch.
 
     forward(feats) -> (level maps as DetectHead, coefficients (B, k, A),
-    prototypes (B, k, H/s, W/s), s = proto_stride, 4 or 2).
+    prototypes (B, k, H/s, W/s), s = proto_stride, 4, 2 or 1); stride 1 needs
+    forward(feats, image) with the network input image (its detail path).
     """
 
     def __init__(self, num_classes: int, in_channels: Sequence[int], num_prototypes: int = 32,
                  proto_channels: int = 64, reg_max: int = 16, strides: Sequence[int] = STRIDES,
-                 proto_stride: int = 4):
+                 proto_stride: int = 4, detail_channels: int = 8):
         super().__init__()
         self.detect = DetectHead(num_classes, in_channels, reg_max, strides)
         self.num_prototypes = int(num_prototypes)
-        self.proto = Proto(in_channels[0], proto_channels, self.num_prototypes, proto_stride)
+        self.proto = Proto(in_channels[0], proto_channels, self.num_prototypes, proto_stride, detail_channels)
         c_mask = max(in_channels[0] // 4, self.num_prototypes)
         self.coef = nn.ModuleList(nn.Sequential(Conv(c, c_mask, 3), Conv(c_mask, c_mask, 3),
                                                 nn.Conv2d(c_mask, self.num_prototypes, 1)) for c in in_channels)
 
-    def forward(self, feats: List[torch.Tensor]):
-        protos = self.proto(feats[0])
+    def coefficients(self, feats: List[torch.Tensor]) -> torch.Tensor:
+        """Mask coefficients of every anchor, level by level: (B, k, A)."""
         b = feats[0].shape[0]
-        coeffs = torch.cat([m(f).reshape(b, self.num_prototypes, -1) for f, m in zip(feats, self.coef)], dim=2)
-        return self.detect(feats), coeffs, protos
+        return torch.cat([m(f).reshape(b, self.num_prototypes, -1) for f, m in zip(feats, self.coef)], dim=2)
+
+    def forward(self, feats: List[torch.Tensor], image: Optional[torch.Tensor] = None):
+        return self.detect(feats), self.coefficients(feats), self.proto(feats[0], image)
+
+    def forward_detail(self, feats: List[torch.Tensor], image: torch.Tensor):
+        """proto_stride 1, inference: (level maps, coefficients (B, k, A), coarse
+        prototypes, detail features), see Proto.parts; no full-resolution prototypes."""
+        return (self.detect(feats), self.coefficients(feats)) + tuple(self.proto.parts(feats[0], image))

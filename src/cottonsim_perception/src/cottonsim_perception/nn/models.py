@@ -44,8 +44,12 @@ class ModelConfig:
     reg_max: DFL bins per box side (max distance reg_max - 1 grid cells).
     num_prototypes / proto_channels: mask prototypes and Proto hidden width
         (segmentation only).
-    proto_stride: network-input pixels per prototype pixel, 4 (YOLOv8) or 2
-        (one more upsampling stage: finer masks; segmentation only).
+    proto_stride: network-input pixels per prototype pixel, 4 (YOLOv8), 2
+        (one more upsampling stage: finer masks) or 1 (masks at the full
+        input, with a detail path from the input image for thin stems; see
+        ``heads.Proto``); segmentation only.
+    detail_channels: width of that full-resolution detail path (used only
+        with proto_stride 1; it is the costly part there, 8 is cheap).
     The defaults are the CPU-sized scene segmenter; see :meth:`boll_detector`.
     """
 
@@ -61,6 +65,7 @@ class ModelConfig:
     num_prototypes: int = 16
     proto_channels: int = 32
     proto_stride: int = 4
+    detail_channels: int = 8
 
     def __post_init__(self) -> None:
         if self.task not in TASKS:
@@ -89,6 +94,9 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.proto_channels must be a positive int, got {self.proto_channels!r}")
         if self.proto_stride not in PROTO_STRIDES:
             raise ValueError(f"ModelConfig.proto_stride must be one of {PROTO_STRIDES}, got {self.proto_stride!r}")
+        if not isinstance(self.detail_channels, int) or isinstance(self.detail_channels, bool) \
+                or not 1 <= self.detail_channels <= 64:
+            raise ValueError(f"ModelConfig.detail_channels must be an int in [1, 64], got {self.detail_channels!r}")
 
     @staticmethod
     def scene_segmenter(**overrides: Any) -> "ModelConfig":
@@ -173,9 +181,10 @@ class YoloSegmenter(_YoloBase):
 
     forward(images (B, 3, H, W) float 0..1):
       train mode -> (level maps as YoloDetector, coefficients (B, k, A),
-                     prototypes (B, k, H/s, W/s), s = config.proto_stride);
+                     prototypes (B, k, H/s, W/s), s = config.proto_stride, 4, 2 or 1);
       eval mode  -> (predictions (B, A, 4 + nc + k): boxes xyxy [input px],
-                     class probabilities, mask coefficients; prototypes).
+                     class probabilities, mask coefficients; prototypes);
+                     proto_stride 1: a third output, see :meth:`_forward_detail`.
     """
 
     def __init__(self, num_classes: int = 3, num_prototypes: int = 16, width_multiple: float = 0.125,
@@ -192,18 +201,36 @@ class YoloSegmenter(_YoloBase):
             raise ValueError(f"YoloSegmenter needs a config with task 'seg', got {config.task!r}")
         super().__init__(config)
         self.head = SegmentHead(config.num_classes, self.neck.out_channels, config.num_prototypes,
-                                config.proto_channels, config.reg_max, self.strides, config.proto_stride)
+                                config.proto_channels, config.reg_max, self.strides, config.proto_stride,
+                                config.detail_channels)
 
     def raw(self, images: torch.Tensor):
         """Train-style output in any mode (validation loss with eval-mode BatchNorm)."""
-        return self.head(self.features(images))
+        return self.head(self.features(images), images)
 
     def forward(self, images: torch.Tensor):
+        if not self.training and self.config.proto_stride == 1:
+            return self._forward_detail(images)
         maps, coeffs, protos = self.raw(images)
         if self.training:
             return maps, coeffs, protos
         det = self.head.detect.decode(maps)
         return torch.cat((det, coeffs.transpose(1, 2)), dim=-1), protos
+
+    def _forward_detail(self, images: torch.Tensor):
+        """Eval mode, proto_stride 1: the full-resolution prototypes are never built.
+
+        Returns (predictions (B, A, 4 + nc + k + d + 1): boxes, class
+        probabilities, mask coefficients c, detail coefficients W^T c and
+        b . c; coarse prototypes (B, k, H/2, W/2); detail features
+        (B, d, H, W)), d = config.detail_channels. ``postprocess`` combines
+        them per kept instance: logit = up(c . coarse) + (W^T c) . detail + b . c,
+        which equals c . prototypes of train mode (see heads.Proto).
+        """
+        maps, coeffs, coarse, detail = self.head.forward_detail(self.features(images), images)
+        det = self.head.detect.decode(maps)
+        extra = self.head.proto.detail_coefficients(coeffs)
+        return torch.cat((det, coeffs.transpose(1, 2), extra.transpose(1, 2)), dim=-1), coarse, detail
 
 
 YoloModel = Union[YoloDetector, YoloSegmenter]

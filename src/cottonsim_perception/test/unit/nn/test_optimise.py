@@ -27,13 +27,20 @@ def _randomised_bn(model):
     return model.eval()
 
 
-@pytest.fixture(scope="module", params=["seg", "det"])
+@pytest.fixture(scope="module", params=["seg", "seg_stride1", "det"])
 def weights(request, tmp_path_factory):
     torch.manual_seed(0)
     small = dict(width_multiple=0.0625, input_width=160, input_height=128)
-    cfg = ModelConfig.scene_segmenter(**small) if request.param == "seg" else ModelConfig.boll_detector(**small)
+    if request.param == "det":
+        cfg = ModelConfig.boll_detector(**small)
+    else:
+        cfg = ModelConfig.scene_segmenter(proto_stride=1 if request.param == "seg_stride1" else 4, **small)
+    model = _randomised_bn(build_model(cfg))
+    if cfg.proto_stride == 1:        # the detail path starts at zero: make it count
+        torch.nn.init.normal_(model.head.proto.detail_out.weight, std=0.5)
+        torch.nn.init.normal_(model.head.proto.detail_out.bias, std=0.5)
     path = str(tmp_path_factory.mktemp("w") / f"{request.param}.pt")
-    save_checkpoint(path, _randomised_bn(build_model(cfg)))
+    save_checkpoint(path, model)
     return path
 
 
