@@ -349,8 +349,11 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
 
     iters_per_epoch = math.ceil(len(train_set) / cfg.batch)
     total_iters = cfg.epochs * iters_per_epoch
+    # workers are spawned, not forked: a fork of a process whose OpenMP / numba thread pools are
+    # running (a test session, a node) can deadlock in the child (seen in CI)
     loader_options = dict(collate_fn=collate, num_workers=cfg.workers, pin_memory=device.type == "cuda",
-                          worker_init_fn=_single_threaded_worker if cfg.workers else None)
+                          worker_init_fn=_single_threaded_worker if cfg.workers else None,
+                          multiprocessing_context="spawn" if cfg.workers else None)
     val_loader = DataLoader(val_set, batch_size=cfg.batch, shuffle=False, **loader_options)
     t_start = time.time()
     meta: Dict[str, Any] = {}
