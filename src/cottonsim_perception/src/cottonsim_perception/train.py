@@ -29,7 +29,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from .nn.heads import PROTO_STRIDES
-from .nn.loss import YoloLoss
+from .nn.loss import LossConfig, YoloLoss
 from .nn.models import ModelConfig, YoloModel, build_model, load_checkpoint, save_checkpoint
 
 
@@ -74,7 +74,9 @@ class TrainConfig:
     preset's 4; 1 adds the full-resolution detail path, see heads.Proto); device: torch device to train on ('cpu', 'cuda', 'cuda:1';
     checkpoints are always written as CPU tensors); workers: DataLoader
     worker processes (0 = load in the training process; the augmentation of
-    item i in epoch e is the same either way, see YoloDataset).
+    item i in epoch e is the same either way, see YoloDataset);
+    mask_dice_weight: weight of the soft Dice term added to the segmenter's
+    mask BCE (``nn.loss.LossConfig``; 0 = BCE only, as YOLOv8).
     init_weights of the same network with another proto_stride is accepted:
     every tensor whose name and shape match is loaded, the new Proto layers
     start from their random initialisation (logged).
@@ -104,6 +106,7 @@ class TrainConfig:
     proto_stride: Optional[int] = None
     device: str = "cpu"
     workers: int = 0
+    mask_dice_weight: float = 0.0
 
     def __post_init__(self) -> None:
         if self.task not in ("seg", "det"):
@@ -155,6 +158,10 @@ class TrainConfig:
             raise ValueError(f"TrainConfig.device {self.device!r}: this torch has no CUDA device")
         if not (isinstance(self.mosaic_prob, (int, float)) and 0.0 <= self.mosaic_prob <= 1.0):
             raise ValueError(f"TrainConfig.mosaic_prob must be in [0, 1], got {self.mosaic_prob!r}")
+        LossConfig(mask_dice_weight=self.mask_dice_weight)      # range check with the loss's own message
+        if self.mask_dice_weight != 0.0 and self.task != "seg":
+            raise ValueError(f"TrainConfig.mask_dice_weight is for task 'seg' only, got {self.mask_dice_weight!r} "
+                             f"for task {self.task!r}")
 
 
 class ModelEMA:
@@ -325,7 +332,8 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
     model.to(device)
     optimizer = torch.optim.AdamW(_param_groups(model, cfg.weight_decay), lr=cfg.lr, betas=(0.9, 0.999))
     ema = ModelEMA(model, cfg.ema_decay, cfg.ema_tau)
-    loss_fn = YoloLoss(model_cfg.num_classes, model_cfg.reg_max, model.strides)
+    loss_fn = YoloLoss(model_cfg.num_classes, model_cfg.reg_max, model.strides,
+                       LossConfig(mask_dice_weight=cfg.mask_dice_weight))
     history: Dict[str, List[float]] = {"train_loss": [], "val_loss": []}
     start_epoch, best_val = 0, float("inf")
 

@@ -127,6 +127,16 @@ def test_train_config_accepts_stride_one_for_the_segmenter_only(tmp_path):
             _cfg(tmp_path, "s", task=task, proto_stride=stride)
 
 
+def test_train_config_takes_a_mask_dice_weight_for_the_segmenter_only(tmp_path):
+    _dataset(str(tmp_path / "a"), ["box"], 0)
+    assert _cfg(tmp_path, "s", task="seg", mask_dice_weight=0.5).mask_dice_weight == 0.5
+    with pytest.raises(ValueError, match="mask_dice_weight is for task 'seg'"):
+        _cfg(tmp_path, "s", task="det", mask_dice_weight=0.5)
+    for bad in (-1.0, float("nan"), float("inf"), True, "1"):
+        with pytest.raises(ValueError, match="mask_dice_weight"):
+            _cfg(tmp_path, "s", task="seg", mask_dice_weight=bad)
+
+
 def test_worker_processes_load_the_same_batches_as_the_training_process(tmp_path):
     # the augmentation of item i in epoch e does not depend on who loads it: two workers train
     # the same weights as loading in-process (seeded run, deterministic CPU kernels)

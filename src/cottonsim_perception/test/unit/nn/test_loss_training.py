@@ -2,7 +2,7 @@
 import pytest
 import torch
 
-from cottonsim_perception.nn.loss import LossConfig, YoloLoss, dfl_loss
+from cottonsim_perception.nn.loss import LossConfig, YoloLoss, dfl_loss, soft_dice_loss
 from cottonsim_perception.nn.models import ModelConfig, build_model
 
 H, W = 64, 96
@@ -99,3 +99,37 @@ def test_ignore_boxes_remove_only_the_background_loss_inside_them():
     assert got.tolist() == [[False, False], [True, False]]
     with pytest.raises(ValueError, match="ignore"):
         anchors_in_ignore_boxes(centres, strides, 2, torch.tensor([0, 1]), torch.tensor([[1.0, 1.0, 3.0, 3.0]]))
+
+
+def test_soft_dice_loss_scores_the_overlap_inside_the_region_only():
+    target = torch.zeros(2, 8, 8)
+    target[:, 2:6, 3] = 1.0                                   # a 1-px "stem", 4 px long
+    inside = torch.zeros(2, 8, 8, dtype=torch.bool)
+    inside[:, 1:7, 1:7] = True
+    logits = torch.full((2, 8, 8), -30.0)
+    logits[0, 2:6, 3] = 30.0                                  # mask 0: exactly the stem
+    logits[0, 0, 0] = 30.0                                    # ... plus a pixel outside the region
+    logits[1, 2:6, 4] = 30.0                                  # mask 1: beside it, no overlap
+    loss = soft_dice_loss(logits, target, inside)
+    assert loss[0].item() == pytest.approx(0.0, abs=1e-6)
+    assert loss[1].item() == pytest.approx(1.0 - 1.0 / 9.0, abs=1e-6)   # 1 - (0 + 1) / (4 + 4 + 1)
+    # an empty target with an empty prediction is no loss
+    assert soft_dice_loss(torch.full((1, 8, 8), -30.0), torch.zeros(1, 8, 8), inside[:1]).item() == \
+        pytest.approx(0.0, abs=1e-6)
+
+
+def test_mask_dice_weight_adds_the_dice_term_to_the_mask_loss():
+    torch.manual_seed(0)
+    cfg = ModelConfig(task="seg", num_classes=1, class_names=("a",), input_width=W, input_height=H,
+                      width_multiple=0.0625)
+    model = build_model(cfg).train()
+    img, targets = _square_batch()
+    out = model(img)
+    _, plain = YoloLoss(1, config=LossConfig())(out, targets)
+    total, dice = YoloLoss(1, config=LossConfig(mask_dice_weight=2.0))(out, targets)
+    # an untrained mask overlaps the square poorly: the Dice term is positive, at most the weight
+    assert plain["mask"] < dice["mask"] <= plain["mask"] + 2.0
+    total.backward()
+    for bad in (-0.1, float("nan"), True):
+        with pytest.raises(ValueError, match="mask_dice_weight"):
+            LossConfig(mask_dice_weight=bad)
