@@ -7,7 +7,8 @@ different classes never suppress each other); at most ``max_detections``;
 for segmentation, masks = sigmoid(coefficients . prototypes) zeroed outside
 the box (for a proto_stride-1 segmenter, whose eval output is coarse
 prototypes + full-resolution detail features, the logit is assembled per
-kept instance, see :func:`instance_mask_logits`), then boxes and masks are mapped back through the letterbox to the
+kept instance, see :func:`instance_mask_logits`; both only inside the box,
+:func:`box_soft_masks`), then boxes and masks are mapped back through the letterbox to the
 original image.
 
 torchvision is not available, so NMS is written here: greedy, on a
@@ -85,26 +86,39 @@ def batched_nms(boxes: torch.Tensor, scores: torch.Tensor, classes: torch.Tensor
     return nms(boxes + offset, scores, iou_threshold)
 
 
+def box_windows(boxes: torch.Tensor, height: int, width: int) -> List[Optional[tuple]]:
+    """Per box (xyxy in mask pixels) the pixels whose centre lies in it, as one
+    row range times one column range: (r0, r1, c0, c1), or None when it holds
+    no pixel centre."""
+    xs = torch.arange(width, dtype=boxes.dtype, device=boxes.device)[None, :] + 0.5
+    ys = torch.arange(height, dtype=boxes.dtype, device=boxes.device)[None, :] + 0.5
+    cols = ((xs >= boxes[:, 0:1]) & (xs < boxes[:, 2:3])).tolist()          # (n, w), one run of True
+    rows = ((ys >= boxes[:, 1:2]) & (ys < boxes[:, 3:4])).tolist()
+    windows: List[Optional[tuple]] = []
+    for col, row in zip(cols, rows):
+        if True not in col or True not in row:
+            windows.append(None)
+            continue
+        windows.append((row.index(True), height - row[::-1].index(True),
+                        col.index(True), width - col[::-1].index(True)))
+    return windows
+
+
 def crop_masks(masks: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
     """Zero (n, h, w) masks outside their boxes (xyxy in mask pixels); returns a new tensor.
 
     A pixel is kept when its centre lies in the box. The kept pixels of a box
-    are one row range times one column range, so the outside is zeroed by
-    slices: the same values as multiplying by a full-size box mask, which
-    cost ~2 ms per frame for 320x256 masks (proto_stride 1).
+    are one row range times one column range (:func:`box_windows`), so the
+    outside is zeroed by slices: the same values as multiplying by a
+    full-size box mask, which cost ~2 ms per frame for 320x256 masks
+    (proto_stride 1).
     """
-    n, h, w = masks.shape
-    xs = torch.arange(w, dtype=masks.dtype, device=masks.device)[None, :] + 0.5
-    ys = torch.arange(h, dtype=masks.dtype, device=masks.device)[None, :] + 0.5
-    cols = ((xs >= boxes[:, 0:1]) & (xs < boxes[:, 2:3])).tolist()         # (n, w), one run of True
-    rows = ((ys >= boxes[:, 1:2]) & (ys < boxes[:, 3:4])).tolist()
     out = masks.clone()
-    for i in range(n):
-        if True not in cols[i] or True not in rows[i]:
+    for i, win in enumerate(box_windows(boxes, masks.shape[1], masks.shape[2])):
+        if win is None:
             out[i] = 0.0
             continue
-        c0, c1 = cols[i].index(True), w - cols[i][::-1].index(True)
-        r0, r1 = rows[i].index(True), h - rows[i][::-1].index(True)
+        r0, r1, c0, c1 = win
         out[i, :r0] = 0.0
         out[i, r1:] = 0.0
         out[i, :, :c0] = 0.0
@@ -139,6 +153,44 @@ def instance_mask_logits(extra: torch.Tensor, protos: torch.Tensor,
     return fine
 
 
+def box_soft_masks(extra: torch.Tensor, protos: torch.Tensor, boxes: torch.Tensor,
+                   detail: Optional[torch.Tensor] = None) -> torch.Tensor:
+    """Soft masks (n, h, w) of n kept instances: sigmoid of their mask logits
+    inside their boxes (xyxy in mask pixels), 0 outside.
+
+    The same values as ``crop_masks(instance_mask_logits(extra, protos,
+    detail).sigmoid(), boxes)`` up to float rounding, but the logits and
+    sigmoids are computed only inside each box's window: for a
+    proto_stride-1 segmenter at 320x256 that is most of the per-instance
+    work, and a plant's box is a fraction of the frame.
+    """
+    k, hp, wp = protos.shape
+    if detail is None:
+        h, w = hp, wp
+    else:
+        d, h, w = detail.shape
+        if (h, w) != (2 * hp, 2 * wp) or extra.shape[1] < k + d + 1:
+            raise ValueError(f"detail features {tuple(detail.shape)} do not fit prototypes {tuple(protos.shape)} "
+                             f"and {extra.shape[1]} coefficient columns (need k + d + 1 = {k + d + 1})")
+    out = torch.zeros((extra.shape[0], h, w), dtype=protos.dtype, device=protos.device)
+    for i, win in enumerate(box_windows(boxes, h, w)):
+        if win is None:
+            continue
+        r0, r1, c0, c1 = win
+        if detail is None:
+            logit = (extra[i, :k] @ protos[:, r0:r1, c0:c1].reshape(k, -1)).reshape(r1 - r0, c1 - c0)
+        else:
+            window = detail[:, r0:r1, c0:c1]
+            logit = (extra[i, k:k + d] @ window.reshape(d, -1)).reshape(r1 - r0, c1 - c0) + extra[i, k + d]
+            # the coarse logits of the prototype cells under the window, each repeated 2 x 2 (nearest)
+            q0, q1, p0, p1 = r0 // 2, (r1 + 1) // 2, c0 // 2, (c1 + 1) // 2
+            coarse = (extra[i, :k] @ protos[:, q0:q1, p0:p1].reshape(k, -1)).reshape(q1 - q0, p1 - p0)
+            up = coarse.repeat_interleave(2, dim=0).repeat_interleave(2, dim=1)
+            logit = logit + up[r0 - 2 * q0:r0 - 2 * q0 + (r1 - r0), c0 - 2 * p0:c0 - 2 * p0 + (c1 - c0)]
+        out[i, r0:r1, c0:c1] = logit.sigmoid()
+    return out
+
+
 def postprocess(predictions: torch.Tensor, num_classes: int, transforms: Sequence[LetterboxTransform],
                 protos: Optional[torch.Tensor] = None,
                 config: PostprocessConfig = PostprocessConfig(),
@@ -169,11 +221,10 @@ def postprocess(predictions: torch.Tensor, num_classes: int, transforms: Sequenc
         boxes_in = p[:, :4]
         masks = None
         if protos is not None:
-            soft = instance_mask_logits(p[:, 4 + num_classes:], protos[b],
-                                        None if detail is None else detail[b]).sigmoid()
-            hp, wp = soft.shape[-2:]
-            scale = torch.tensor([wp / tf.dst_width, hp / tf.dst_height] * 2, dtype=soft.dtype)
-            soft = crop_masks(soft, boxes_in * scale)
+            d_b = None if detail is None else detail[b]
+            hm, wm = protos.shape[-2:] if d_b is None else d_b.shape[-2:]          # mask grid [px]
+            scale = torch.tensor([wm / tf.dst_width, hm / tf.dst_height] * 2, dtype=protos.dtype)
+            soft = box_soft_masks(p[:, 4 + num_classes:], protos[b], boxes_in * scale, d_b)
             masks = tf.masks_to_original(soft, config.mask_threshold)
         boxes = tf.boxes_to_original(boxes_in.cpu().numpy()).astype(np.float32)
         results.append(Detections(boxes, score.cpu().numpy().astype(np.float32),

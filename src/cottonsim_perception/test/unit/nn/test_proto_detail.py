@@ -158,3 +158,34 @@ def test_crop_masks_by_slices_equals_the_full_size_box_product():
         x1, y1, x2, y2 = (boxes[:, i, None, None] for i in range(4))
         expected = masks * ((xs >= x1) & (xs < x2) & (ys >= y1) & (ys < y2))
         assert torch.equal(crop_masks(masks, boxes), expected)
+
+
+@pytest.mark.parametrize("with_detail", [False, True])
+def test_box_soft_masks_equal_the_full_size_logits_cropped(with_detail):
+    # postprocess computes the logits and sigmoids only inside each box's window; the values must be
+    # those of the full-size path (instance_mask_logits, sigmoid, crop_masks) up to float rounding,
+    # for boxes on odd and even rows / columns (the 2 x 2 repetition of the coarse logits), empty
+    # boxes, boxes past the edges
+    from cottonsim_perception.nn.postprocess import box_soft_masks, crop_masks
+    g = torch.Generator().manual_seed(1)
+    k, d, hp, wp = 5, 3, 9, 13
+    for _ in range(60):
+        n = int(torch.randint(0, 5, (1,), generator=g))
+        protos = torch.randn(k, hp, wp, generator=g)
+        detail = torch.randn(d, 2 * hp, 2 * wp, generator=g) if with_detail else None
+        h, w = (2 * hp, 2 * wp) if with_detail else (hp, wp)
+        extra = torch.randn(n, k + d + 1, generator=g) * 2.0
+        boxes = torch.rand(n, 4, generator=g) * torch.tensor([w + 6.0, h + 6, w + 6, h + 6]) - 3.0
+        boxes[:, 2:] = torch.maximum(boxes[:, 2:], boxes[:, :2] - 1)          # some empty
+        expected = crop_masks(instance_mask_logits(extra if with_detail else extra[:, :k], protos, detail).sigmoid(),
+                              boxes)
+        got = box_soft_masks(extra if with_detail else extra[:, :k], protos, boxes, detail)
+        assert got.shape == expected.shape
+        assert torch.allclose(got, expected, atol=1e-6, rtol=0)
+        assert torch.equal(got == 0, expected == 0)
+
+
+def test_box_soft_masks_refuse_detail_that_does_not_fit():
+    from cottonsim_perception.nn.postprocess import box_soft_masks
+    with pytest.raises(ValueError, match="do not fit"):
+        box_soft_masks(torch.rand(2, 8), torch.rand(4, 8, 8), torch.rand(2, 4), torch.rand(3, 8, 8))
