@@ -8,7 +8,12 @@ brute-force test of every triangle, done in numpy with the same float32
 corners and the same float64 formulas, so the ranges must agree to the bit;
 two triangles at exactly the same distance (a shared edge) may trade places.
 The tree's structure is checked too: every triangle in exactly one leaf,
-every box around what it holds.
+every box around what it holds, and the 4-wide tree the caster walks holds
+the binary tree's leaves with their boxes, each once, with a visiting order
+per octant that is a permutation of its slots. Whole packets (fans of
+neighbouring rays of one ring, as the VLP-16 casts them) are compared with
+brute force too, since a child entered for one ray of a packet must not be
+lost for another.
 """
 import math
 
@@ -16,8 +21,8 @@ import numpy as np
 import pytest
 
 from cottonsim_world.farm.generator import FarmConfig, generate_farm
-from cottonsim_world.sensors.fast.bvh import BOX_PAD_M, TriangleBVH
-from cottonsim_world.sensors.fast.raycast import HIT_GROUND, HIT_NONE, cast_rays
+from cottonsim_world.sensors.fast.bvh import BOX_PAD_M, FAR_M, WIDTH, TriangleBVH
+from cottonsim_world.sensors.fast.raycast import HIT_GROUND, HIT_NONE, PACKET, cast_rays
 from cottonsim_world.sensors.scene import SensorScene
 
 
@@ -68,11 +73,37 @@ def rays(rng, n, origin_box, elevation_deg, azimuth_deg=(-180.0, 180.0)):
     return origins, dirs
 
 
+def cast(bvh, origin, directions, max_range_m):
+    """Ranges [m] and hits of rays from one origin along directions (N, 3), cast in packets."""
+    out_r, out_h = np.empty(len(directions)), np.empty(len(directions), np.int32)
+    cast_rays(np.asarray(origin, float), np.eye(3), np.ascontiguousarray(directions, dtype=float), max_range_m,
+              bvh.tri, bvh.tri_id, bvh.root_box, bvh.wide_box, bvh.wide_child, bvh.wide_order, bvh.leaf_first,
+              bvh.leaf_count, out_r, out_h)
+    return out_r, out_h
+
+
 def cast_one(bvh, origin, direction, max_range_m):
-    out_r, out_h = np.empty(1), np.empty(1, np.int32)
-    cast_rays(np.asarray(origin, float), np.eye(3), direction[None, :].copy(), max_range_m, bvh.tri, bvh.tri_id,
-              bvh.node_box, bvh.node_first, bvh.node_count, bvh.node_near, out_r, out_h)
+    out_r, out_h = cast(bvh, origin, direction[None, :], max_range_m)
     return out_r[0], out_h[0]
+
+
+def check_against_brute_force(bvh, o, d, got_r, got_h, max_range_m):
+    """Asserts one ray's cast result against brute force; returns True when it hit a plant."""
+    ref_r, ref_k = brute_force(o, d[None, :], bvh.tri, max_range_m)
+    ground = -o[2] / d[2] if d[2] < 0.0 else math.inf
+    ground = ground if ground <= max_range_m else math.inf
+    if math.isfinite(ground) and ground <= ref_r[0]:       # (the ground wins a tie)
+        assert got_h == HIT_GROUND and got_r == ground, (o, d, got_r, got_h, ref_r)
+        return False
+    if ref_k[0] < 0:
+        assert got_h == HIT_NONE and got_r == math.inf, (o, d, got_r, got_h)
+        return False
+    assert got_r == ref_r[0], (o, d, got_r, ref_r[0])
+    if got_h != bvh.tri_id[ref_k[0]]:       # a tie: the reported triangle must be at the same distance
+        k = int(np.flatnonzero(bvh.tri_id == got_h)[0])
+        t_k, _ = brute_force(o, d[None, :], bvh.tri[k:k + 1], max_range_m)
+        assert t_k[0] == got_r
+    return True
 
 
 def test_tree_holds_every_triangle_once_inside_its_boxes(farm_bvh):
@@ -120,21 +151,7 @@ def test_bvh_hits_match_brute_force(farm_bvh, place):
     for o, d in zip(origins, dirs):
         max_range_m = 130.0
         got_r, got_h = cast_one(bvh, o, d, max_range_m)
-        ref_r, ref_k = brute_force(o, d[None, :], bvh.tri, max_range_m)
-        ground = -o[2] / d[2] if d[2] < 0.0 else math.inf
-        ground = ground if ground <= max_range_m else math.inf
-        if math.isfinite(ground) and ground <= ref_r[0]:       # (the ground wins a tie)
-            assert got_h == HIT_GROUND and got_r == ground, (o, d, got_r, got_h, ref_r)
-            continue
-        if ref_k[0] < 0:
-            assert got_h == HIT_NONE and got_r == math.inf, (o, d, got_r, got_h)
-            continue
-        hits_on_plants += 1
-        assert got_r == ref_r[0], (o, d, got_r, ref_r[0])
-        if got_h != bvh.tri_id[ref_k[0]]:       # a tie: the reported triangle must be at the same distance
-            k = int(np.flatnonzero(bvh.tri_id == got_h)[0])
-            t_k, _ = brute_force(o, d[None, :], bvh.tri[k:k + 1], max_range_m)
-            assert t_k[0] == got_r
+        hits_on_plants += check_against_brute_force(bvh, o, d, got_r, got_h, max_range_m)
     assert hits_on_plants >= 20, f"only {hits_on_plants} rays hit a plant: the test would prove little"
 
 
@@ -148,3 +165,58 @@ def test_rays_stop_at_max_range_and_miss_an_empty_tree():
     empty = TriangleBVH(np.zeros((0, 3, 3)), np.zeros(0, np.int32))
     r, h = cast_one(empty, [0.0, 0.0, 0.5], np.array([0.6, 0.0, -0.8]), 10.0)
     assert h == HIT_GROUND and r == pytest.approx(0.625)
+
+
+def test_wide_tree_holds_the_binary_leaves_once_with_their_boxes(farm_bvh):
+    _, _, _, bvh = farm_bvh
+    leaves = np.flatnonzero(bvh.node_count > 0)
+    binary = {(int(bvh.node_first[c]), int(bvh.node_count[c])): bvh.node_box[c].astype(np.float64) for c in leaves}
+    seen, inner_seen = [], np.zeros(bvh.wide_total, int)
+    inner_seen[0] = 1
+    for w in range(bvh.wide_total):
+        for slot in range(WIDTH):
+            box = bvh.wide_box[w, slot::WIDTH]                       # min x, y, z, max x, y, z of this child
+            child = int(bvh.wide_child[w, slot])
+            if child >= 0:
+                inner_seen[child] += 1
+                # an inner child's box holds every box of its own children
+                assert np.all(bvh.wide_box[child, :12].reshape(3, WIDTH).min(axis=1) >= box[:3])
+                used = bvh.wide_box[child, 12:].reshape(3, WIDTH)
+                used = used[:, bvh.wide_box[child, 0:WIDTH] < FAR_M]
+                assert np.all(used.max(axis=1) <= box[3:])
+            elif bvh.leaf_count[-1 - child] > 0:
+                key = (int(bvh.leaf_first[-1 - child]), int(bvh.leaf_count[-1 - child]))
+                assert np.array_equal(binary[key], box), f"wide node {w} slot {slot}"
+                seen.append(key)
+            else:
+                assert np.all(box == FAR_M)                          # an unused slot is never met
+        for octant in range(8):
+            code = int(bvh.wide_order[w, octant])
+            assert sorted((code >> (2 * j)) & 3 for j in range(WIDTH)) == list(range(WIDTH))
+    assert sorted(seen) == sorted(binary), "every binary leaf exactly once"
+    assert np.all(inner_seen == 1), "every wide node reached exactly once"
+    assert bvh.wide_total < bvh.node_total / 3
+
+
+@pytest.mark.parametrize("place", ["lane", "headland"])
+def test_packets_of_a_ring_match_brute_force(farm_bvh, place):
+    """Fans of 3 packets of neighbouring rays (0.4 deg apart, one elevation) per origin, cast together."""
+    farm, _, _, bvh = farm_bvh
+    rng = np.random.default_rng({"lane": 4, "headland": 5}[place])
+    lane = farm.lanes[1]
+    if place == "lane":
+        box = ([lane.x_m - 0.3, lane.y_start_m + 0.5, 0.3], [lane.x_m + 0.3, lane.y_end_m - 0.5, 0.6])
+        az_span = (-180.0, 180.0)
+    else:
+        box = ([lane.x_m - 3.0, lane.y_start_m - 3.0, 0.3], [lane.x_m + 3.0, lane.y_start_m - 1.0, 0.6])
+        az_span = (30.0, 150.0)
+    hits_on_plants = 0
+    n_rays = 3 * PACKET
+    for origin, start in zip(*rays(rng, 12, box, (-15.0, 15.0), az_span)):
+        el = math.asin(start[2])
+        az = math.atan2(start[1], start[0]) + np.radians(0.4) * np.arange(n_rays)
+        dirs = np.stack([math.cos(el) * np.cos(az), math.cos(el) * np.sin(az), np.full(n_rays, math.sin(el))], axis=1)
+        got_r, got_h = cast(bvh, origin, dirs, 130.0)
+        for d, r, h in zip(dirs, got_r, got_h):
+            hits_on_plants += check_against_brute_force(bvh, origin, d, r, h, 130.0)
+    assert hits_on_plants >= 20, f"only {hits_on_plants} rays hit a plant: the test would prove little"

@@ -2,14 +2,16 @@
 
 Why: pybullet's rayTestBatch needs 140-500 ms per 14,400-ray scan of the
 default farm (and 4-6 s to build its collision world). Here the rays descend
-``bvh.TriangleBVH`` in *packets* of ``PACKET`` rays: all rays of a scan share
-the sensor's origin, and rays next to each other in a ring (0.4 deg apart)
-cross nearly the same boxes, so at each node of the tree the packet tests
-both children's boxes against all its rays in one loop that LLVM vectorises
-(the box corners minus the origin are shared; each ray adds two
-multiplications per axis and box). A child is entered when at least one ray
-meets it before that ray's nearest hit so far (the ground's included), the
-child on the side the packet looks to first. Leaves test their triangles against every ray of the packet
+the 4-wide tree of ``bvh.TriangleBVH`` in *packets* of ``PACKET`` rays: all
+rays of a scan share the sensor's origin, and rays next to each other in a
+ring (0.4 deg apart) cross nearly the same boxes, so at each node the packet
+tests the 4 children's boxes against all its rays in one loop that LLVM
+vectorises over the rays (the box corners minus the origin are shared;
+each ray adds two multiplications per axis and box). A child is entered
+when at least one ray meets it before that ray's nearest hit so far (the
+ground's included), in the order the binary tree would visit them for the
+octant the packet looks to (``bvh._collapse``), so hits and ties are those
+of a binary walk. Leaves test their triangles against every ray of the packet
 (Moeller-Trumbore, both faces count, the vector computes per ray exactly
 what a lone ray's test computes: the cross products with the shared corner
 are done once per triangle). The ground is the analytic plane z = 0
@@ -32,16 +34,18 @@ HIT_NONE = -1
 HIT_GROUND = -2
 PACKET = 8                 # rays traversing the tree together (consecutive rays: neighbours in a ring)
 _WORK_ITEMS = 16           # parallel items; item i casts packets i, i + 16, i + 32, ...
-_STACK = 128               # pending nodes: at most one per tree level, and bvh.MAX_DEPTH < _STACK
+_STACK = 256               # pending entries: at most 3 per wide level (+ 1), and 3 * bvh.MAX_DEPTH + 1 < _STACK
+_SLOT_OF_BIT = np.array([0, 0, 1, 0, 2, 0, 0, 0, 3], np.int64)   # child slot of a one-bit mask
 _AXIS_PARALLEL_INV = 1e300  # reciprocal used for a zero direction component (finite: no 0 * inf)
 _MIN_DET = 1e-14           # |determinant| below this: the ray runs parallel to the triangle
 
 
 @njit(cache=True, inline="always")
-def _box_from(node_box, c, ox, oy, oz):  # pragma: no cover
-    """Box c's min and max corners relative to the origin (x0, y0, z0, x1, y1, z1) [m]."""
-    return (np.float64(node_box[c, 0]) - ox, np.float64(node_box[c, 1]) - oy, np.float64(node_box[c, 2]) - oz,
-            np.float64(node_box[c, 3]) - ox, np.float64(node_box[c, 4]) - oy, np.float64(node_box[c, 5]) - oz)
+def _child_box(wide_box, w, slot, ox, oy, oz):  # pragma: no cover
+    """Child ``slot`` of wide node w: its min and max corners relative to the origin (x0, y0, z0, x1, y1, z1) [m]."""
+    return (np.float64(wide_box[w, slot]) - ox, np.float64(wide_box[w, 4 + slot]) - oy,
+            np.float64(wide_box[w, 8 + slot]) - oz, np.float64(wide_box[w, 12 + slot]) - ox,
+            np.float64(wide_box[w, 16 + slot]) - oy, np.float64(wide_box[w, 20 + slot]) - oz)
 
 
 @njit(cache=True, inline="always")
@@ -67,13 +71,14 @@ def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit):  # pragma: no cover
 
 
 @njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, node_count, node_near,
-              out_range, out_hit):  # pragma: no cover
+def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wide_child, wide_order, leaf_first,
+              leaf_count, out_range, out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
 
     tri (G, 9) float32: corner, edge, edge per sorted triangle; tri_id maps
-    the sorted index to the global id; node_box, node_first, node_count,
-    node_near: the tree of ``bvh.TriangleBVH``.
+    the sorted index to the global id; root_box, wide_box, wide_child,
+    wide_order, leaf_first, leaf_count: the 4-wide tree of
+    ``bvh.TriangleBVH``.
 
     Writes out_range (N,) [m] (inf when nothing is hit) and out_hit (N,)
     int32: triangle id, HIT_GROUND or HIT_NONE.
@@ -83,7 +88,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, n
     n_packets = (n + PACKET - 1) // PACKET
     has_tree = tri.shape[0] > 0
     for item in prange(_WORK_ITEMS):
-        stack = np.empty(_STACK, np.int32)
+        stack = np.empty(_STACK, np.int32)   # pending children: >= 0 a wide node, < 0 leaf number -1 - entry
         dxa = np.empty(PACKET)
         dya = np.empty(PACKET)
         dza = np.empty(PACKET)
@@ -115,46 +120,53 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, n
                 best[k] = t_first
                 hit[k] = what
                 limit[k] = min(t_first, max_range)
-            # the packet's middle ray decides which child is visited first
-            look = (dxa[m // 2], dya[m // 2], dza[m // 2])
+            # the octant the packet's middle ray looks to picks each node's visiting order
+            h = m // 2
+            octant = (1 if dxa[h] >= 0.0 else 0) | (2 if dya[h] >= 0.0 else 0) | (4 if dza[h] >= 0.0 else 0)
             sp = 0
-            node = -1
-            if has_tree:
-                b0x, b0y, b0z, b1x, b1y, b1z = _box_from(node_box, 0, ox, oy, oz)
+            if has_tree:     # the root's own box first: a packet that misses the farm costs one box test
+                b0x, b1x = root_box[0] - ox, root_box[3] - ox
+                b0y, b1y = root_box[1] - oy, root_box[4] - oy
+                b0z, b1z = root_box[2] - oz, root_box[5] - oz
                 meeting = 0
                 for k in range(m):
-                    meeting += _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], limit[k])
-                node = 0 if meeting > 0 else -1
-            while node >= 0:
-                # invariant: some ray of the packet met this node's box (when it was tested)
-                count = node_count[node]
-                if count == 0:
-                    # both children's boxes against every ray of the packet, in one vectorised loop
-                    left = node_first[node]
-                    l0x, l0y, l0z, l1x, l1y, l1z = _box_from(node_box, left, ox, oy, oz)
-                    r0x, r0y, r0z, r1x, r1y, r1z = _box_from(node_box, left + 1, ox, oy, oz)
-                    meet_left = 0
-                    meet_right = 0
+                    meeting |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], limit[k])
+                if meeting != 0:
+                    stack[0] = 0
+                    sp = 1
+            while sp > 0:
+                # invariant: some ray of the packet met this entry's box (when it was tested)
+                sp -= 1
+                node = stack[sp]
+                if node >= 0:
+                    # the 4 children's boxes against every ray of the packet, in one vectorised loop;
+                    # bit s of met: some ray meets child s
+                    a0x, a0y, a0z, a1x, a1y, a1z = _child_box(wide_box, node, 0, ox, oy, oz)
+                    b0x, b0y, b0z, b1x, b1y, b1z = _child_box(wide_box, node, 1, ox, oy, oz)
+                    c0x, c0y, c0z, c1x, c1y, c1z = _child_box(wide_box, node, 2, ox, oy, oz)
+                    d0x, d0y, d0z, d1x, d1y, d1z = _child_box(wide_box, node, 3, ox, oy, oz)
+                    met = 0
                     for k in range(m):
-                        meet_left += _meets(l0x, l0y, l0z, l1x, l1y, l1z, ixa[k], iya[k], iza[k], limit[k])
-                        meet_right += _meets(r0x, r0y, r0z, r1x, r1y, r1z, ixa[k], iya[k], iza[k], limit[k])
-                    if meet_left > 0 and meet_right > 0:
-                        code = node_near[node]
-                        right_low = (code & 1) == 1        # the right child lies lower along axis
-                        if (look[code >> 1] >= 0.0) != right_low:
-                            stack[sp] = left + 1
-                            node = left
-                        else:
-                            stack[sp] = left
-                            node = left + 1
-                        sp += 1
-                        continue
-                    if meet_left > 0 or meet_right > 0:
-                        node = left if meet_left > 0 else left + 1
-                        continue
+                        ix, iy, iz, lim = ixa[k], iya[k], iza[k], limit[k]
+                        met |= (_meets(a0x, a0y, a0z, a1x, a1y, a1z, ix, iy, iz, lim)
+                                | (_meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, lim) << 1)
+                                | (_meets(c0x, c0y, c0z, c1x, c1y, c1z, ix, iy, iz, lim) << 2)
+                                | (_meets(d0x, d0y, d0z, d1x, d1y, d1z, ix, iy, iz, lim) << 3))
+                    if met & (met - 1) == 0:          # none or one child met: no order to look up
+                        if met != 0:
+                            stack[sp] = wide_child[node, _SLOT_OF_BIT[met]]
+                            sp += 1
+                    else:
+                        order = wide_order[node, octant]
+                        for j in range(3, -1, -1):    # the last to visit is pushed first
+                            slot = (order >> (2 * j)) & 3
+                            if (met >> slot) & 1:
+                                stack[sp] = wide_child[node, slot]
+                                sp += 1
                 else:
-                    first = node_first[node]
-                    for g in range(first, first + count):
+                    leaf = -1 - node
+                    first = leaf_first[leaf]
+                    for g in range(first, first + leaf_count[leaf]):
                         ax, ay, az = np.float64(tri[g, 0]), np.float64(tri[g, 1]), np.float64(tri[g, 2])
                         e1x, e1y, e1z = np.float64(tri[g, 3]), np.float64(tri[g, 4]), np.float64(tri[g, 5])
                         e2x, e2y, e2z = np.float64(tri[g, 6]), np.float64(tri[g, 7]), np.float64(tri[g, 8])
@@ -180,12 +192,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, node_box, node_first, n
                             hit[k] = gid if nearer else hit[k]
                     for k in range(m):
                         limit[k] = min(best[k], max_range)
-                # next pending node (met when its parent was visited; nearer hits since may make it moot)
-                if sp == 0:
-                    node = -1
-                else:
-                    sp -= 1
-                    node = stack[sp]
+                # pending entries are not tested again: nearer hits since they were pushed may make them moot
             for k in range(m):
                 far_hit = best[k] > max_range
                 out_range[r0 + k] = math.inf if far_hit else best[k]
