@@ -37,6 +37,13 @@ not fit the map at the current estimate (so a kidnap of a standing robot is
 noticed), and while re-localising after a kidnap (then the particles are
 roughened first, see ``ParticleFilter.roughen``, so repeated updates on the
 scans of a standing robot do not collapse the set).
+
+Reported covariance: while not localised, :func:`reported_covariance` widens
+the pose covariance a node publishes to that of the whole particle set, and,
+while the scan does not fit the map at the estimate, to at least the
+re-spread covariance: a re-localising set can agree on a wrong pose (0.66 m
+along the heading in front of the rows, seen in the kidnap rostest) before
+the scan fit rejects it, and its own spread would then look trustworthy.
 """
 from __future__ import annotations
 
@@ -308,3 +315,32 @@ class StationaryUpdatePolicy:
             self._last_s = now_s
             return True, False
         return False, False
+
+
+def reported_covariance(filter_covariance: np.ndarray, particles: np.ndarray, weights: Optional[np.ndarray],
+                        localized: bool, hit_fraction: float, yaw_rad: float,
+                        config: LocalizationQualityConfig = LocalizationQualityConfig()) -> np.ndarray:
+    """The 3x3 (x, y, yaw) covariance to publish with the pose estimate [m^2, rad^2].
+
+    Localised: ``filter_covariance`` (AMCL's, of the heaviest cluster) as it is. Not localised: its x-y
+    block is replaced by the whole set's (:func:`set_covariance` of ``particles`` / ``weights``) when that
+    has the larger trace, and its yaw variance is at least the set's; if moreover the scan fit
+    ``hit_fraction`` is below ``config.min_hit_fraction``, the x-y block and the yaw variance are at least
+    those of ``config.relocalize_covariance(yaw_rad)`` (the estimate is unverified: see the module doc).
+    """
+    cov = np.array(filter_covariance, dtype=float)
+    if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+        raise ValueError(f"filter_covariance must be a finite 3x3 array, got shape {cov.shape}")
+    if localized:
+        return cov
+    if isinstance(hit_fraction, bool) or not isinstance(hit_fraction, (int, float)) \
+            or not 0.0 <= hit_fraction <= 1.0:
+        raise ValueError(f"hit_fraction must lie in [0, 1], got {hit_fraction!r}")
+    floors = [set_covariance(particles, weights)]
+    if hit_fraction < config.min_hit_fraction:
+        floors.append(config.relocalize_covariance(yaw_rad))
+    for floor in floors:
+        if np.trace(floor[:2, :2]) > np.trace(cov[:2, :2]):
+            cov[:2, :2] = floor[:2, :2]
+        cov[2, 2] = max(cov[2, 2], floor[2, 2])
+    return cov

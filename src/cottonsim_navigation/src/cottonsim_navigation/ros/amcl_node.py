@@ -28,7 +28,7 @@ from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
                                                        StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
-                                                       set_covariance)
+                                                       reported_covariance)
 from cottonsim_navigation.localization.sensor_models import Scan
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
 from cottonsim_navigation.ros.params import config_from_params, typed_param
@@ -107,8 +107,10 @@ class AmclNode:
           navigator can be re-localised by hand
     Publications
       amcl_pose         geometry_msgs/PoseWithCovarianceStamped  after each filter update (frame map); while
-          not localised its x-y / yaw covariance is (at least) that of the whole particle set, so a re-spread
-          filter never reports a tight pose
+          not localised its x-y / yaw covariance is (at least) that of the whole particle set, and while
+          moreover the scan does not fit the map at the estimate at least the re-spread covariance
+          (~localized_relocalize_std_*), so neither a re-spread filter nor one that agrees on an
+          unverified pose reports a tight pose (localization/quality.py, reported_covariance)
       particlecloud     geometry_msgs/PoseArray  after each filter update
       ~localized        std_msgs/Bool (latched)  true while the particle set is tight and the scan fits the
           map at the estimate (see localization/quality.py); false after (re)initialisation, a kidnap, or
@@ -311,12 +313,10 @@ class AmclNode:
                     self.stationary.start_relocalizing()
                     now = False
                 particles = self.amcl.particles.copy()
-                if not now:        # not localised: report the spread of the whole set, not of one cluster
-                    whole = set_covariance(particles, None if kidnapped else self.amcl.filter.weights)
-                    cov = result.covariance.copy()
-                    if np.trace(whole[:2, :2]) > np.trace(cov[:2, :2]):
-                        cov[:2, :2] = whole[:2, :2]
-                    cov[2, 2] = max(cov[2, 2], whole[2, 2])
+                if not now:        # not localised: the whole set's spread, more while the scan does not fit
+                    cov = reported_covariance(result.covariance, particles,
+                                              None if kidnapped else self.amcl.filter.weights, False, hits,
+                                              pose.yaw_rad, self.quality_config)
                     result = dataclasses.replace(result, covariance=cov)
             self._map_to_odom = result.map_to_odom
         stamp = msg.header.stamp

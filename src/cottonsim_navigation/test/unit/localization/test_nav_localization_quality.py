@@ -7,7 +7,7 @@ import pytest
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
                                                        StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
-                                                       set_covariance)
+                                                       reported_covariance, set_covariance)
 from cottonsim_navigation.localization.sensor_models import LikelihoodField, Scan
 
 
@@ -76,6 +76,32 @@ def test_set_covariance_covers_all_clusters():
     assert cov[1, 1] == pytest.approx(0.1875 * 16.0)
     with pytest.raises(ValueError, match="weights"):
         set_covariance(p, np.array([1.0, -1.0, 0.0, 0.0]))
+
+
+def test_reported_covariance_is_never_tight_while_unverified():
+    # a set that agrees (std 0.1 m on x, 0.05 on y, ~0 rad) on a pose, AMCL's cluster covariance tighter still
+    p = np.array([[0.9, 0.05, 0.0], [1.1, -0.05, 0.0], [0.9, -0.05, 0.0], [1.1, 0.05, 0.0]])
+    amcl_cov = np.diag([0.001, 0.001, 0.0001])
+    config = LocalizationQualityConfig(relocalize_std_xy_m=2.0, relocalize_std_across_m=0.5,
+                                       relocalize_std_yaw_rad=0.3, min_hit_fraction=0.6)
+    # localised: AMCL's own covariance, unchanged
+    np.testing.assert_array_equal(reported_covariance(amcl_cov, p, None, True, 0.9, 0.0, config), amcl_cov)
+    # not localised but the scan fits (only the spread test failed): the whole set's spread
+    cov = reported_covariance(amcl_cov, p, None, False, 0.9, 0.0, config)
+    assert cov[0, 0] == pytest.approx(0.01)
+    assert cov[1, 1] == pytest.approx(0.0025)
+    assert cov[2, 2] == pytest.approx(0.0001)
+    # not localised and the scan does not fit: at least the re-spread (2 m along the heading, 0.5 m across)
+    cov = reported_covariance(amcl_cov, p, None, False, 0.3, math.pi / 2, config)
+    assert cov[0, 0] == pytest.approx(0.25)
+    assert cov[1, 1] == pytest.approx(4.0)
+    assert cov[2, 2] == pytest.approx(0.09)
+    # the input is not modified
+    assert amcl_cov[0, 0] == 0.001
+    with pytest.raises(ValueError, match="hit_fraction"):
+        reported_covariance(amcl_cov, p, None, False, 1.5, 0.0, config)
+    with pytest.raises(ValueError, match="filter_covariance"):
+        reported_covariance(np.full((3, 3), np.nan), p, None, False, 0.5, 0.0, config)
 
 
 def test_stationary_policy_asks_for_updates_only_when_needed():
