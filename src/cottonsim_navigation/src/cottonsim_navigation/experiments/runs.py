@@ -311,13 +311,17 @@ PERCEPTION_TABLES = (
     ("seg_original", "seg", "Segmentation", "valid,test"),
     ("det_original", "det", "Detection", "valid,test"),
     ("det_original_sim_weights", "det", "Detection", "valid,test"),
+    ("seg_original_fine_weights", "seg", "Segmentation", "valid,test"),
 )
-# Weights of each table (relative to cottonsim_perception): one scene segmenter; two boll
-# detectors, one trained for the paper's images and one for the simulator's (weights/README.md).
+# Weights of each table (relative to cottonsim_perception): two scene segmenters, the default
+# one and a finer-masked, slower one (scene_segmenter_fine.pt); two boll detectors, one trained
+# for the paper's images and one for the simulator's (weights/README.md).
 DEFAULT_WEIGHTS = {"seg": "weights/scene_segmenter.pt", "det": "weights/boll_detector.pt"}
 TABLE_WEIGHTS = {"det_original_sim_weights": "weights/boll_detector_sim.pt",
                  "det_synthetic": "weights/boll_detector_sim.pt",
-                 "det_synthetic_no_ignore": "weights/boll_detector_sim.pt"}
+                 "det_synthetic_no_ignore": "weights/boll_detector_sim.pt",
+                 "seg_original_fine_weights": "weights/scene_segmenter_fine.pt",
+                 "seg_synthetic_fine_weights": "weights/scene_segmenter_fine.pt"}
 
 
 def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[str] = None,
@@ -348,6 +352,7 @@ def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[s
         # bolls beyond the labels' working range are ignore boxes; the strict row counts
         # predictions on them as false positives (docs/perception_data.md)
         tables += [("seg_synthetic", "seg", os.path.join(synthetic, "seg"), "test", ()),
+                   ("seg_synthetic_fine_weights", "seg", os.path.join(synthetic, "seg"), "test", ()),
                    ("det_synthetic", "det", det, "test", ()),
                    ("det_synthetic_no_ignore", "det", det, "test", ("--no-ignore",))]
     summary = {"experiment": "perception", "tables": {}}
