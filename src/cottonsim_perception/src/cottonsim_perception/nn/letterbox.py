@@ -12,13 +12,28 @@ image lands at ``x * scale_x + pad_left`` in the network input.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Tuple
+from typing import Optional, Sequence, Tuple
 
 import cv2
 import numpy as np
 import torch
 
 PAD_VALUE = 114
+
+
+#: one instance's soft mask inside its box: ((r0, r1, c0, c1) mask-pixel window, (r1 - r0, c1 - c0) values)
+MaskWindow = Tuple[Tuple[int, int, int, int], torch.Tensor]
+
+
+def dense_masks(windows: Sequence[Optional[MaskWindow]], height: int, width: int,
+                dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """(n, height, width) masks from per-instance windows (None: an empty mask; 0 outside the windows)."""
+    out = torch.zeros((len(windows), height, width), dtype=dtype)
+    for i, item in enumerate(windows):
+        if item is not None:
+            (r0, r1, c0, c1), soft = item
+            out[i, r0:r1, c0:c1] = soft
+    return out
 
 
 @dataclass(frozen=True)
@@ -122,6 +137,55 @@ class LetterboxTransform:
             # several times faster on one core; only float rounding differs.
             up = cv2.resize(crop[i], (big_w, big_h), interpolation=cv2.INTER_LINEAR)
             np.greater(up[oy:oy + self.src_height, ox:ox + self.src_width], threshold, out=out[i])
+        return out
+
+    def window_masks_to_original(self, windows: Sequence[Optional[MaskWindow]], height: int, width: int,
+                                 threshold: float = 0.5) -> np.ndarray:
+        """:meth:`masks_to_original` of masks given as per-instance windows.
+
+        windows: per instance None (an empty mask) or ``((r0, r1, c0, c1),
+        soft)``, the (r1 - r0, c1 - c0) soft values of a mask that is 0
+        outside that window, on a (height, width) mask grid proportional to
+        the network input (``postprocess.box_soft_mask_windows``).
+
+        When the mask grid maps onto the original image by whole factors and
+        the content starts on a whole mask pixel (640x480 frames in a 640x512
+        or 320x256 input, masks at a quarter or half of it), each window,
+        with a margin of one pixel of zeros, is resized on its own: the
+        bilinear value of a pixel depends only on its two neighbours in each
+        direction, which inside the margin are the same as in the whole
+        mask, and beyond the margin the whole mask's value is 0. So the
+        result equals :meth:`masks_to_original` of the dense masks, for the
+        pixels of the windows only. Otherwise the dense masks are built and
+        mapped by :meth:`masks_to_original`. Returns (N, src_height, src_width) bool.
+        """
+        n = len(windows)
+        fx, fy = width / self.dst_width, height / self.dst_height
+        x0, y0 = self.pad_left * fx, self.pad_top * fy                        # content origin [mask px]
+        cw, ch = self.content_width * fx, self.content_height * fy            # content size [mask px]
+        sx, sy = self.src_width / cw, self.src_height / ch                    # mask px -> original px
+        whole = all(float(v).is_integer() for v in (x0, y0, cw, ch, sx, sy))
+        if n == 0 or not whole:
+            return self.masks_to_original(dense_masks(windows, height, width), threshold)
+        ix0, iy0, iw, ih, kx, ky = (int(v) for v in (x0, y0, cw, ch, sx, sy))
+        out = np.zeros((n, self.src_height, self.src_width), dtype=bool)
+        for i, item in enumerate(windows):
+            if item is None:
+                continue
+            (r0, r1, c0, c1), soft = item
+            # the window in content coordinates, plus a margin of 1 px, clipped to the content
+            a_r, b_r = max(r0 - iy0 - 1, 0), min(r1 - iy0 + 1, ih)
+            a_c, b_c = max(c0 - ix0 - 1, 0), min(c1 - ix0 + 1, iw)
+            # the part of the window inside the content
+            p_r0, p_r1 = max(r0 - iy0, 0), min(r1 - iy0, ih)
+            p_c0, p_c1 = max(c0 - ix0, 0), min(c1 - ix0, iw)
+            if p_r0 >= p_r1 or p_c0 >= p_c1:
+                continue
+            patch = np.zeros((b_r - a_r, b_c - a_c), dtype=np.float32)
+            patch[p_r0 - a_r:p_r1 - a_r, p_c0 - a_c:p_c1 - a_c] = soft.float().cpu().numpy()[
+                p_r0 + iy0 - r0:p_r1 + iy0 - r0, p_c0 + ix0 - c0:p_c1 + ix0 - c0]
+            up = cv2.resize(patch, ((b_c - a_c) * kx, (b_r - a_r) * ky), interpolation=cv2.INTER_LINEAR)
+            np.greater(up, threshold, out=out[i, a_r * ky:b_r * ky, a_c * kx:b_c * kx])
         return out
 
 

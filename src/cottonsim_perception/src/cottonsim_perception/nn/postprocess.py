@@ -24,7 +24,7 @@ import torch
 
 from ..types import Detections
 from .assigner import bbox_iou
-from .letterbox import LetterboxTransform
+from .letterbox import LetterboxTransform, MaskWindow, dense_masks
 
 
 @dataclass(frozen=True)
@@ -153,16 +153,17 @@ def instance_mask_logits(extra: torch.Tensor, protos: torch.Tensor,
     return fine
 
 
-def box_soft_masks(extra: torch.Tensor, protos: torch.Tensor, boxes: torch.Tensor,
-                   detail: Optional[torch.Tensor] = None) -> torch.Tensor:
-    """Soft masks (n, h, w) of n kept instances: sigmoid of their mask logits
-    inside their boxes (xyxy in mask pixels), 0 outside.
+def box_soft_mask_windows(extra: torch.Tensor, protos: torch.Tensor, boxes: torch.Tensor,
+                          detail: Optional[torch.Tensor] = None) -> List[Optional[MaskWindow]]:
+    """Soft masks of n kept instances, each only inside its box's window.
 
-    The same values as ``crop_masks(instance_mask_logits(extra, protos,
-    detail).sigmoid(), boxes)`` up to float rounding, but the logits and
-    sigmoids are computed only inside each box's window: for a
-    proto_stride-1 segmenter at 320x256 that is most of the per-instance
-    work, and a plant's box is a fraction of the frame.
+    Per instance ``((r0, r1, c0, c1), soft)``: the window of mask pixels whose
+    centres lie in the box (xyxy in mask pixels, :func:`box_windows`) and the
+    sigmoid of the instance's mask logits there, (r1 - r0, c1 - c0); None for
+    a box that holds no pixel centre. The mask is 0 outside the window. For a
+    proto_stride-1 segmenter at 320x256 the logits are most of the
+    per-instance work and a plant's box is a fraction of the frame, so only
+    the window is computed.
     """
     k, hp, wp = protos.shape
     if detail is None:
@@ -172,9 +173,10 @@ def box_soft_masks(extra: torch.Tensor, protos: torch.Tensor, boxes: torch.Tenso
         if (h, w) != (2 * hp, 2 * wp) or extra.shape[1] < k + d + 1:
             raise ValueError(f"detail features {tuple(detail.shape)} do not fit prototypes {tuple(protos.shape)} "
                              f"and {extra.shape[1]} coefficient columns (need k + d + 1 = {k + d + 1})")
-    out = torch.zeros((extra.shape[0], h, w), dtype=protos.dtype, device=protos.device)
+    out: List[Optional[MaskWindow]] = []
     for i, win in enumerate(box_windows(boxes, h, w)):
         if win is None:
+            out.append(None)
             continue
         r0, r1, c0, c1 = win
         if detail is None:
@@ -187,8 +189,23 @@ def box_soft_masks(extra: torch.Tensor, protos: torch.Tensor, boxes: torch.Tenso
             coarse = (extra[i, :k] @ protos[:, q0:q1, p0:p1].reshape(k, -1)).reshape(q1 - q0, p1 - p0)
             up = coarse.repeat_interleave(2, dim=0).repeat_interleave(2, dim=1)
             logit = logit + up[r0 - 2 * q0:r0 - 2 * q0 + (r1 - r0), c0 - 2 * p0:c0 - 2 * p0 + (c1 - c0)]
-        out[i, r0:r1, c0:c1] = logit.sigmoid()
+        out.append((win, logit.sigmoid()))
     return out
+
+
+def box_soft_masks(extra: torch.Tensor, protos: torch.Tensor, boxes: torch.Tensor,
+                   detail: Optional[torch.Tensor] = None) -> torch.Tensor:
+    """Soft masks (n, h, w) of n kept instances: sigmoid of their mask logits
+    inside their boxes (xyxy in mask pixels), 0 outside.
+
+    The same values as ``crop_masks(instance_mask_logits(extra, protos,
+    detail).sigmoid(), boxes)`` up to float rounding; the dense form of
+    :func:`box_soft_mask_windows`.
+    """
+    k, hp, wp = protos.shape
+    h, w = (hp, wp) if detail is None else tuple(detail.shape[1:])
+    windows = box_soft_mask_windows(extra, protos, boxes, detail)
+    return dense_masks(windows, h, w, protos.dtype)
 
 
 def postprocess(predictions: torch.Tensor, num_classes: int, transforms: Sequence[LetterboxTransform],
@@ -224,8 +241,8 @@ def postprocess(predictions: torch.Tensor, num_classes: int, transforms: Sequenc
             d_b = None if detail is None else detail[b]
             hm, wm = protos.shape[-2:] if d_b is None else d_b.shape[-2:]          # mask grid [px]
             scale = torch.tensor([wm / tf.dst_width, hm / tf.dst_height] * 2, dtype=protos.dtype)
-            soft = box_soft_masks(p[:, 4 + num_classes:], protos[b], boxes_in * scale, d_b)
-            masks = tf.masks_to_original(soft, config.mask_threshold)
+            windows = box_soft_mask_windows(p[:, 4 + num_classes:], protos[b], boxes_in * scale, d_b)
+            masks = tf.window_masks_to_original(windows, hm, wm, config.mask_threshold)
         boxes = tf.boxes_to_original(boxes_in.cpu().numpy()).astype(np.float32)
         results.append(Detections(boxes, score.cpu().numpy().astype(np.float32),
                                   label.cpu().numpy().astype(np.int64), masks))

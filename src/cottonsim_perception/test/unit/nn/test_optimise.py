@@ -125,3 +125,38 @@ def test_masks_to_original_is_bilinear_then_threshold():
         assert np.array_equal(out[i][clear], (ref > 0.5)[clear])
         assert clear.mean() > 0.99
     assert t.masks_to_original(torch.zeros(0, 64, 80)).shape == (0, 480, 640)
+
+
+def _random_windows(rng, n, height, width):
+    """n random mask windows on a (height, width) grid, some None, some reaching into the letterbox bars."""
+    windows = []
+    for _ in range(n):
+        if rng.random() < 0.1:
+            windows.append(None)
+            continue
+        r0, r1 = sorted(rng.choice(height + 1, size=2, replace=False))
+        c0, c1 = sorted(rng.choice(width + 1, size=2, replace=False))
+        soft = torch.from_numpy(rng.random((r1 - r0, c1 - c0)).astype(np.float32))
+        windows.append(((int(r0), int(r1), int(c0), int(c1)), soft))
+    return windows
+
+
+@pytest.mark.parametrize("src, dst, grid", [((640, 480), (320, 256), (80, 64)),      # stride-2 prototypes
+                                            ((640, 480), (320, 256), (160, 128)),    # stride-1 (detail)
+                                            ((640, 480), (640, 512), (160, 128)),
+                                            ((720, 540), (320, 256), (160, 128))])   # 2.25x: dense fallback
+def test_window_masks_to_original_equal_the_dense_masks(src, dst, grid):
+    from cottonsim_perception.nn.letterbox import dense_masks
+    t = LetterboxTransform.fit(src[0], src[1], dst[0], dst[1])
+    rng = np.random.default_rng(7)
+    w, h = grid
+    for _ in range(4):
+        windows = _random_windows(rng, 12, h, w)
+        # a window entirely inside the top bar maps to nothing
+        windows.append(((0, 1, 3, 9), torch.ones(1, 6)))
+        got = t.window_masks_to_original(windows, h, w, threshold=0.5)
+        want = t.masks_to_original(dense_masks(windows, h, w), threshold=0.5)
+        assert got.shape == want.shape == (len(windows), src[1], src[0])
+        assert np.array_equal(got, want)
+        assert got.any() and not got[-1].any()
+    assert t.window_masks_to_original([], h, w).shape == (0, src[1], src[0])
