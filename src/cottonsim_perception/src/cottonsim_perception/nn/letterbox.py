@@ -106,6 +106,13 @@ class LetterboxTransform:
         b[:, [1, 3]] = b[:, [1, 3]].clip(0, self.src_height)
         return b
 
+    def content_on_grid(self, height: int, width: int) -> Tuple[float, float, float, float]:
+        """The content region (x0, y0, x1, y1) on a (height, width) grid proportional to the network
+        input [grid px, may be fractional]."""
+        fx, fy = width / self.dst_width, height / self.dst_height
+        return (self.pad_left * fx, self.pad_top * fy,
+                (self.pad_left + self.content_width) * fx, (self.pad_top + self.content_height) * fy)
+
     def masks_to_original(self, masks: torch.Tensor, threshold: float = 0.5) -> np.ndarray:
         """Map (N, h, w) soft masks (values 0..1) on the network input grid back.
 
@@ -120,9 +127,7 @@ class LetterboxTransform:
         n, h, w = masks.shape
         if n == 0:
             return np.zeros((0, self.src_height, self.src_width), dtype=bool)
-        fx, fy = w / self.dst_width, h / self.dst_height
-        x0, y0 = self.pad_left * fx, self.pad_top * fy
-        x1, y1 = (self.pad_left + self.content_width) * fx, (self.pad_top + self.content_height) * fy
+        x0, y0, x1, y1 = self.content_on_grid(h, w)
         ix0, iy0 = int(np.floor(x0)), int(np.floor(y0))
         ix1, iy1 = int(np.ceil(x1)), int(np.ceil(y1))
         crop = np.ascontiguousarray(masks[:, iy0:iy1, ix0:ix1].float().cpu().numpy())
@@ -160,9 +165,8 @@ class LetterboxTransform:
         mapped by :meth:`masks_to_original`. Returns (N, src_height, src_width) bool.
         """
         n = len(windows)
-        fx, fy = width / self.dst_width, height / self.dst_height
-        x0, y0 = self.pad_left * fx, self.pad_top * fy                        # content origin [mask px]
-        cw, ch = self.content_width * fx, self.content_height * fy            # content size [mask px]
+        x0, y0, x1, y1 = self.content_on_grid(height, width)
+        cw, ch = x1 - x0, y1 - y0                                             # content size [mask px]
         sx, sy = self.src_width / cw, self.src_height / ch                    # mask px -> original px
         whole = all(float(v).is_integer() for v in (x0, y0, cw, ch, sx, sy))
         if n == 0 or not whole:

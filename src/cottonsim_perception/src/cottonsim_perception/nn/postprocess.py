@@ -202,8 +202,7 @@ def box_soft_masks(extra: torch.Tensor, protos: torch.Tensor, boxes: torch.Tenso
     detail).sigmoid(), boxes)`` up to float rounding; the dense form of
     :func:`box_soft_mask_windows`.
     """
-    k, hp, wp = protos.shape
-    h, w = (hp, wp) if detail is None else tuple(detail.shape[1:])
+    h, w = protos.shape[1:] if detail is None else detail.shape[1:]
     windows = box_soft_mask_windows(extra, protos, boxes, detail)
     return dense_masks(windows, h, w, protos.dtype)
 
