@@ -44,6 +44,11 @@ class AmclConfig:
     alpha1..alpha5: odometry noise (odom_alpha1..5, diff model; alpha5 unused);
     odom_model_type: "diff" (amcl's original sampling, the original's choice) or "diff-corrected"
         (see :mod:`.motion_models`: the same alphas give ~9x more noise per 0.25 m step);
+    odom_max_step_m [m], odom_max_step_rad [rad]: a filter update that comes late (the odometry moved
+        further / turned more than this since the last one) samples the motion noise in parts of at
+        most this size, so the spread does not depend on how often the filter ran (not in ROS amcl;
+        0 = one piece, as amcl; see :mod:`.motion_models`). Defaults 0.5 m, 0.5 rad: twice the
+        update thresholds, so an update on time is sampled as before;
     min_particles, max_particles, kld_err, kld_z: KLD-sampling (see ParticleFilterConfig);
     max_beams, laser_max_range_m, laser_min_range_m, z_hit, z_rand, sigma_hit_m,
     likelihood_max_dist_m: likelihood-field model (laser_* parameters);
@@ -62,6 +67,8 @@ class AmclConfig:
     alpha4: float = 0.2
     alpha5: float = 0.1
     odom_model_type: str = "diff"
+    odom_max_step_m: float = 0.5
+    odom_max_step_rad: float = 0.5
     min_particles: int = 500
     max_particles: int = 2000
     kld_err: float = 0.05
@@ -107,7 +114,8 @@ class AmclConfig:
 
     def motion_config(self) -> OdometryMotionModelConfig:
         return OdometryMotionModelConfig(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5,
-                                         model=self.odom_model_type)
+                                         model=self.odom_model_type, max_step_m=self.odom_max_step_m,
+                                         max_step_rad=self.odom_max_step_rad)
 
     def sensor_config(self) -> LikelihoodFieldConfig:
         return LikelihoodFieldConfig(self.z_hit, self.z_rand, self.sigma_hit_m, self.likelihood_max_dist_m,

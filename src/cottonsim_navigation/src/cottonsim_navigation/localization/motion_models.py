@@ -33,6 +33,19 @@ turn), and for steps below 1 cm ``rot1`` is 0 (the direction of a tiny step
 is noise). alpha5 exists only for the omni-directional model; it is kept for
 parameter compatibility and unused here.
 
+Late updates (not in ROS amcl): the diff model's noise grows with the
+*square* of the step, so one increment of 2 m gets 64x the spread of a
+0.25 m step, not the 8 x 0.25 m steps' sqrt(8)x. A filter that falls behind
+(a busy machine, a simulator running faster than the node: scans dropped, the
+next update covers metres) would then scatter its particles over the
+neighbouring crop lanes. With ``max_step_m`` / ``max_step_rad`` > 0, an
+increment longer or turning more than that is split into equal parts along
+the constant-velocity arc between the two odometry poses (SE(2) exp / log;
+the parts compose exactly to the increment), each sampled with its own noise:
+the noise no longer depends on how often the filter ran. At most
+``MAX_SUBSTEPS`` parts (an odometry jump of kilometres must not stall the
+filter); 0 = never split, ROS amcl's behaviour.
+
 Everything is vectorised over particles: poses are (N, 3) arrays of
 (x_m, y_m, yaw_rad).
 """
@@ -49,6 +62,9 @@ from ..core.geometry import normalize_angle
 # Below this translation [m] the heading of the step is not meaningful (ROS amcl: 0.01 m).
 MIN_TRANSLATION_FOR_HEADING_M = 0.01
 
+# Most parts one late odometry increment is split into (see the module docstring).
+MAX_SUBSTEPS = 64
+
 # odom_model_type values (see the module docstring).
 MOTION_MODELS = ("diff", "diff-corrected")
 
@@ -63,7 +79,9 @@ class OdometryMotionModelConfig:
     alpha4: translation noise from rotation [m^2 / rad^2];
     alpha5: translation noise of the omni model (unused by the diff model);
     model: "diff" (ROS amcl's original sampling: the alpha expression is the noise's standard
-        deviation; the original's odom_model_type) or "diff-corrected" (it is the variance).
+        deviation; the original's odom_model_type) or "diff-corrected" (it is the variance);
+    max_step_m [m], max_step_rad [rad]: an increment longer / turning more than this is sampled as
+        equal parts (see the module docstring); 0 (default) = always in one piece, as ROS amcl.
     """
 
     alpha1: float = 0.2
@@ -72,9 +90,11 @@ class OdometryMotionModelConfig:
     alpha4: float = 0.2
     alpha5: float = 0.1
     model: str = "diff"
+    max_step_m: float = 0.0
+    max_step_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("alpha1", "alpha2", "alpha3", "alpha4", "alpha5"):
+        for name in ("alpha1", "alpha2", "alpha3", "alpha4", "alpha5", "max_step_m", "max_step_rad"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or not math.isfinite(value) or value < 0:
@@ -117,6 +137,50 @@ def odometry_increment(odom_prev, odom_now) -> Tuple[float, float, float]:
     return rot1, trans, rot2
 
 
+def _se2_log(dx: float, dy: float, dyaw: float) -> Tuple[float, float, float]:
+    """Twist (vx, vy, w) whose constant-velocity motion for unit time gives the relative pose (dx, dy, dyaw)."""
+    if abs(dyaw) < 1e-9:
+        return dx, dy, dyaw
+    a = math.sin(dyaw) / dyaw                       # V = [[a, -b], [b, a]], (dx, dy) = V (vx, vy)
+    b = (1.0 - math.cos(dyaw)) / dyaw
+    det = a * a + b * b
+    return (a * dx + b * dy) / det, (-b * dx + a * dy) / det, dyaw
+
+
+def _se2_exp(vx: float, vy: float, w: float) -> Tuple[float, float, float]:
+    """Relative pose (dx, dy, dyaw) after unit time at the constant twist (vx, vy, w)."""
+    if abs(w) < 1e-9:
+        return vx, vy, w
+    a = math.sin(w) / w
+    b = (1.0 - math.cos(w)) / w
+    return a * vx - b * vy, b * vx + a * vy, w
+
+
+def split_odometry_increment(odom_prev, odom_now, max_step_m: float, max_step_rad: float) -> np.ndarray:
+    """Odometry poses (k + 1, 3) from ``odom_prev`` to ``odom_now`` in k equal parts of the arc between them.
+
+    k is the fewest parts with no part longer than ``max_step_m`` nor turning more than ``max_step_rad``
+    (a limit <= 0 is ignored), capped at MAX_SUBSTEPS; the first row is odom_prev, the last odom_now.
+    """
+    p0 = _as_pose_array(odom_prev, "odom_prev")
+    p1 = _as_pose_array(odom_now, "odom_now")
+    c, s = math.cos(p0[2]), math.sin(p0[2])
+    gx, gy = p1[0] - p0[0], p1[1] - p0[1]
+    twist = _se2_log(c * gx + s * gy, -s * gx + c * gy, float(normalize_angle(p1[2] - p0[2])))
+    k = 1
+    if max_step_m > 0:
+        k = max(k, math.ceil(math.hypot(twist[0], twist[1]) / max_step_m - 1e-9))
+    if max_step_rad > 0:
+        k = max(k, math.ceil(abs(twist[2]) / max_step_rad - 1e-9))
+    k = min(k, MAX_SUBSTEPS)
+    poses = np.empty((k + 1, 3))
+    poses[0], poses[k] = p0, p1
+    for i in range(1, k):
+        dx, dy, dyaw = _se2_exp(*(v * i / k for v in twist))
+        poses[i] = (p0[0] + c * dx - s * dy, p0[1] + s * dx + c * dy, normalize_angle(p0[2] + dyaw))
+    return poses
+
+
 def sample_motion_model_odometry(particles: np.ndarray, odom_prev, odom_now,
                                  config: OdometryMotionModelConfig = OdometryMotionModelConfig(),
                                  rng: Optional[np.random.Generator] = None) -> np.ndarray:
@@ -125,12 +189,24 @@ def sample_motion_model_odometry(particles: np.ndarray, odom_prev, odom_now,
     particles: (N, 3) poses (x_m, y_m, yaw_rad) in the map frame;
     odom_prev, odom_now: odometry poses (x_m, y_m, yaw_rad) in the odom frame;
     returns a new (N, 3) array (the input is not modified), yaws in [-pi, pi).
+    An increment beyond config.max_step_m / max_step_rad is sampled in parts (see the module docstring).
     """
     parts = np.asarray(particles, dtype=float)
     if parts.ndim != 2 or parts.shape[1] != 3:
         raise ValueError(f"particles must be an (N, 3) array of (x_m, y_m, yaw_rad), got shape {parts.shape}")
     if rng is None:
         rng = np.random.default_rng()
+    if config.max_step_m > 0 or config.max_step_rad > 0:
+        steps = split_odometry_increment(odom_prev, odom_now, config.max_step_m, config.max_step_rad)
+        if len(steps) > 2:
+            for a, b in zip(steps[:-1], steps[1:]):
+                parts = _sample_one_increment(parts, a, b, config, rng)
+            return parts
+    return _sample_one_increment(parts, odom_prev, odom_now, config, rng)
+
+
+def _sample_one_increment(parts: np.ndarray, odom_prev, odom_now, config: OdometryMotionModelConfig,
+                          rng: np.random.Generator) -> np.ndarray:
     rot1, trans, rot2 = odometry_increment(odom_prev, odom_now)
     # A backwards step should not look like a half turn to the noise model.
     rot1_noise = min(abs(normalize_angle(rot1)), abs(normalize_angle(rot1 - math.pi)))

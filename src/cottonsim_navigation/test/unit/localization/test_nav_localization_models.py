@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from cottonsim_navigation.core.grid import GridSpec
-from cottonsim_navigation.localization.motion_models import (OdometryMotionModelConfig, odometry_increment,
-                                                              sample_motion_model_odometry)
+from cottonsim_navigation.localization.motion_models import (MAX_SUBSTEPS, OdometryMotionModelConfig,
+                                                              odometry_increment, sample_motion_model_odometry,
+                                                              split_odometry_increment)
 from cottonsim_navigation.localization.particle_filter import (FreeSpaceSampler, ParticleFilter,
                                                                ParticleFilterConfig, effective_sample_size,
                                                                kld_sample_limit, systematic_resample_indices,
@@ -72,6 +73,55 @@ def test_motion_model_diff_uses_the_alpha_expression_as_sd():
     assert corrected[:, 2].std() == pytest.approx(math.sqrt(0.2 * 0.0625 * 2), rel=0.03)
     with pytest.raises(ValueError, match="model"):
         OdometryMotionModelConfig(model="omni")
+
+
+def test_split_odometry_increment_composes_exactly_along_the_arc():
+    # a quarter circle of radius 2 m (arc 3.14 m, pi/2 rad) from a rotated start: 0.5 m / 0.5 rad limits -> 7 parts
+    p0 = (1.0, -2.0, 0.7)
+    c, s = math.cos(0.7), math.sin(0.7)
+    rel = (2.0, 2.0, math.pi / 2)                       # end of the arc in the start's frame
+    p1 = (1.0 + c * rel[0] - s * rel[1], -2.0 + s * rel[0] + c * rel[1], 0.7 + math.pi / 2)
+    poses = split_odometry_increment(p0, p1, 0.5, 0.5)
+    assert len(poses) == 8
+    assert poses[0] == pytest.approx(p0) and poses[-1] == pytest.approx(p1)
+    # every part is the same arc piece: equal chords, equal turns, all points on the circle about the centre
+    chords = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+    assert chords == pytest.approx(np.full(7, 2 * 2.0 * math.sin(math.pi / 28)))
+    assert np.diff(poses[:, 2]) == pytest.approx(np.full(7, math.pi / 14))
+    centre = (1.0 - s * 2.0, -2.0 + c * 2.0)
+    assert np.hypot(poses[:, 0] - centre[0], poses[:, 1] - centre[1]) == pytest.approx(np.full(8, 2.0))
+    # straight backwards, no limits, and a jump that would need more than MAX_SUBSTEPS parts
+    back = split_odometry_increment((0, 0, 0), (-1.2, 0, 0), 0.5, 0.0)
+    assert back[:, 0] == pytest.approx([0.0, -0.4, -0.8, -1.2]) and np.all(back[:, 1:] == 0)
+    assert len(split_odometry_increment((0, 0, 0), (3, 0, 0), 0.0, 0.0)) == 2
+    assert len(split_odometry_increment((0, 0, 0), (1000, 0, 0), 0.5, 0.5)) == MAX_SUBSTEPS + 1
+
+
+def test_late_update_spreads_like_the_same_path_in_steps():
+    # 2 m straight in one update: the diff model's sd grows with the square of the step (0.2 * 4 = 0.8 m and
+    # 0.8 rad, which scatters x further);
+    # split into 0.5 m parts it is that of four 0.5 m steps (sqrt(4) * 0.2 * 0.25 = 0.1 m), whatever the
+    # update rate; an update on time (0.3 m) is sampled exactly as before.
+    rng = np.random.default_rng(7)
+    one_piece = OdometryMotionModelConfig(0.2, 0.2, 0.2, 0.2)
+    split = OdometryMotionModelConfig(0.2, 0.2, 0.2, 0.2, max_step_m=0.5, max_step_rad=0.5)
+    whole = sample_motion_model_odometry(np.zeros((100000, 3)), (0, 0, 0), (2.0, 0, 0), one_piece, rng)
+    parts = sample_motion_model_odometry(np.zeros((100000, 3)), (0, 0, 0), (2.0, 0, 0), split, rng)
+    assert whole[:, 0].std() > 0.8
+    assert parts[:, 0].std() == pytest.approx(0.1, rel=0.05)
+    assert parts[:, 0].mean() == pytest.approx(2.0, abs=0.01)
+    stepped = np.zeros((100000, 3))
+    for i in range(4):
+        stepped = sample_motion_model_odometry(stepped, (0.5 * i, 0, 0), (0.5 * (i + 1), 0, 0), one_piece, rng)
+    assert parts[:, 0].std() == pytest.approx(stepped[:, 0].std(), rel=0.03)
+    assert parts[:, 2].std() == pytest.approx(stepped[:, 2].std(), rel=0.03)
+    on_time_a = sample_motion_model_odometry(np.zeros((1000, 3)), (0, 0, 0), (0.3, 0, 0.1), split,
+                                             np.random.default_rng(3))
+    on_time_b = sample_motion_model_odometry(np.zeros((1000, 3)), (0, 0, 0), (0.3, 0, 0.1), one_piece,
+                                             np.random.default_rng(3))
+    assert np.array_equal(on_time_a, on_time_b)
+    with pytest.raises(ValueError, match="max_step_m"):
+        OdometryMotionModelConfig(max_step_m=float("nan"))
 
 
 def test_likelihood_field_values_at_known_distances():
