@@ -15,7 +15,7 @@ Layers:
 * :func:`main` is the ``rosrun cottonsim_perception evaluate`` CLI::
 
     evaluate --task seg|det --data DIR --weights W --json OUT
-             [--split valid,test] [--conf 0.001] [--iou 0.7] [--no-ignore]
+             [--split valid,test] [--conf 0.001] [--iou 0.7] [--mask-threshold T] [--no-ignore]
 
   It prints one table per split (class, images, instances, P, R, mAP50,
   mAP50-95; for 'seg' both mask and box metrics) and writes the same to JSON.
@@ -42,6 +42,7 @@ the predictions dropped because they lie on an image's ignore boxes
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -236,6 +237,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--split", default="valid,test", help="comma-separated splits (default valid,test)")
     p.add_argument("--conf", type=float, default=0.001, help="confidence threshold (default 0.001)")
     p.add_argument("--iou", type=float, default=0.7, help="NMS IoU threshold (default 0.7)")
+    p.add_argument("--mask-threshold", type=float, default=None,
+                   help="mask pixel probability threshold, seg only (default: the value calibrated for the "
+                        "weights and stored in them, else 0.5)")
     p.add_argument("--no-ignore", action="store_true",
                    help="count predictions on the images' ignore boxes as false positives "
                         "(default: drop them, see the module docstring)")
@@ -256,6 +260,8 @@ def main(argv: Optional[Sequence[str]] = None,
         return _fail(f"--conf must be in [0, 1], got {args.conf}")
     if not (0.0 < args.iou <= 1.0):
         return _fail(f"--iou must be in (0, 1], got {args.iou}")
+    if args.mask_threshold is not None and not (0.0 < args.mask_threshold < 1.0):
+        return _fail(f"--mask-threshold must be in (0, 1), got {args.mask_threshold}")
     splits = [s.strip() for s in args.split.split(",") if s.strip()]
     if not splits:
         return _fail("--split names no split")
@@ -271,6 +277,11 @@ def main(argv: Optional[Sequence[str]] = None,
     ptask = getattr(predictor, "task", args.task)
     if ptask != args.task:
         return _fail(f"weights are a {ptask!r} model but --task is {args.task!r}")
+    post_config = getattr(predictor, "post_config", None)
+    if args.mask_threshold is not None:
+        if args.task != "seg" or post_config is None:
+            return _fail("--mask-threshold applies to segmentation weights only")
+        predictor.post_config = post_config = dataclasses.replace(post_config, mask_threshold=args.mask_threshold)
     try:
         names = tuple(getattr(predictor, "class_names", None) or yf.class_names_for(args.data, args.task))
         # Check every split before the (slow) prediction runs.
@@ -279,6 +290,8 @@ def main(argv: Optional[Sequence[str]] = None,
         out: Dict[str, object] = {"weights": os.path.abspath(args.weights),
                                   "data": os.path.abspath(args.data),
                                   "conf": args.conf, "iou": args.iou,
+                                  "mask_threshold": getattr(post_config, "mask_threshold", None)
+                                  if args.task == "seg" else None,
                                   "ignore_boxes": not args.no_ignore, "splits": {}}
         all_dets, all_gts = [], []
         for s in splits:

@@ -46,22 +46,30 @@ class Predictor:
     (0..1); iou_threshold: NMS IoU (0..1); threads: torch CPU threads (None
     leaves torch's setting; note it is process-wide); optimise: run the
     network as a frozen channels-last TorchScript graph (``nn.optimise``;
-    False runs the fused eager model, e.g. to compare).
+    False runs the fused eager model, e.g. to compare); mask_threshold: mask
+    pixel probability threshold (0..1); None (default) = the value calibrated
+    for these weights and stored in the checkpoint (``scripts/calibrate_mask_threshold``),
+    else PostprocessConfig's 0.5.
     ``model`` is the fused network (for introspection), ``network(x)`` what
     ``predict`` runs on a letterboxed (1, 3, H, W) float 0..1 tensor.
     Raises FileNotFoundError / ValueError for missing or invalid weights.
     """
 
     def __init__(self, weights_path: str, device: str = "cpu", conf_threshold: float = 0.25,
-                 iou_threshold: float = 0.7, threads: Optional[int] = None, optimise: bool = True):
+                 iou_threshold: float = 0.7, threads: Optional[int] = None, optimise: bool = True,
+                 mask_threshold: Optional[float] = None):
         if threads is not None:
             if not isinstance(threads, int) or threads < 1:
                 raise ValueError(f"threads must be a positive int or None, got {threads!r}")
             torch.set_num_threads(threads)
-        self.post_config = PostprocessConfig(conf_threshold=float(conf_threshold),
-                                             iou_threshold=float(iou_threshold))
         self.device = torch.device(device)
-        self.model = fuse_model(load_model(weights_path, self.device))
+        loaded = load_model(weights_path, self.device)
+        if mask_threshold is None:
+            mask_threshold = loaded.inference.get("mask_threshold", PostprocessConfig.mask_threshold)
+        self.post_config = PostprocessConfig(conf_threshold=float(conf_threshold),
+                                             iou_threshold=float(iou_threshold),
+                                             mask_threshold=float(mask_threshold))
+        self.model = fuse_model(loaded)
         self.config = self.model.config
         self.class_names = self.config.class_names
         self._network = self.model

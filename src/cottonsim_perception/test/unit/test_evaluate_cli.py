@@ -187,3 +187,26 @@ def test_ignore_regions_rule():
     assert M.on_ignore_regions(preds, matched, np.zeros((0, 4))).tolist() == [False] * 4
     with pytest.raises(ValueError):
         M.on_ignore_regions(preds, matched[:2], ignore)
+
+
+def test_mask_threshold_option(tmp_path, capsys):
+    import dataclasses
+
+    from cottonsim_perception.nn.postprocess import PostprocessConfig
+
+    class SegStub(StubPredictor):
+        post_config = PostprocessConfig(mask_threshold=0.4)          # as if calibrated in the weights
+
+    stub = SegStub("seg")
+    code, out = _run(tmp_path, "seg", stub)
+    assert code == 0 and json.load(open(out))["mask_threshold"] == 0.4   # the weights' value is recorded
+    code, out = _run(tmp_path, "seg", stub, ["--mask-threshold", "0.6"])
+    assert code == 0 and json.load(open(out))["mask_threshold"] == 0.6
+    assert stub.post_config == dataclasses.replace(PostprocessConfig(mask_threshold=0.4), mask_threshold=0.6)
+    capsys.readouterr()
+    data, weights = str(tmp_path / "data"), str(tmp_path / "w.pt")
+    base = ["--data", data, "--weights", weights, "--json", str(tmp_path / "x.json")]
+    _expect_exit2(capsys, ["--task", "seg", *base, "--mask-threshold", "1.0"], lambda w, c, i: SegStub("seg"),
+                  "--mask-threshold must be in (0, 1)")
+    _expect_exit2(capsys, ["--task", "det", *base, "--mask-threshold", "0.4"], lambda w, c, i: StubPredictor("det"),
+                  "segmentation weights only")

@@ -4,7 +4,9 @@ import pytest
 import torch
 
 from cottonsim_perception.inference import Predictor, class_masks
-from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
+from cottonsim_perception.evaluation.calibration import choose_mask_threshold
+from cottonsim_perception.nn.models import (ModelConfig, build_model, load_checkpoint, load_model, save_checkpoint,
+                                            set_inference_settings)
 from cottonsim_perception.types import Detections, GroundTruth
 
 
@@ -43,6 +45,45 @@ def test_predict_rejects_bad_images(seg_weights):
 def test_predictor_missing_weights():
     with pytest.raises(FileNotFoundError):
         Predictor("/nonexistent/weights.pt")
+
+
+def test_calibrated_mask_threshold_travels_with_the_weights(seg_weights, tmp_path):
+    assert Predictor(seg_weights).post_config.mask_threshold == 0.5          # nothing stored: the default
+    calibrated = str(tmp_path / "calibrated.pt")
+    set_inference_settings(seg_weights, {"mask_threshold": 0.4}, out_path=calibrated)
+    assert load_model(calibrated).inference == {"mask_threshold": 0.4}
+    assert load_model(seg_weights).inference == {}                           # the source is untouched
+    p = Predictor(calibrated, conf_threshold=0.0)
+    assert p.post_config.mask_threshold == 0.4
+    assert Predictor(calibrated, mask_threshold=0.6).post_config.mask_threshold == 0.6   # explicit wins
+    # a lower threshold can only grow each instance's mask (same network, same boxes)
+    img = np.random.default_rng(1).integers(0, 255, (96, 128, 3), dtype=np.uint8)
+    low, high = p.predict(img), Predictor(calibrated, conf_threshold=0.0, mask_threshold=0.6).predict(img)
+    assert np.array_equal(low.boxes_xyxy, high.boxes_xyxy)
+    assert np.all(low.masks | ~high.masks) and low.masks.sum() >= high.masks.sum()
+    # weights and metadata are kept as they were
+    a, b = load_checkpoint(seg_weights), load_checkpoint(calibrated)
+    assert a["train"] == b["train"] and all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])
+    with pytest.raises(ValueError, match="mask_threshold"):
+        set_inference_settings(calibrated, {"mask_threshold": 1.5})
+    with pytest.raises(ValueError, match="unknown key 'nms'"):
+        set_inference_settings(calibrated, {"nms": 0.5})
+    with pytest.raises(ValueError, match="mask_threshold"):
+        save_checkpoint(str(tmp_path / "bad.pt"), load_model(seg_weights), inference={"mask_threshold": 0.0})
+
+
+def test_choose_mask_threshold_rule():
+    # best mAP50 wins; among equal mAP50 the best mAP50-95; then the one closest to 0.5
+    assert choose_mask_threshold({0.3: (0.85, 0.5), 0.4: (0.86, 0.4), 0.5: (0.80, 0.6)}) == 0.4
+    assert choose_mask_threshold({0.3: (0.9, 0.5), 0.4: (0.9, 0.6), 0.5: (0.9, 0.55)}) == 0.4
+    assert choose_mask_threshold({0.3: (0.9, 0.6), 0.4: (0.9, 0.6), 0.5: (0.9, 0.6), 0.6: (0.8, 0.6)}) == 0.5
+    assert choose_mask_threshold({0.45: (0.9, 0.6), 0.55: (0.9, 0.6)}) == 0.45
+    with pytest.raises(ValueError, match="at least one"):
+        choose_mask_threshold({})
+    with pytest.raises(ValueError, match=r"\(0, 1\)"):
+        choose_mask_threshold({1.0: (0.9, 0.6)})
+    with pytest.raises(ValueError, match="finite"):
+        choose_mask_threshold({0.4: (float("nan"), 0.6)})
 
 
 def test_class_masks_is_the_union_per_class():

@@ -248,12 +248,46 @@ def count_parameters(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters() if p.requires_grad)
 
 
+# Inference settings a checkpoint may carry (calibrated for its weights; see check_inference_settings).
+INFERENCE_KEYS = ("mask_threshold",)
+
+
+def check_inference_settings(settings: Any, where: str = "inference settings") -> Dict[str, float]:
+    """Validate a checkpoint's ``inference`` dict and return it as {key: float}.
+
+    mask_threshold: probability above which a mask pixel is inside, in (0, 1); calibrated on a
+    validation split by ``scripts/calibrate_mask_threshold`` (absent: PostprocessConfig's 0.5).
+    Raises ValueError naming the bad key or value.
+    """
+    if not isinstance(settings, dict):
+        raise ValueError(f"{where} must be a dict, got {type(settings).__name__}")
+    out: Dict[str, float] = {}
+    for key, value in settings.items():
+        if key not in INFERENCE_KEYS:
+            raise ValueError(f"{where}: unknown key {key!r} (known: {', '.join(INFERENCE_KEYS)})")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value < 1.0:
+            raise ValueError(f"{where}: {key} must be a number in (0, 1), got {value!r}")
+        out[key] = float(value)
+    return out
+
+
+def _write_checkpoint(path: str, ckpt: Dict[str, Any]) -> None:
+    """torch.save to ``path + '.tmp'``, then rename: a crash never leaves a half-written file."""
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    tmp = path + ".tmp"
+    torch.save(ckpt, tmp)
+    os.replace(tmp, path)
+
+
 def save_checkpoint(path: str, model: YoloModel, train_meta: Optional[Dict[str, Any]] = None,
-                    optimizer_state: Optional[Dict[str, Any]] = None) -> None:
+                    optimizer_state: Optional[Dict[str, Any]] = None,
+                    inference: Optional[Dict[str, float]] = None) -> None:
     """Write a weights_only-safe checkpoint (state_dict + config dict + metadata).
 
     train_meta: plain dict (str / int / float / list / dict values) such as
-    {'epochs': 30, 'data': '/path', 'seed': 0, 'metrics': {...}}.
+    {'epochs': 30, 'data': '/path', 'seed': 0, 'metrics': {...}};
+    inference: calibrated inference settings (see :func:`check_inference_settings`).
     The file is written to ``path + '.tmp'`` then renamed, so a crash never
     leaves a half-written checkpoint.
     """
@@ -264,13 +298,21 @@ def save_checkpoint(path: str, model: YoloModel, train_meta: Optional[Dict[str, 
         "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
         "train": dict(train_meta or {}),
     }
+    if inference:
+        ckpt["inference"] = check_inference_settings(inference)
     if optimizer_state is not None:
         ckpt["optimizer"] = optimizer_state
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    tmp = path + ".tmp"
-    torch.save(ckpt, tmp)
-    os.replace(tmp, path)
+    _write_checkpoint(path, ckpt)
+
+
+def set_inference_settings(path: str, settings: Dict[str, float], out_path: Optional[str] = None) -> None:
+    """Store calibrated inference settings in the checkpoint ``path`` (merged into any it holds),
+    written to ``out_path`` (default: in place, atomically); weights and metadata are kept as they are."""
+    ckpt = load_checkpoint(path)
+    merged = dict(ckpt.get("inference") or {})
+    merged.update(check_inference_settings(settings))
+    ckpt["inference"] = merged
+    _write_checkpoint(out_path or path, ckpt)
 
 
 def load_checkpoint(path: str) -> Dict[str, Any]:
@@ -299,7 +341,8 @@ def load_checkpoint(path: str) -> Dict[str, Any]:
 def load_model(path: str, device: Union[str, torch.device] = "cpu") -> YoloModel:
     """Build the network stored in a checkpoint, load its weights, put it in eval mode.
 
-    The returned model has ``.config`` (ModelConfig) and ``.train_meta`` (dict).
+    The returned model has ``.config`` (ModelConfig), ``.train_meta`` (dict) and
+    ``.inference`` (calibrated inference settings, see :func:`check_inference_settings`).
     Raises FileNotFoundError / ValueError (see :func:`load_checkpoint`), and
     ValueError if the weights do not fit the stored configuration.
     """
@@ -314,4 +357,5 @@ def load_model(path: str, device: Union[str, torch.device] = "cpu") -> YoloModel
     except RuntimeError as exc:
         raise ValueError(f"{path}: weights do not match the stored model_config: {exc}") from exc
     model.train_meta = dict(ckpt.get("train", {}))
+    model.inference = check_inference_settings(ckpt.get("inference") or {}, f"{path}: inference settings")
     return model.to(device).eval()

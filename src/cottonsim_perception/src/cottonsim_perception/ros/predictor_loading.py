@@ -1,7 +1,9 @@
 """Loading a network for a perception node from its ~params, without ever taking the node down.
 
 Shared by the segmentation and boll detection nodes. Parameters read (private):
-  ~device (str, 'cpu'), ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7), ~threads (int, 1).
+  ~device (str, 'cpu'), ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7), ~threads (int, 1),
+  ~mask_threshold (float, -1: the value calibrated for the weights and stored in them, else 0.5;
+  segmentation weights only).
 """
 import os
 from typing import Optional
@@ -23,10 +25,12 @@ def load_predictor(node: str, weights: str, source_param: str, expected_task: Op
         return None
     try:
         from cottonsim_perception.inference import Predictor
+        mask_threshold = float(rospy.get_param("~mask_threshold", -1.0))
         predictor = Predictor(weights, device=str(rospy.get_param("~device", "cpu")),
                               conf_threshold=float(rospy.get_param("~conf_threshold", 0.25)),
                               iou_threshold=float(rospy.get_param("~iou_threshold", 0.7)),
-                              threads=int(rospy.get_param("~threads", 1)))
+                              threads=int(rospy.get_param("~threads", 1)),
+                              mask_threshold=None if mask_threshold < 0 else mask_threshold)
     except Exception as exc:  # a bad checkpoint must not take the node down
         rospy.logerr("%s: cannot load weights '%s': %s; publishing nothing", node, weights, exc)
         return None

@@ -27,7 +27,8 @@ Publications
   ~latency_ms      std_msgs/Float32   wall time from receiving a frame to publishing its masks [ms]
 Parameters (private; config/segmentation.yaml documents each)
   ~camera (str, realsense_p), ~mask_source (str, network), ~weights (str, ''), ~device (str, cpu),
-  ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7), ~threads (int, 1), ~overlay_alpha (float, 0.5)
+  ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7), ~threads (int, 1), ~overlay_alpha (float, 0.5),
+  ~mask_threshold (float, -1 = the calibrated value stored in the weights, else 0.5)
 TF: none.
 """
 from __future__ import annotations
