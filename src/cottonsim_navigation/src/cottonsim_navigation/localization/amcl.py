@@ -47,7 +47,7 @@ class AmclConfig:
     odom_max_step_m [m], odom_max_step_rad [rad]: a filter update that comes late (the odometry moved
         further / turned more than this since the last one) samples the motion noise in parts of at
         most this size, so the spread does not depend on how often the filter ran (not in ROS amcl;
-        0 = one piece, as amcl; see :mod:`.motion_models`). Defaults 0.5 m, 0.5 rad: twice the
+        0 = one piece, as amcl; see :mod:`.motion_models`). Defaults 0.5 m, 0.5 rad: 2x and 2.5x the
         update thresholds, so an update on time is sampled as before;
     min_particles, max_particles, kld_err, kld_z: KLD-sampling (see ParticleFilterConfig);
     max_beams, laser_max_range_m, laser_min_range_m, z_hit, z_rand, sigma_hit_m,
