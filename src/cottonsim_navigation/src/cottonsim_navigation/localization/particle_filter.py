@@ -408,6 +408,14 @@ class ParticleFilter:
         return _cluster_stats(self.particles, self.weights)
 
 
+def mean_resultant_length(yaws_rad: np.ndarray, weights: np.ndarray) -> float:
+    """|sum_i w_i exp(j yaw_i)| of normalised weights, clamped to [0, 1]: the circular variance is
+    -2 ln of it. Rounding can put it a hair above 1 when the weight sits on equal yaws (one particle,
+    or a collapsed set), which would make that variance negative and its square root a math error."""
+    r = math.hypot(float(np.dot(weights, np.cos(yaws_rad))), float(np.dot(weights, np.sin(yaws_rad))))
+    return min(r, 1.0)
+
+
 def _cluster_stats(particles: np.ndarray, weights: np.ndarray) -> Cluster:
     total = float(weights.sum())
     w = weights / total if total > 0 else np.full(weights.size, 1.0 / weights.size)
@@ -422,6 +430,6 @@ def _cluster_stats(particles: np.ndarray, weights: np.ndarray) -> Cluster:
     cov[0, 0] = float(np.dot(w, dx * dx))
     cov[1, 1] = float(np.dot(w, dy * dy))
     cov[0, 1] = cov[1, 0] = float(np.dot(w, dx * dy))
-    r = math.hypot(c, s)
+    r = mean_resultant_length(particles[:, 2], w)
     cov[2, 2] = -2.0 * math.log(r) if r > 1e-12 else 2.0 * math.pi ** 2 / 3.0
     return Cluster(total, np.array([mx, my, yaw]), cov, int(particles.shape[0]))

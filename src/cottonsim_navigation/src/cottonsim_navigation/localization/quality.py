@@ -53,6 +53,7 @@ from typing import Optional
 
 import numpy as np
 
+from .particle_filter import mean_resultant_length
 from .sensor_models import LikelihoodField, Scan
 
 
@@ -160,7 +161,7 @@ def particle_spread(particles: np.ndarray, weights: Optional[np.ndarray] = None)
     cxx, cyy, cxy = float(w @ (dx * dx)), float(w @ (dy * dy)), float(w @ (dx * dy))
     # largest eigenvalue of [[cxx, cxy], [cxy, cyy]]
     lam = 0.5 * (cxx + cyy) + math.sqrt(max(0.25 * (cxx - cyy) ** 2 + cxy * cxy, 0.0))
-    r = math.hypot(float(w @ np.cos(p[:, 2])), float(w @ np.sin(p[:, 2])))
+    r = mean_resultant_length(p[:, 2], w)
     std_yaw = math.sqrt(-2.0 * math.log(r)) if r > 1e-12 else math.pi
     return math.sqrt(max(lam, 0.0)), std_yaw
 
@@ -260,7 +261,7 @@ def set_covariance(particles: np.ndarray, weights: Optional[np.ndarray] = None) 
     d = p[:, :2] - w @ p[:, :2]
     cov = np.zeros((3, 3))
     cov[:2, :2] = (d * w[:, None]).T @ d
-    r = math.hypot(float(w @ np.cos(p[:, 2])), float(w @ np.sin(p[:, 2])))
+    r = mean_resultant_length(p[:, 2], w)
     cov[2, 2] = -2.0 * math.log(r) if r > 1e-12 else math.pi ** 2
     return cov
 

@@ -154,3 +154,20 @@ def test_relocalize_covariance_along_and_across_the_heading():
         LocalizationQualityConfig(relocalize_round_fraction=1.2)
     with pytest.raises(ValueError, match="yaw_rad"):
         cfg.relocalize_covariance(float("nan"))
+
+
+def test_collapsed_set_has_zero_heading_spread_not_a_math_error():
+    # five particles at the same yaw -2.9 with equal weights: the mean resultant length rounds to
+    # 1.0000000000000002 (found by search); -2 ln R was negative and its square root raised
+    # "math domain error" in the amcl node's scan callback (seen under load, session 10)
+    from cottonsim_navigation.localization.particle_filter import ParticleFilter, mean_resultant_length
+
+    yaws, w = np.full(5, -2.9), np.full(5, 0.2)
+    assert math.hypot(float(w @ np.cos(yaws)), float(w @ np.sin(yaws))) > 1.0     # the rounding case
+    assert mean_resultant_length(yaws, w) == 1.0
+    parts = np.column_stack([np.arange(5.0), np.zeros(5), yaws])
+    assert particle_spread(parts)[1] == 0.0
+    assert set_covariance(parts)[2, 2] == 0.0
+    pf = ParticleFilter()
+    pf.set_particles(parts)
+    assert pf.estimate().covariance[2, 2] == 0.0
