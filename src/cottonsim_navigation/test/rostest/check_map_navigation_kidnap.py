@@ -10,6 +10,7 @@ itself, no operator. Landing at the lane's entry, AMCL settled along the lane in
 0.95 m before it in 1 of 5: the closer to the rows, the less the scan says about the along-row position)."""
 import math
 import threading
+import time
 
 import rospy
 import rostest
@@ -31,6 +32,7 @@ KIDNAP_DISTANCE_M = 3.0                      # carried sideways to the east (+x)
 # (a kidnap along the rows, e.g. 3 m back from here, is noticed only ~25 s later when AMCL's estimate leaves the
 # rows: the hedges are the same all along a row; see docs/map_experiment.md, "Kidnap")
 OPERATOR_AFTER_S = 20.0                      # sim time lost before the "operator" gives /initialpose
+RESUME_RACE_WALL_S = 0.5                     # /cmd_vel this close (wall) before the resume is not counted as paused
 
 
 def yaw_of(q):
@@ -47,7 +49,7 @@ class MapNavigationKidnapTest(NavigatorWatch):
         self.localized = None
         self.localized_seen_true = False
         self.paused_since = None           # sim time the navigator state turned "paused"
-        self.cmd_while_paused = []         # (|v|, |w|) of /cmd_vel 0.5 s or more into a pause
+        self.cmd_while_paused = []         # (wall time, |v|, |w|) of /cmd_vel 0.5 s or more into a pause
         self.truth_while_paused = []       # (t, x, y) 2 s or more into a pause
         rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth)
         rospy.Subscriber("/amcl/localized", Bool, self._on_localized)
@@ -61,6 +63,12 @@ class MapNavigationKidnapTest(NavigatorWatch):
             if paused and self.paused_since is None:
                 self.paused_since = rospy.Time.now()
             elif not paused:
+                if self.paused_since is not None:
+                    # rospy runs each subscription in its own thread: the first command of the resumed goal
+                    # can be handled before this state message (seen under load); the ones just before it
+                    # are not evidence of driving while paused
+                    end = time.monotonic() - RESUME_RACE_WALL_S
+                    self.cmd_while_paused = [c for c in self.cmd_while_paused if c[0] < end]
                 self.paused_since = None
 
     def _paused_for(self):
@@ -81,7 +89,8 @@ class MapNavigationKidnapTest(NavigatorWatch):
     def _on_cmd(self, msg):
         t = self._paused_for()
         if t is not None and t >= 0.5:
-            self.cmd_while_paused.append((abs(msg.linear.x), abs(msg.angular.z)))
+            with self.lock:
+                self.cmd_while_paused.append((time.monotonic(), abs(msg.linear.x), abs(msg.angular.z)))
 
     def test_kidnap_pauses_and_resumes_the_route(self):
         report_file = rospy.get_param("~report_file")
@@ -142,7 +151,8 @@ class MapNavigationKidnapTest(NavigatorWatch):
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")
         self.assertGreaterEqual(s["holds"], 1, f"the goal was never held: {s}")
         # stopped while paused: no motion command, the truth standing
-        self.assertTrue(all(v < 1e-3 and w < 1e-3 for v, w in self.cmd_while_paused), self.cmd_while_paused[:10])
+        self.assertTrue(all(v < 1e-3 and w < 1e-3 for _, v, w in self.cmd_while_paused),
+                        [(v, w) for _, v, w in self.cmd_while_paused[:10]])
         if self.truth_while_paused:
             xs = [x for _, x, _ in self.truth_while_paused]
             ys = [y for _, _, y in self.truth_while_paused]
