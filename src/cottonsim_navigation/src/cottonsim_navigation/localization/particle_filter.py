@@ -408,12 +408,20 @@ class ParticleFilter:
         return _cluster_stats(self.particles, self.weights)
 
 
+def circular_mean(yaws_rad: np.ndarray, weights: np.ndarray):
+    """(mean yaw [rad], mean resultant length R) of yaws with normalised weights.
+
+    R = |sum_i w_i exp(j yaw_i)| is clamped to [0, 1]: the circular variance is -2 ln R, and rounding
+    can put R a hair above 1 when the weight sits on equal yaws (one particle, or a collapsed set),
+    which would make that variance negative and its square root a math error."""
+    c = float(np.dot(weights, np.cos(yaws_rad)))
+    s = float(np.dot(weights, np.sin(yaws_rad)))
+    return math.atan2(s, c), min(math.hypot(c, s), 1.0)
+
+
 def mean_resultant_length(yaws_rad: np.ndarray, weights: np.ndarray) -> float:
-    """|sum_i w_i exp(j yaw_i)| of normalised weights, clamped to [0, 1]: the circular variance is
-    -2 ln of it. Rounding can put it a hair above 1 when the weight sits on equal yaws (one particle,
-    or a collapsed set), which would make that variance negative and its square root a math error."""
-    r = math.hypot(float(np.dot(weights, np.cos(yaws_rad))), float(np.dot(weights, np.sin(yaws_rad))))
-    return min(r, 1.0)
+    """R of :func:`circular_mean` (clamped to [0, 1])."""
+    return circular_mean(yaws_rad, weights)[1]
 
 
 def _cluster_stats(particles: np.ndarray, weights: np.ndarray) -> Cluster:
@@ -421,15 +429,12 @@ def _cluster_stats(particles: np.ndarray, weights: np.ndarray) -> Cluster:
     w = weights / total if total > 0 else np.full(weights.size, 1.0 / weights.size)
     mx = float(np.dot(w, particles[:, 0]))
     my = float(np.dot(w, particles[:, 1]))
-    c = float(np.dot(w, np.cos(particles[:, 2])))
-    s = float(np.dot(w, np.sin(particles[:, 2])))
-    yaw = math.atan2(s, c)
+    yaw, r = circular_mean(particles[:, 2], w)
     dx = particles[:, 0] - mx
     dy = particles[:, 1] - my
     cov = np.zeros((3, 3))
     cov[0, 0] = float(np.dot(w, dx * dx))
     cov[1, 1] = float(np.dot(w, dy * dy))
     cov[0, 1] = cov[1, 0] = float(np.dot(w, dx * dy))
-    r = mean_resultant_length(particles[:, 2], w)
     cov[2, 2] = -2.0 * math.log(r) if r > 1e-12 else 2.0 * math.pi ** 2 / 3.0
     return Cluster(total, np.array([mx, my, yaw]), cov, int(particles.shape[0]))
