@@ -32,7 +32,7 @@ import numpy as np
 
 from ..core.geometry import Pose2D, compose, inverse, normalize_angle
 from ..core.grid import GridSpec
-from .motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
+from .motion_models import OdometryMotionModelConfig, _as_pose_array, motion_parts, sample_motion_model_odometry
 from .particle_filter import FreeSpaceSampler, ParticleFilter, ParticleFilterConfig
 from .sensor_models import LikelihoodField, LikelihoodFieldConfig, Scan
 
@@ -137,7 +137,8 @@ class AmclResult:
     pose: robot pose in the map frame now; covariance: 3x3 (x, y, yaw) [m^2, rad^2];
     map_to_odom: the map -> odom transform (publish as TF);
     updated: a filter update ran on this scan; resampled: the set was resampled;
-    n_particles: current set size.
+    n_particles: current set size; motion_parts: how many parts this update's odometry increment
+    was sampled in (0: no motion update; > 1: a late update, see AmclConfig.odom_max_step_m).
     """
 
     pose: Pose2D
@@ -146,6 +147,7 @@ class AmclResult:
     updated: bool
     resampled: bool
     n_particles: int
+    motion_parts: int = 0
 
 
 class Amcl:
@@ -228,8 +230,10 @@ class Amcl:
         moved = (abs(delta[0]) > self.config.update_min_d_m or abs(delta[1]) > self.config.update_min_d_m
                  or abs(normalize_angle(delta[2])) > self.config.update_min_a_rad)
         updated = resampled = False
+        parts = 0
         if moved or self._force_update:
             if moved:
+                parts = motion_parts(self._odom_ref, odom, self._motion)
                 self.filter.particles = sample_motion_model_odometry(self.filter.particles, self._odom_ref, odom,
                                                                      self._motion, self.rng)
             self.filter.update_weights(self.field.weights(self.filter.particles, scan))
@@ -247,4 +251,4 @@ class Amcl:
             self._estimate = self.filter.estimate()
         pose = compose(self._map_to_odom, Pose2D(*odom))
         return AmclResult(pose, self._estimate.covariance.copy(), self._map_to_odom, updated, resampled,
-                          self.filter.n)
+                          self.filter.n, parts)

@@ -156,6 +156,33 @@ def _se2_exp(vx: float, vy: float, w: float) -> Tuple[float, float, float]:
     return a * vx - b * vy, b * vx + a * vy, w
 
 
+def _increment_twist(p0: np.ndarray, p1: np.ndarray) -> Tuple[float, float, float]:
+    """The twist (in p0's frame) of the constant-velocity arc from odometry pose p0 to p1."""
+    c, s = math.cos(p0[2]), math.sin(p0[2])
+    gx, gy = p1[0] - p0[0], p1[1] - p0[1]
+    return _se2_log(c * gx + s * gy, -s * gx + c * gy, float(normalize_angle(p1[2] - p0[2])))
+
+
+def _parts_for(twist: Tuple[float, float, float], max_step_m: float, max_step_rad: float) -> int:
+    """Fewest equal parts of the arc with none longer than max_step_m nor turning more than max_step_rad
+    (a limit <= 0 is ignored), capped at MAX_SUBSTEPS."""
+    k = 1
+    if max_step_m > 0:
+        k = max(k, math.ceil(math.hypot(twist[0], twist[1]) / max_step_m - 1e-9))
+    if max_step_rad > 0:
+        k = max(k, math.ceil(abs(twist[2]) / max_step_rad - 1e-9))
+    return min(k, MAX_SUBSTEPS)
+
+
+def motion_parts(odom_prev, odom_now, config: OdometryMotionModelConfig) -> int:
+    """How many parts :func:`sample_motion_model_odometry` samples this increment in (1: in one piece;
+    more: a late update, see the module docstring)."""
+    if config.max_step_m <= 0 and config.max_step_rad <= 0:
+        return 1
+    twist = _increment_twist(_as_pose_array(odom_prev, "odom_prev"), _as_pose_array(odom_now, "odom_now"))
+    return _parts_for(twist, config.max_step_m, config.max_step_rad)
+
+
 def split_odometry_increment(odom_prev, odom_now, max_step_m: float, max_step_rad: float) -> np.ndarray:
     """Odometry poses (k + 1, 3) from ``odom_prev`` to ``odom_now`` in k equal parts of the arc between them.
 
@@ -165,14 +192,8 @@ def split_odometry_increment(odom_prev, odom_now, max_step_m: float, max_step_ra
     p0 = _as_pose_array(odom_prev, "odom_prev")
     p1 = _as_pose_array(odom_now, "odom_now")
     c, s = math.cos(p0[2]), math.sin(p0[2])
-    gx, gy = p1[0] - p0[0], p1[1] - p0[1]
-    twist = _se2_log(c * gx + s * gy, -s * gx + c * gy, float(normalize_angle(p1[2] - p0[2])))
-    k = 1
-    if max_step_m > 0:
-        k = max(k, math.ceil(math.hypot(twist[0], twist[1]) / max_step_m - 1e-9))
-    if max_step_rad > 0:
-        k = max(k, math.ceil(abs(twist[2]) / max_step_rad - 1e-9))
-    k = min(k, MAX_SUBSTEPS)
+    twist = _increment_twist(p0, p1)
+    k = _parts_for(twist, max_step_m, max_step_rad)
     poses = np.empty((k + 1, 3))
     poses[0], poses[k] = p0, p1
     for i in range(1, k):

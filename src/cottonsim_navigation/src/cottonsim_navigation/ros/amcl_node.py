@@ -22,7 +22,7 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Bool
 from std_srvs.srv import Empty, EmptyResponse
 
-from cottonsim_navigation.core.geometry import Pose2D, compose, normalize_angle, yaw_to_quaternion
+from cottonsim_navigation.core.geometry import Pose2D, compose, yaw_to_quaternion
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
@@ -185,7 +185,6 @@ class AmclNode:
         self._have_map = False
         self._last_tf_stamp: Optional[rospy.Time] = None
         self._map_to_odom: Optional[Pose2D] = None
-        self._last_update_odom: Optional[Pose2D] = None    # odometry at the last filter update
 
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
@@ -298,7 +297,12 @@ class AmclNode:
             self._before_update(msg.header.stamp.to_sec(), odom, scan)
             result = self.amcl.update(odom, scan)
             if result.updated:
-                self._warn_if_late(odom)
+                if result.motion_parts > 1:
+                    c = self.config
+                    rospy.logwarn_throttle(10.0, "amcl: late filter update (scans arrive faster than they are "
+                                                 "processed): its odometry increment was sampled in %d parts of "
+                                                 "<= %.2f m / %.2f rad" %
+                                           (result.motion_parts, c.odom_max_step_m, c.odom_max_step_rad))
                 std_xy, std_yaw = particle_spread(self.amcl.particles, self.amcl.filter.weights)
                 pose = result.pose
                 hits = scan_hit_fraction(self.amcl.field, (pose.x_m, pose.y_m, pose.yaw_rad), scan,
@@ -342,21 +346,6 @@ class AmclNode:
                               "localised" if now else "NOT localised", std_xy, std_yaw, hits)
                 self.localized_pub.publish(Bool(data=now))
         self._publish_tf(stamp)
-
-    def _warn_if_late(self, odom: Pose2D) -> None:
-        """Warn (throttled) when this update covers more odometry than one step of the motion model."""
-        prev, self._last_update_odom = self._last_update_odom, odom
-        if prev is None:
-            return
-        step_m = math.hypot(odom.x_m - prev.x_m, odom.y_m - prev.y_m)
-        step_rad = abs(normalize_angle(odom.yaw_rad - prev.yaw_rad))
-        c = self.config
-        if (c.odom_max_step_m > 0 and step_m > c.odom_max_step_m) or \
-                (c.odom_max_step_rad > 0 and step_rad > c.odom_max_step_rad):
-            rospy.logwarn_throttle(10.0, "amcl: late filter update: %.2f m / %.2f rad of odometry since the last "
-                                         "one (scans arrive faster than they are processed); motion noise sampled "
-                                         "in parts of <= %.2f m / %.2f rad" %
-                                   (step_m, step_rad, c.odom_max_step_m, c.odom_max_step_rad))
 
     def _before_update(self, now_s: float, odom: Pose2D, scan: Scan) -> None:
         """Free-space check on/off; a filter update without motion when the stationary policy asks."""

@@ -42,10 +42,13 @@ def test_amcl_update_thresholds_and_errors():
         amcl.update((0, 0, 0), scan)
     amcl.set_map(occ, spec)
     amcl.initialise((0.0, 1.0, 0.0))
-    assert amcl.update((0, 0, 0), scan).updated          # the first scan is always used
+    first = amcl.update((0, 0, 0), scan)
+    assert first.updated and first.motion_parts == 0     # the first scan is always used, without motion
     assert not amcl.update((0.1, 0, 0), scan).updated    # < update_min_d 0.25 m
     r = amcl.update((0.3, 0, 0), scan)
-    assert r.updated and r.resampled
+    assert r.updated and r.resampled and r.motion_parts == 1
+    late = amcl.update((1.4, 0, 0), scan)                 # 1.1 m since the last update: a late one
+    assert late.updated and late.motion_parts == 3        # sampled in parts of <= odom_max_step_m 0.5 m
     with pytest.raises(ValueError, match="odom_pose"):
         amcl.update((np.nan, 0, 0), scan)
     with pytest.raises(ValueError, match="resample_interval"):

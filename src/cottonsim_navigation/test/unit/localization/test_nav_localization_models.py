@@ -6,7 +6,8 @@ import pytest
 
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.motion_models import (MAX_SUBSTEPS, OdometryMotionModelConfig,
-                                                              odometry_increment, sample_motion_model_odometry,
+                                                              motion_parts, odometry_increment,
+                                                              sample_motion_model_odometry,
                                                               split_odometry_increment)
 from cottonsim_navigation.localization.particle_filter import (FreeSpaceSampler, ParticleFilter,
                                                                ParticleFilterConfig, effective_sample_size,
@@ -83,6 +84,8 @@ def test_split_odometry_increment_composes_exactly_along_the_arc():
     p1 = (1.0 + c * rel[0] - s * rel[1], -2.0 + s * rel[0] + c * rel[1], 0.7 + math.pi / 2)
     poses = split_odometry_increment(p0, p1, 0.5, 0.5)
     assert len(poses) == 8
+    assert motion_parts(p0, p1, OdometryMotionModelConfig(max_step_m=0.5, max_step_rad=0.5)) == 7
+    assert motion_parts(p0, p1, OdometryMotionModelConfig()) == 1           # no limits: one piece
     assert poses[0] == pytest.approx(p0) and poses[-1] == pytest.approx(p1)
     # every part is the same arc piece: equal chords, equal turns, all points on the circle about the centre
     chords = np.hypot(*np.diff(poses[:, :2], axis=0).T)
