@@ -73,7 +73,11 @@ class MapNavigationKidnapTest(NavigatorWatch):
 
     def _paused_for(self):
         with self.lock:
-            return None if self.paused_since is None else (rospy.Time.now() - self.paused_since).to_sec()
+            return self._paused_for_locked()
+
+    def _paused_for_locked(self):
+        """Sim seconds into the current pause (None: not paused); the caller holds self.lock."""
+        return None if self.paused_since is None else (rospy.Time.now() - self.paused_since).to_sec()
 
     def _on_truth(self, msg):
         self.truth = msg
@@ -87,9 +91,9 @@ class MapNavigationKidnapTest(NavigatorWatch):
         self.localized_seen_true = self.localized_seen_true or msg.data
 
     def _on_cmd(self, msg):
-        t = self._paused_for()
-        if t is not None and t >= 0.5:
-            with self.lock:
+        with self.lock:      # one lock for the check and the append: a resume in between must see this command
+            t = self._paused_for_locked()
+            if t is not None and t >= 0.5:
                 self.cmd_while_paused.append((time.monotonic(), abs(msg.linear.x), abs(msg.angular.z)))
 
     def test_kidnap_pauses_and_resumes_the_route(self):
