@@ -2,12 +2,13 @@
 """Which 3 m kidnaps can AMCL recover from? An offline experiment on the ground-truth farm map.
 
 For each scenario the robot stands at the truth; AMCL's estimate was 3 m off (the kidnap). As the AMCL node
-does after a detected kidnap, the particles are re-drawn around the wrong estimate (2 m along the heading and
-``across`` m across it, 0.3 rad), then 12 standing filter updates on the truth's scan (360 deg, 60 beams,
-5.7 m usable range, as /scan_360), each after roughening (0.03 m, 0.01 rad), with the free-space check on.
+does after a detected kidnap, 10000 particles (relocalize_particles) are re-drawn around the wrong estimate
+(2 m along the heading and ``across`` m across it, 0.3 rad), then 12 standing filter updates on the truth's
+scan (360 deg, 60 beams, 5.7 m usable range, as /scan_360), each after roughening (0.03 m, 0.01 rad), with
+the free-space check on.
 Prints per scenario how many seeds end within 0.15 m of the truth, and the median error.
 
-Run:  source scripts/env.sh && python benchmarks/kidnap_relocalization.py [seeds]
+Run:  source scripts/env.sh && python benchmarks/kidnap_relocalization.py [seeds] [re-spread particles]
 The map is the generator's ground truth (solid plant discs): the simulated scan sees no gaps between the
 stems, so this is the optimistic case for the laser model; the rostest amcl_kidnap.test is the real one.
 """
@@ -50,15 +51,17 @@ SCENARIOS = [
 ]
 
 
-def run(spec, occ, truth, offset, across_m, seed, round_fraction=0.0):
+def run(spec, occ, truth, offset, across_m, seed, round_fraction=0.0, n_particles=None):
     rng = np.random.default_rng(seed)
     amcl = Amcl(AmclConfig(laser_model_type="likelihood_field_prob"), rng=rng)
     amcl.set_map(occ, spec)
     amcl.field = FreeSpaceCheckedField(amcl.field)
-    q = LocalizationQualityConfig(relocalize_std_across_m=across_m)
+    q = LocalizationQualityConfig(relocalize_std_across_m=across_m,
+                                  relocalize_particles=LocalizationQualityConfig.relocalize_particles
+                                  if n_particles is None else n_particles)
     truth = np.array(truth)
     estimate = truth + [offset[0], offset[1], 0.0]
-    amcl.initialise(estimate, q.relocalize_covariance(float(estimate[2])))
+    amcl.initialise(estimate, q.relocalize_covariance(float(estimate[2])), q.relocalize_particles or None)
     if round_fraction > 0:          # as the AMCL node with localized_relocalize_round_fraction
         amcl.filter.redraw_fraction(estimate, LocalizationQualityConfig().relocalize_covariance(), round_fraction)
     angles = np.linspace(-math.pi, math.pi, 720, endpoint=False)
@@ -73,12 +76,13 @@ def run(spec, occ, truth, offset, across_m, seed, round_fraction=0.0):
 
 def main():
     seeds = int(sys.argv[1]) if len(sys.argv) > 1 else 10
+    n_particles = int(sys.argv[2]) if len(sys.argv) > 2 else None
     spec, occ = farm_map()
     print(f"{seeds} seeds per row; re-spread 2 m along the heading, 0.5 m (farm) or 2 m (round) across it, "
-          f"or half of each (mix)")
+          f"or half of each (mix); {n_particles or LocalizationQualityConfig.relocalize_particles} particles")
     for name, truth, offset in SCENARIOS:
         for label, across, frac in (("0.5 m", 0.5, 0.0), ("round", 0.0, 0.0), ("mix  ", 0.5, 0.5)):
-            errs = [run(spec, occ, truth, offset, across, s, frac) for s in range(seeds)]
+            errs = [run(spec, occ, truth, offset, across, s, frac, n_particles) for s in range(seeds)]
             ok = sum(e <= 0.15 for e in errs)
             print(f"{name:52s} across {label}: {ok:2d}/{seeds} within 0.15 m, "
                   f"median error {statistics.median(errs):5.2f} m")

@@ -8,6 +8,8 @@ tell where it is, the operator's /initialpose after 20 s re-localises it) or "to
 4.95 m before the rows, 3 m forward to 1.95 m before them, the row ends in view; AMCL must re-localise by
 itself, no operator. Landing at the lane's entry, AMCL settled along the lane in 1 of 3 runs, landing
 0.95 m before it in 1 of 5: the closer to the rows, the less the scan says about the along-row position)."""
+import bisect
+import collections
 import math
 import threading
 import time
@@ -54,6 +56,9 @@ class MapNavigationKidnapTest(NavigatorWatch):
         rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth)
         rospy.Subscriber("/amcl/localized", Bool, self._on_localized)
         rospy.Subscriber("/cmd_vel", Twist, self._on_cmd)
+        self.amcl_pose = None
+        self.truth_history = collections.deque(maxlen=2000)     # (stamp [s], x, y, yaw) in the map frame
+        rospy.Subscriber("/amcl_pose", PoseWithCovarianceStamped, self._on_amcl_pose)
         self.init_pub = rospy.Publisher("/initialpose", PoseWithCovarianceStamped, queue_size=1, latch=True)
 
     def _on_state(self, msg):
@@ -81,10 +86,33 @@ class MapNavigationKidnapTest(NavigatorWatch):
 
     def _on_truth(self, msg):
         self.truth = msg
+        p = msg.pose.pose
+        x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_of(p.orientation))
+        self.truth_history.append((msg.header.stamp.to_sec(), float(x), float(y), float(yaw)))
         t = self._paused_for()
         if t is not None and t >= 2.0:
             p = msg.pose.pose.position
             self.truth_while_paused.append((t, p.x, p.y))
+
+    def _on_amcl_pose(self, msg):
+        self.amcl_pose = msg
+
+    def _amcl_error(self):
+        """AMCL's latest pose against the ground truth at that pose's stamp (map frame), as text."""
+        msg = self.amcl_pose
+        history = list(self.truth_history)
+        if msg is None or not history:
+            return "no AMCL pose or ground truth yet"
+        t = msg.header.stamp.to_sec()
+        i = min(bisect.bisect_left([h[0] for h in history], t), len(history) - 1)
+        ts, tx, ty, tyaw = history[i]
+        a = msg.pose.pose
+        dx, dy = a.position.x - tx, a.position.y - ty
+        along = dx * math.cos(tyaw) + dy * math.sin(tyaw)
+        across = -dx * math.sin(tyaw) + dy * math.cos(tyaw)
+        dyaw = math.atan2(math.sin(yaw_of(a.orientation) - tyaw), math.cos(yaw_of(a.orientation) - tyaw))
+        return "AMCL %+.2f m along, %+.2f m across the heading, %+.3f rad off the truth (t %.1f s)" % (
+            along, across, dyaw, t)
 
     def _on_localized(self, msg):
         self.localized = msg.data
@@ -145,11 +173,15 @@ class MapNavigationKidnapTest(NavigatorWatch):
             self.assertEqual(self.state["state"], "paused", "the navigator drove on while AMCL was lost")
         else:
             self.assertFalse(sideways, "AMCL claims to be localised after a kidnap it cannot resolve")
-            rospy.loginfo("kidnap test: AMCL re-localised by itself after %.1f s (sim)",
-                          (rospy.Time.now() - t_kidnap).to_sec())
+            rospy.loginfo("kidnap test: AMCL re-localised by itself after %.1f s (sim): %s",
+                          (rospy.Time.now() - t_kidnap).to_sec(), self._amcl_error())
         self.wait_for(lambda: self.localized, 60.0, "AMCL localised again")
 
+        # AMCL's error along the rest of the route (shown when the test fails)
+        timer = rospy.Timer(rospy.Duration(3.0),
+                            lambda _: rospy.loginfo("kidnap test: %s", self._amcl_error()))
         s = self.wait_until_finished(400)
+        timer.shutdown()
         rospy.loginfo("kidnap test: summary %s; %d /cmd_vel while paused, %d truth samples", s,
                       len(self.cmd_while_paused), len(self.truth_while_paused))
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (3, 0, 0), f"summary {s}")

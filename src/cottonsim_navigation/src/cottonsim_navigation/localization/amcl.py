@@ -182,11 +182,19 @@ class Amcl:
         self.field = LikelihoodField(occupancy, spec, self.config.sensor_config(), self.config.occupied_threshold)
         self._free = FreeSpaceSampler(occupancy, spec)
 
-    def initialise(self, pose, covariance=None) -> None:
-        """Gaussian particle set around ``pose`` (map frame); covariance 3x3, default from the config."""
+    def initialise(self, pose, covariance=None, n_particles: Optional[int] = None) -> None:
+        """Gaussian particle set around ``pose`` (map frame); covariance 3x3, default from the config.
+
+        n_particles: how many to draw (default max_particles). More than max_particles is allowed: the
+        first resampling brings the set back within [min_particles, max_particles] (KLD-sampling), so a
+        wide re-spread can be drawn densely for its first filter update only.
+        """
         mean = _as_pose_array(pose, "pose")
         cov = self.config.initial_covariance() if covariance is None else covariance
-        self.filter.init_gaussian(mean, cov)
+        if n_particles is not None and (isinstance(n_particles, bool) or not isinstance(n_particles, int)
+                                        or n_particles < 1):
+            raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")
+        self.filter.init_gaussian(mean, cov, n_particles)
         self._after_reinit()
 
     def global_localization(self) -> None:

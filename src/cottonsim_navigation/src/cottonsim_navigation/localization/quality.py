@@ -86,7 +86,13 @@ class LocalizationQualityConfig:
     stationary_update_period_s [s]: the shortest interval between filter updates asked for while the
         robot stands (see StationaryUpdatePolicy); 0 = never (ROS amcl's behaviour); default 0.5;
     roughen_std_xy_m [m], roughen_std_yaw_rad [rad]: jitter added to the particles before each such
-        update while re-localising (defaults 0.03 m, 0.01 rad).
+        update while re-localising (defaults 0.03 m, 0.01 rad);
+    relocalize_particles: how many particles the re-spread after a kidnap draws (default 10000; 0 = AMCL's
+        max_particles). The scan's likelihood has narrow peaks (~0.1 m, ~0.02 rad), and in the farm some
+        wrong poses further along a lane are peaks only a few nats below the true one; 2000 particles over
+        a 2 m re-spread put ~0.2 particles on a peak, so the first update's resampling collapses the set on
+        whichever peak one happened to hit. Drawn densely, the true peak is sampled and wins; the first
+        resampling brings the set back to at most max_particles (docs/map_experiment.md, "Kidnap").
     """
 
     max_std_xy_m: float = 0.15
@@ -103,6 +109,7 @@ class LocalizationQualityConfig:
     stationary_update_period_s: float = 0.5
     roughen_std_xy_m: float = 0.03
     roughen_std_yaw_rad: float = 0.01
+    relocalize_particles: int = 10000
 
     def __post_init__(self) -> None:
         for name in ("max_std_xy_m", "max_std_yaw_rad", "hit_distance_m", "relocalize_std_xy_m",
@@ -121,6 +128,9 @@ class LocalizationQualityConfig:
                 raise ValueError(f"{name} must lie in [0, 1], got {v!r}")
         if isinstance(self.switch_after, bool) or not isinstance(self.switch_after, int) or self.switch_after < 1:
             raise ValueError(f"switch_after must be an integer >= 1, got {self.switch_after!r}")
+        if isinstance(self.relocalize_particles, bool) or not isinstance(self.relocalize_particles, int) \
+                or self.relocalize_particles < 0:
+            raise ValueError(f"relocalize_particles must be an integer >= 0, got {self.relocalize_particles!r}")
         if isinstance(self.relocalize_after, bool) or not isinstance(self.relocalize_after, int) \
                 or self.relocalize_after < 0:
             raise ValueError(f"relocalize_after must be an integer >= 0, got {self.relocalize_after!r}")

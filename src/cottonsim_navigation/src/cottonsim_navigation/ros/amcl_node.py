@@ -130,7 +130,8 @@ class AmclNode:
       ~localized_max_std_yaw_rad 0.1, ~localized_hit_distance_m 0.2, ~localized_min_hit_fraction 0.6,
       ~localized_switch_after 2, ~localized_relocalize_after 3 (0 = off), ~localized_relocalize_std_xy_m 2.0,
       ~localized_relocalize_std_yaw_rad 0.3, ~localized_relocalize_std_across_m 0 (= round),
-      ~localized_relocalize_round_fraction 0 (share of the re-drawn particles with the round spread): after that many
+      ~localized_relocalize_round_fraction 0 (share of the re-drawn particles with the round spread),
+      ~localized_relocalize_particles 10000 (how many are re-drawn; 0 = max_particles): after that many
       updates with a tight set but a poor scan fit (a kidnap) the particles are re-drawn around the estimate
       with that spread (std_xy along the estimate's heading, std_across across it); while such a kidnap is
       suspected the standing robot's scans keep being used;
@@ -312,7 +313,8 @@ class AmclNode:
                 kidnapped = self.monitor.kidnapped
                 if kidnapped:      # confidently wrong: spread the particles around the estimate again
                     q = self.quality_config
-                    self.amcl.initialise((pose.x_m, pose.y_m, pose.yaw_rad), q.relocalize_covariance(pose.yaw_rad))
+                    self.amcl.initialise((pose.x_m, pose.y_m, pose.yaw_rad), q.relocalize_covariance(pose.yaw_rad),
+                                         q.relocalize_particles or None)
                     if q.relocalize_round_fraction > 0:
                         round_cov = dataclasses.replace(q, relocalize_std_across_m=0.0).relocalize_covariance()
                         self.amcl.filter.redraw_fraction((pose.x_m, pose.y_m, pose.yaw_rad), round_cov,

@@ -53,3 +53,24 @@ def test_amcl_update_thresholds_and_errors():
         amcl.update((np.nan, 0, 0), scan)
     with pytest.raises(ValueError, match="resample_interval"):
         AmclConfig(resample_interval=0)
+
+
+def test_a_dense_re_spread_is_cut_back_to_max_particles_by_the_first_resampling():
+    """initialise(n_particles=...) may draw more than max_particles (the dense re-spread after a kidnap); the
+    first update's KLD resampling brings the set back within [min_particles, max_particles]."""
+    spec, occ = corridor_map()
+    amcl = Amcl(AmclConfig(max_particles=1500), rng=np.random.default_rng(3))
+    amcl.set_map(occ, spec)
+    truth = (0.0, 1.0, math.pi / 2)
+    angles = np.linspace(-math.pi, math.pi, 180, endpoint=False)
+    scan = simulate_scan(occ, spec, truth, angles, range_max_m=20.0)
+    amcl.initialise(truth, np.diag([1.0, 0.04, 0.01]), n_particles=8000)
+    assert amcl.particles.shape == (8000, 3)
+    res = amcl.update((0.0, 0.0, 0.0), scan)
+    assert res.updated and res.resampled
+    assert 500 <= res.n_particles <= 1500 and amcl.particles.shape[0] == res.n_particles
+    amcl.initialise(truth)                              # the default is max_particles
+    assert amcl.particles.shape == (1500, 3)
+    for bad in (0, -5, 2.5, True, "100"):
+        with pytest.raises(ValueError, match="n_particles"):
+            amcl.initialise(truth, n_particles=bad)

@@ -58,7 +58,9 @@ def test_monitor_hysteresis_and_kidnap():
 
 @pytest.mark.parametrize("field,value", [("max_std_xy_m", 0.0), ("min_hit_fraction", 1.5), ("switch_after", 0),
                                          ("relocalize_after", -1), ("hit_distance_m", float("nan")),
-                                         ("stationary_update_period_s", -0.5), ("roughen_std_xy_m", math.inf)])
+                                         ("stationary_update_period_s", -0.5), ("roughen_std_xy_m", math.inf),
+                                         ("relocalize_particles", -1), ("relocalize_particles", 2.5),
+                                         ("relocalize_particles", True)])
 def test_bad_config_names_the_parameter(field, value):
     with pytest.raises(ValueError, match=field):
         LocalizationQualityConfig(**{field: value})
