@@ -12,6 +12,7 @@ Run:  source scripts/env.sh && python benchmarks/kidnap_relocalization.py [seeds
 The map is the generator's ground truth (solid plant discs): the simulated scan sees no gaps between the
 stems, so this is the optimistic case for the laser model; the rostest amcl_kidnap.test is the real one.
 """
+import dataclasses
 import math
 import statistics
 import sys
@@ -24,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navi
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E402
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField  # noqa: E402
-from cottonsim_navigation.localization.quality import LocalizationQualityConfig  # noqa: E402
+from cottonsim_navigation.localization.quality import LocalizationQualityConfig, respread_after_kidnap  # noqa: E402
 from cottonsim_navigation.localization.sensor_models import simulate_scan  # noqa: E402
 
 
@@ -56,14 +57,12 @@ def run(spec, occ, truth, offset, across_m, seed, round_fraction=0.0, n_particle
     amcl = Amcl(AmclConfig(laser_model_type="likelihood_field_prob"), rng=rng)
     amcl.set_map(occ, spec)
     amcl.field = FreeSpaceCheckedField(amcl.field)
-    q = LocalizationQualityConfig(relocalize_std_across_m=across_m,
-                                  relocalize_particles=LocalizationQualityConfig.relocalize_particles
-                                  if n_particles is None else n_particles)
+    q = LocalizationQualityConfig(relocalize_std_across_m=across_m, relocalize_round_fraction=round_fraction)
+    if n_particles is not None:
+        q = dataclasses.replace(q, relocalize_particles=n_particles)
     truth = np.array(truth)
     estimate = truth + [offset[0], offset[1], 0.0]
-    amcl.initialise(estimate, q.relocalize_covariance(float(estimate[2])), q.relocalize_particles or None)
-    if round_fraction > 0:          # as the AMCL node with localized_relocalize_round_fraction
-        amcl.filter.redraw_fraction(estimate, LocalizationQualityConfig().relocalize_covariance(), round_fraction)
+    respread_after_kidnap(amcl, estimate, q)          # as the AMCL node
     angles = np.linspace(-math.pi, math.pi, 720, endpoint=False)
     res = None
     for _ in range(12):

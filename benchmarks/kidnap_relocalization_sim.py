@@ -38,7 +38,7 @@ from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E40
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig  # noqa: E402
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,  # noqa: E402
                                                        StationaryUpdatePolicy, particle_spread,
-                                                       scan_hit_fraction)
+                                                       respread_after_kidnap, scan_hit_fraction)
 from cottonsim_navigation.localization.sensor_models import Scan  # noqa: E402
 from cottonsim_navigation.ros.params import config_from_params  # noqa: E402
 from cottonsim_world.config_io import simulator_config_from_dict  # noqa: E402
@@ -66,9 +66,9 @@ def amcl_params():
     return {"~" + k: v for k, v in params.items()}
 
 
-def from_params(cls, params, prefix, **overrides):
-    return config_from_params(cls, prefix=prefix, overrides=overrides or None,
-                              get_param=lambda n, d=None: params.get(n, d), has_param=lambda n: n in params)
+def from_params(cls, params, prefix):
+    return config_from_params(cls, prefix=prefix, get_param=lambda n, d=None: params.get(n, d),
+                              has_param=lambda n: n in params)
 
 
 def make_sim(seed):
@@ -90,13 +90,12 @@ def next_scan(sim, laser_pose):
     raise RuntimeError("no LiDAR reading within 1000 steps")
 
 
-def run(seed, sim, grid, spec, home, quality_overrides, keep_going=False):
-    params = amcl_params()
-    config = from_params(AmclConfig, params, "~")
-    q = dataclasses.replace(from_params(LocalizationQualityConfig, params, "~localized_"), **quality_overrides)
+def run(seed, sim, grid, spec, home, configs, keep_going=False):
+    """configs: (AmclConfig, LocalizationQualityConfig, FreeSpaceConfig)."""
+    config, q, free_space = configs
     amcl = Amcl(config, np.random.default_rng(seed))
     amcl.set_map(grid, spec)
-    amcl.field = FreeSpaceCheckedField(amcl.field, from_params(FreeSpaceConfig, params, "~free_space_"))
+    amcl.field = FreeSpaceCheckedField(amcl.field, free_space)
     rng = np.random.default_rng(1000 + seed)
     bl = sim.base_T_sensor["velodyne"]
     laser = (float(bl[0, 3]), float(bl[1, 3]), math.atan2(bl[1, 0], bl[0, 0]))
@@ -120,7 +119,7 @@ def run(seed, sim, grid, spec, home, quality_overrides, keep_going=False):
     truth, _ = truth_now()
     behind_m = KIDNAP_M + rng.uniform(-0.7, 0.3)        # the robot drove on a little before AMCL noticed
     estimate = truth - behind_m * np.array([math.cos(truth[2]), math.sin(truth[2]), 0.0])
-    amcl.initialise(tuple(estimate), q.relocalize_covariance(float(estimate[2])), q.relocalize_particles or None)
+    respread_after_kidnap(amcl, estimate, q)
     monitor, policy = LocalizationMonitor(q), StationaryUpdatePolicy(q)
     policy.start_relocalizing()
     trace = []         # one entry per filter update: the error then and the monitor's numbers
@@ -171,11 +170,15 @@ def main():
     grid, resolution, origin = load_map_yaml(str(NAV / "config/maps/farm_slam.yaml"))
     spec = GridSpec(resolution, grid.shape[1], grid.shape[0], origin[0], origin[1])
     home = generate_farm(FarmConfig()).spawn
+    params = amcl_params()
+    configs = (from_params(AmclConfig, params, "~"),
+               dataclasses.replace(from_params(LocalizationQualityConfig, params, "~localized_"), **overrides),
+               from_params(FreeSpaceConfig, params, "~free_space_"))
     t0 = time.monotonic()
     sim = make_sim(0)
     traces = []
     for seed in range(seeds):
-        trace = run(seed, sim, grid, spec, home, overrides, keep_going=trace_file is not None)
+        trace = run(seed, sim, grid, spec, home, configs, keep_going=trace_file is not None)
         traces.append(trace)
         i = first_localised(trace)
         u = trace[-1 if i is None else i]

@@ -47,14 +47,18 @@ the scan fit rejects it, and its own spread would then look trustworthy.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
 from .particle_filter import mean_resultant_length
 from .sensor_models import LikelihoodField, Scan
+
+if TYPE_CHECKING:
+    from .amcl import Amcl
 
 
 @dataclass(frozen=True)
@@ -148,6 +152,18 @@ class LocalizationQualityConfig:
         cov[:2, :2] = rot @ np.diag([along ** 2, across ** 2]) @ rot.T
         cov[2, 2] = self.relocalize_std_yaw_rad ** 2
         return cov
+
+
+def respread_after_kidnap(amcl: "Amcl", pose, config: LocalizationQualityConfig) -> None:
+    """Re-draw AMCL's particles around ``pose`` (x_m, y_m, yaw_rad; the wrong estimate) after a detected
+    kidnap: ``relocalize_particles`` of them (0: max_particles) with :meth:`~LocalizationQualityConfig.
+    relocalize_covariance` along / across the pose's heading, ``relocalize_round_fraction`` of them then
+    re-drawn with the round spread (relocalize_std_xy_m every way)."""
+    x, y, yaw = (float(v) for v in pose)
+    amcl.initialise((x, y, yaw), config.relocalize_covariance(yaw), config.relocalize_particles or None)
+    if config.relocalize_round_fraction > 0:
+        round_cov = dataclasses.replace(config, relocalize_std_across_m=0.0).relocalize_covariance()
+        amcl.filter.redraw_fraction((x, y, yaw), round_cov, config.relocalize_round_fraction)
 
 
 def particle_spread(particles: np.ndarray, weights: Optional[np.ndarray] = None):

@@ -27,8 +27,8 @@ from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
-                                                       StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
-                                                       reported_covariance)
+                                                       StationaryUpdatePolicy, particle_spread, reported_covariance,
+                                                       respread_after_kidnap, scan_hit_fraction)
 from cottonsim_navigation.localization.sensor_models import Scan
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
 from cottonsim_navigation.ros.params import config_from_params, typed_param
@@ -312,13 +312,7 @@ class AmclNode:
                 now = self.monitor.update(std_xy, std_yaw, hits)
                 kidnapped = self.monitor.kidnapped
                 if kidnapped:      # confidently wrong: spread the particles around the estimate again
-                    q = self.quality_config
-                    self.amcl.initialise((pose.x_m, pose.y_m, pose.yaw_rad), q.relocalize_covariance(pose.yaw_rad),
-                                         q.relocalize_particles or None)
-                    if q.relocalize_round_fraction > 0:
-                        round_cov = dataclasses.replace(q, relocalize_std_across_m=0.0).relocalize_covariance()
-                        self.amcl.filter.redraw_fraction((pose.x_m, pose.y_m, pose.yaw_rad), round_cov,
-                                                         q.relocalize_round_fraction)
+                    respread_after_kidnap(self.amcl, (pose.x_m, pose.y_m, pose.yaw_rad), self.quality_config)
                     self.monitor.reset()
                     self.stationary.start_relocalizing()
                     now = False

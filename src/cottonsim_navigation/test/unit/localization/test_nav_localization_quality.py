@@ -1,13 +1,15 @@
 """Unit tests of the AMCL localised signal (localization/quality.py) against hand-computed values."""
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from cottonsim_navigation.core.grid import GridSpec
+from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
                                                        StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
-                                                       reported_covariance, set_covariance)
+                                                       reported_covariance, respread_after_kidnap, set_covariance)
 from cottonsim_navigation.localization.sensor_models import LikelihoodField, Scan
 
 
@@ -173,3 +175,19 @@ def test_collapsed_set_has_zero_heading_spread_not_a_math_error():
     pf = ParticleFilter()
     pf.set_particles(parts)
     assert pf.estimate().covariance[2, 2] == 0.0
+
+
+def test_respread_after_kidnap_draws_the_configured_set():
+    """The node's re-spread: relocalize_particles around the pose, narrow across its heading; with
+    relocalize_round_fraction a share re-drawn round."""
+    amcl = Amcl(AmclConfig(), rng=np.random.default_rng(4))
+    pose = (3.0, -4.5, 0.0)
+    cfg = LocalizationQualityConfig(relocalize_std_xy_m=2.0, relocalize_std_across_m=0.5, relocalize_particles=6000)
+    respread_after_kidnap(amcl, pose, cfg)
+    p = amcl.particles
+    assert p.shape == (6000, 3)
+    assert abs(p[:, 0].std() - 2.0) < 0.1 and abs(p[:, 1].std() - 0.5) < 0.05    # along x, across y
+    respread_after_kidnap(amcl, pose, dataclasses.replace(cfg, relocalize_particles=0, relocalize_round_fraction=0.5))
+    p = amcl.particles
+    assert p.shape == (2000, 3)                                  # 0 = max_particles
+    assert p[:, 1].std() > 1.0                                   # half of them round (2 m across too)
