@@ -67,7 +67,7 @@ class TrainConfig:
     shipped weights) whose weights start the run (fine-tuning; its model
     configuration must equal this run's; ignored when resuming);
     extra_data_dirs: more YOLO dataset roots whose train and valid splits are
-    added to data_dir's (e.g. the paper's images + simulator images; the
+    added to data_dir's (a root without a valid split adds training images only) (e.g. the paper's images + simulator images; the
     class names must agree); mosaic_prob: probability that a training item is
     a 2x2 mosaic of four images (YOLOv8's mosaic, see YoloDataset; 0 = off);
     proto_stride: segmenter prototype stride (4, 2 or 1 input px; None = the
@@ -185,8 +185,12 @@ class ModelEMA:
                 v.copy_(msd[k])
 
 
-def _datasets(cfg: TrainConfig, width: int, height: int, dataset_cls):
-    """(train set, val set, class names) over data_dir and extra_data_dirs (concatenated)."""
+def _datasets(cfg: TrainConfig, width: int, height: int, dataset_cls, log: Callable[[str], None] = print):
+    """(train set, val set, class names) over data_dir and extra_data_dirs (concatenated).
+
+    data_dir must have a validation split; an extra root without one (or with
+    an empty one) adds training images only.
+    """
     from torch.utils.data import ConcatDataset
 
     trains, vals, names = [], [], None
@@ -202,11 +206,24 @@ def _datasets(cfg: TrainConfig, width: int, height: int, dataset_cls):
         if len(tr) == 0:
             raise ValueError(f"{root}: the train split has no images")
         trains.append(tr)
+        if k > 0 and not _has_images(root, "valid"):
+            log(f"{root}: no validation split, its images only train")
+            continue
         vals.append(dataset_cls(root, "valid", cfg.task, (width, height), augment=False, seed=cfg.seed,
                                 class_names=names))
     train_set = trains[0] if len(trains) == 1 else _EpochConcat(trains)
     val_set = vals[0] if len(vals) == 1 else ConcatDataset(vals)
     return train_set, val_set, names
+
+
+def _has_images(root: str, split: str) -> bool:
+    """Whether ``root`` has a ``split`` folder holding at least one image."""
+    from .data.yolo_format import LabelFormatError, list_pairs
+
+    try:
+        return bool(list_pairs(root, split))
+    except LabelFormatError:
+        return False
 
 
 def yf_class_names(root: str, task: str):
@@ -317,7 +334,7 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
     preset = ModelConfig.scene_segmenter() if cfg.task == "seg" else ModelConfig.boll_detector()
     width, height = cfg.imgsz if cfg.imgsz is not None else (preset.input_width, preset.input_height)
 
-    train_set, val_set, names = _datasets(cfg, width, height, YoloDataset)
+    train_set, val_set, names = _datasets(cfg, width, height, YoloDataset, log)
     overrides = dict(num_classes=len(names), class_names=names, input_width=width, input_height=height)
     if cfg.width_multiple is not None:
         overrides["width_multiple"] = cfg.width_multiple

@@ -364,3 +364,35 @@ def test_cli_parsers():
     for bad in ("640", "640x", "0x10", "10x10x3"):
         with pytest.raises(ValueError, match="WxH|between"):
             g.parse_image_size(bad)
+
+
+def _generate_dataset_script():
+    """The generate_dataset executable, loaded as a module (its file has no .py suffix)."""
+    import importlib.machinery
+    import importlib.util
+
+    path = os.path.join(os.path.dirname(__file__), "..", "..", "scripts", "generate_dataset")
+    loader = importlib.machinery.SourceFileLoader("generate_dataset_script", path)
+    module = importlib.util.module_from_spec(importlib.util.spec_from_loader(loader.name, loader))
+    loader.exec_module(module)
+    return module
+
+
+def test_cli_defoliated_probability_sets_every_farms_growth_stage(tmp_path, capsys):
+    import csv
+
+    script = _generate_dataset_script()
+    farm_yaml = tmp_path / "farm.yaml"
+    farm_yaml.write_text("rows: 2\nplants_per_row: 3\nplant_variants: 2\n")
+    stages = {}
+    for p in ("1", "0"):
+        out = tmp_path / f"p{p}"
+        code = script.main(["--task", "seg", "--out", str(out), "--images", "2", "--seeds", "0,1",
+                            "--val-fraction", "0", "--imgsz", "96x72", "--farm-config", str(farm_yaml),
+                            "--defoliated-probability", p, "--quiet"])
+        assert code == 0
+        with open(out / "seg" / "manifest.csv") as fh:
+            stages[p] = {row["growth_stage"] for row in csv.DictReader(fh)}
+    assert stages == {"1": {"defoliated"}, "0": {"cutout"}}
+    assert script.main(["--out", str(tmp_path / "bad"), "--defoliated-probability", "1.5"]) == 2
+    assert "defoliated_probability" in capsys.readouterr().err

@@ -59,6 +59,29 @@ def test_fine_tuning_starts_from_the_given_weights_and_mixes_datasets(tmp_path):
     assert max(float((w0[k] - w2[k]).abs().max()) for k in w0) > 1e-3
 
 
+def test_an_extra_dataset_without_a_validation_split_only_trains(tmp_path):
+    import shutil
+
+    from cottonsim_perception.data.yolo_dataset import YoloDataset
+    from cottonsim_perception.train import _datasets
+
+    _dataset(str(tmp_path / "a"), ["cotton boll"], 0)
+    _dataset(str(tmp_path / "b"), ["cotton boll"], 1)
+    shutil.rmtree(str(tmp_path / "b" / "valid"))          # data.yaml still names it
+    log = []
+    train_set, val_set, _ = _datasets(_cfg(tmp_path, "x", extra_data_dirs=(str(tmp_path / "b"),)), 64, 64,
+                                      YoloDataset, log.append)
+    assert (len(train_set), len(val_set)) == (6, 1)
+    assert any("no validation split" in line for line in log)
+    # an empty one is the same; the main dataset must have one
+    os.makedirs(str(tmp_path / "b" / "valid" / "images"))
+    _, val_set, _ = _datasets(_cfg(tmp_path, "x", extra_data_dirs=(str(tmp_path / "b"),)), 64, 64,
+                              YoloDataset, log.append)
+    assert len(val_set) == 1
+    with pytest.raises(yf.LabelFormatError, match="valid"):
+        _datasets(_cfg(tmp_path, "x", data_dir=str(tmp_path / "b")), 64, 64, YoloDataset, log.append)
+
+
 def test_fine_tuning_and_mixing_errors_are_clear(tmp_path):
     _dataset(str(tmp_path / "a"), ["cotton boll"], 0)
     _dataset(str(tmp_path / "c"), ["weed"], 2)
