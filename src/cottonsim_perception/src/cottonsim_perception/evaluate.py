@@ -199,6 +199,15 @@ def load_ground_truth(root: str, split: str, task: str, class_names: Sequence[st
     return out
 
 
+def drop_below(det: Detections, conf_threshold: float) -> Detections:
+    """``det`` without the predictions scored below ``conf_threshold`` (0 keeps all)."""
+    if conf_threshold <= 0 or not len(det):
+        return det
+    keep = det.scores >= conf_threshold
+    return Detections(det.boxes_xyxy[keep], det.scores[keep], det.classes[keep],
+                      None if det.masks is None else det.masks[keep])
+
+
 def evaluate_split(predictor, root: str, split: str, task: str, class_names: Sequence[str],
                    conf_threshold: float = 0.0, use_ignore: bool = True, **kwargs):
     """Run ``predictor.predict`` over a split and evaluate (kwargs go to evaluate_predictions).
@@ -211,12 +220,7 @@ def evaluate_split(predictor, root: str, split: str, task: str, class_names: Seq
     items = load_ground_truth(root, split, task, class_names, use_ignore)
     dets, gts = [], []
     for _path, rgb, gt in items:
-        det = predictor.predict(rgb)
-        if conf_threshold > 0 and len(det):
-            keep = det.scores >= conf_threshold
-            det = Detections(det.boxes_xyxy[keep], det.scores[keep], det.classes[keep],
-                             None if det.masks is None else det.masks[keep])
-        dets.append(det)
+        dets.append(drop_below(predictor.predict(rgb), conf_threshold))
         gts.append(gt)
     return evaluate_predictions(dets, gts, class_names, task, **kwargs), dets, gts
 

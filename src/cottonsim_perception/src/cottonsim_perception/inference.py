@@ -13,13 +13,13 @@ mask per class (what row centring needs: the ground and sky regions).
 from __future__ import annotations
 
 import warnings
-from typing import Dict, Optional, Tuple
+from typing import Dict, NamedTuple, Optional, Tuple
 
 import numpy as np
 import torch
 
 from .nn.blocks import fuse_model
-from .nn.letterbox import letterbox
+from .nn.letterbox import LetterboxTransform, letterbox
 from .nn.models import load_model
 from .nn.optimise import freeze_for_inference
 from .nn.postprocess import PostprocessConfig, postprocess
@@ -92,6 +92,15 @@ class Predictor:
 
     def predict(self, image_rgb: np.ndarray) -> Detections:
         """Detections of one (H, W, 3) uint8 RGB frame, in its own pixels."""
+        return self.decode(self.forward(image_rgb))
+
+    def forward(self, image_rgb: np.ndarray) -> "NetworkOutput":
+        """The network's raw output for one frame (CPU tensors), before any threshold.
+
+        ``decode`` turns it into Detections with the current ``post_config``,
+        so a caller that tries several thresholds (``calibrate_mask_threshold``)
+        runs the network once per frame.
+        """
         check_image(image_rgb)
         img, tf = letterbox(image_rgb, self.config.input_width, self.config.input_height)
         # (H, W, 3) uint8 viewed as (1, 3, H, W): already channels-last, no copy before the float cast
@@ -102,11 +111,29 @@ class Predictor:
         with torch.inference_mode():
             out = self._network(x)
             if self.config.task == "seg":
-                pred, protos = out[0], out[1]
                 detail = out[2].float().cpu() if len(out) > 2 else None      # proto_stride 1
-                return postprocess(pred.float().cpu(), self.config.num_classes, [tf], protos.float().cpu(),
-                                   self.post_config, detail)[0]
-            return postprocess(out.float().cpu(), self.config.num_classes, [tf], None, self.post_config)[0]
+                return NetworkOutput(out[0].float().cpu(), out[1].float().cpu(), detail, tf)
+            return NetworkOutput(out.float().cpu(), None, None, tf)
+
+    def decode(self, output: "NetworkOutput") -> Detections:
+        """Detections in the frame's pixels from ``forward``'s output (thresholds: ``post_config``)."""
+        with torch.inference_mode():
+            return postprocess(output.predictions, self.config.num_classes, [output.transform],
+                               output.prototypes, self.post_config, output.detail)[0]
+
+
+class NetworkOutput(NamedTuple):
+    """One frame's raw network output (CPU tensors) and its letterbox transform.
+
+    predictions: (1, anchors, 4 + classes [+ mask coefficients ...]); prototypes:
+    the segmenter's mask prototypes (None for the detector); detail: the
+    full-resolution detail features of a ``proto_stride`` 1 segmenter, else None.
+    """
+
+    predictions: torch.Tensor
+    prototypes: Optional[torch.Tensor]
+    detail: Optional[torch.Tensor]
+    transform: LetterboxTransform
 
 
 def class_masks(detections: Detections, shape: Tuple[int, int],

@@ -366,22 +366,10 @@ def test_cli_parsers():
             g.parse_image_size(bad)
 
 
-def _generate_dataset_script():
-    """The generate_dataset executable, loaded as a module (its file has no .py suffix)."""
-    import importlib.machinery
-    import importlib.util
-
-    path = os.path.join(os.path.dirname(__file__), "..", "..", "scripts", "generate_dataset")
-    loader = importlib.machinery.SourceFileLoader("generate_dataset_script", path)
-    module = importlib.util.module_from_spec(importlib.util.spec_from_loader(loader.name, loader))
-    loader.exec_module(module)
-    return module
-
-
-def test_cli_defoliated_probability_sets_every_farms_growth_stage(tmp_path, capsys):
+def test_cli_defoliated_probability_sets_every_farms_growth_stage(tmp_path, capsys, perception_script):
     import csv
 
-    script = _generate_dataset_script()
+    script = perception_script("generate_dataset")
     farm_yaml = tmp_path / "farm.yaml"
     farm_yaml.write_text("rows: 2\nplants_per_row: 3\nplant_variants: 2\n")
     stages = {}

@@ -72,6 +72,24 @@ def test_calibrated_mask_threshold_travels_with_the_weights(seg_weights, tmp_pat
         save_checkpoint(str(tmp_path / "bad.pt"), load_model(seg_weights), inference={"mask_threshold": 0.0})
 
 
+def test_decoding_the_network_output_again_equals_predicting_with_that_threshold(seg_weights):
+    """forward runs the network once; decode applies whatever post_config holds now."""
+    import dataclasses
+
+    p = Predictor(seg_weights, conf_threshold=0.0, threads=1)
+    img = np.random.default_rng(2).integers(0, 255, (96, 128, 3), dtype=np.uint8)
+    raw = p.forward(img)
+    pixels = []
+    for t in (0.3, 0.5, 0.7):
+        p.post_config = dataclasses.replace(p.post_config, mask_threshold=t)
+        a, b = p.decode(raw), p.predict(img)
+        assert np.array_equal(a.boxes_xyxy, b.boxes_xyxy) and np.array_equal(a.masks, b.masks)
+        pixels.append(int(a.masks.sum()))
+    assert pixels[0] > pixels[1] > pixels[2]              # the threshold does act in decode
+    with pytest.raises(ValueError, match="uint8"):
+        p.forward(img.astype(np.float32))
+
+
 def test_choose_mask_threshold_rule():
     # best mAP50 wins; among equal mAP50 the best mAP50-95; then the one closest to 0.5
     assert choose_mask_threshold({0.3: (0.85, 0.5), 0.4: (0.86, 0.4), 0.5: (0.80, 0.6)}) == 0.4
