@@ -1,11 +1,16 @@
 """Fixtures shared by the perception unit tests."""
 import importlib.machinery
 import importlib.util
+import os
 import pathlib
 
+import cv2
+import numpy as np
 import pytest
+import torch
 
 SCRIPTS = pathlib.Path(__file__).resolve().parents[2] / "scripts"
+TINY_W, TINY_H = 128, 96
 
 
 @pytest.fixture
@@ -19,3 +24,49 @@ def perception_script():
         return module
 
     return load
+
+
+@pytest.fixture
+def tiny_seg_weights(tmp_path):
+    """An untrained scene segmenter (width 1/16, 128x96 input) saved as a checkpoint."""
+    from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
+
+    torch.manual_seed(0)
+    path = str(tmp_path / "seg.pt")
+    cfg = ModelConfig.scene_segmenter(width_multiple=0.0625, input_width=TINY_W, input_height=TINY_H)
+    save_checkpoint(path, build_model(cfg).eval(), {"epochs": 0})
+    return path
+
+
+@pytest.fixture
+def self_labelled_seg_data(tmp_path, tiny_seg_weights):
+    """A 'valid' split of two noisy frames labelled with tiny_seg_weights' own best mask per class at
+    mask threshold 0.5 (its largest outline), so that its scores depend on the mask threshold."""
+    from cottonsim_perception.data import yolo_format as yf
+    from cottonsim_perception.inference import Predictor
+
+    root = str(tmp_path / "self_labelled")
+    rng = np.random.default_rng(3)
+    p = Predictor(tiny_seg_weights, conf_threshold=0.001, mask_threshold=0.5, threads=1)
+    os.makedirs(os.path.join(root, "valid", "images"))
+    for i in range(2):
+        img = rng.integers(0, 255, (TINY_H, TINY_W, 3), dtype=np.uint8)
+        cv2.imwrite(os.path.join(root, "valid", "images", f"{i}.png"), img[:, :, ::-1])
+        det, insts = p.predict(img), []
+        for c in range(3):
+            of_class = np.flatnonzero(det.classes == c)
+            if not len(of_class):
+                continue
+            mask = det.masks[of_class[np.argmax(det.scores[of_class])]].astype(np.uint8)
+            contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+            outline = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)
+            if len(outline) < 3:
+                continue
+            poly = outline / [TINY_W, TINY_H]
+            lo, hi = poly.min(0), poly.max(0)
+            insts.append(yf.LabelInstance(c, np.r_[(lo + hi) / 2, hi - lo], poly))
+        assert insts, "the untrained network gave no mask to label with"
+        yf.write_label_file(os.path.join(root, "valid", "labels", f"{i}.txt"), insts, "seg")
+    with open(os.path.join(root, "data.yaml"), "w") as fh:
+        fh.write("train: valid/images\nval: valid/images\nnames: ['cotton plants', 'ground', 'sky']\n")
+    return root
