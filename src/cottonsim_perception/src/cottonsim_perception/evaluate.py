@@ -16,10 +16,15 @@ Layers:
 
     evaluate --task seg|det --data DIR --weights W --json OUT
              [--split valid,test] [--conf 0.001] [--iou 0.7] [--mask-threshold T] [--no-ignore]
+             [--group-by COLUMN]
 
   It prints one table per split (class, images, instances, P, R, mAP50,
   mAP50-95; for 'seg' both mask and box metrics) and writes the same to JSON.
   With several splits it also evaluates their union ('+'-joined name).
+  ``--group-by`` (a column of the ``manifest.csv`` that ``generate_dataset``
+  writes: mode, camera, growth_stage, farm_seed, ...) adds one table per value
+  of that column within each split, in the JSON under
+  ``"groups": {"column": COLUMN, "splits": {split: {value: result}}}``.
   Exit code 0 on success, 2 with a one-line message for a missing folder, a
   split without images, malformed labels, missing / unloadable weights or a
   task mismatch.
@@ -225,6 +230,38 @@ def evaluate_split(predictor, root: str, split: str, task: str, class_names: Seq
     return evaluate_predictions(dets, gts, class_names, task, **kwargs), dets, gts
 
 
+MANIFEST_FILE = "manifest.csv"
+
+
+def manifest_groups(root: str, image_paths: Sequence[str], column: str) -> Dict[str, List[int]]:
+    """Indices into ``image_paths`` per value of ``column`` of ``root``'s manifest.csv (sorted by value).
+
+    The manifest is the one ``generate_dataset`` writes: one row per image,
+    its ``file`` column relative to ``root``. Raises ValueError when the
+    manifest is missing, has no such column or lacks one of the images.
+    """
+    import csv
+
+    path = os.path.join(root, MANIFEST_FILE)
+    if not os.path.isfile(path):
+        raise ValueError(f"{root!r} has no {MANIFEST_FILE} (generate_dataset writes one); grouping needs it")
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        columns = list(reader.fieldnames or [])
+        if column not in columns or column == "file":
+            raise ValueError(f"{path} has no column {column!r} to group by; it has {', '.join(columns)}")
+        if "file" not in columns:
+            raise ValueError(f"{path} has no 'file' column")
+        value_of = {os.path.normpath(row["file"]): row[column] for row in reader}
+    groups: Dict[str, List[int]] = {}
+    for i, image in enumerate(image_paths):
+        rel = os.path.normpath(os.path.relpath(image, root))
+        if rel not in value_of:
+            raise ValueError(f"{image} is not listed in {path}")
+        groups.setdefault(value_of[rel], []).append(i)
+    return dict(sorted(groups.items()))
+
+
 def _default_predictor_factory(weights: str, conf: float, iou: float):
     from cottonsim_perception.inference import Predictor
 
@@ -247,6 +284,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-ignore", action="store_true",
                    help="count predictions on the images' ignore boxes as false positives "
                         "(default: drop them, see the module docstring)")
+    p.add_argument("--group-by", metavar="COLUMN", default=None,
+                   help="also evaluate each value of this column of DIR/manifest.csv (generate_dataset's: "
+                        "mode, camera, growth_stage, farm_seed, ...) separately")
     return p
 
 
@@ -297,6 +337,11 @@ def main(argv: Optional[Sequence[str]] = None,
                                   "mask_threshold": getattr(post_config, "mask_threshold", None)
                                   if args.task == "seg" else None,
                                   "ignore_boxes": not args.no_ignore, "splits": {}}
+        # the groups of every split are checked before the (slow) prediction runs too
+        groups = {s: manifest_groups(args.data, [pr.image_path for pr in yf.list_pairs(args.data, s)],
+                                     args.group_by) for s in splits} if args.group_by else {}
+        if groups:
+            out["groups"] = {"column": args.group_by, "splits": {}}
         all_dets, all_gts = [], []
         for s in splits:
             res, dets, gts = evaluate_split(predictor, args.data, s, args.task, names,
@@ -305,6 +350,10 @@ def main(argv: Optional[Sequence[str]] = None,
             all_dets += dets
             all_gts += gts
             print(format_table(res, title=f"== {s} ({res['num_images']} images)"))
+            for value, idx in groups.get(s, {}).items():
+                res_g = evaluate_predictions([dets[i] for i in idx], [gts[i] for i in idx], names, args.task)
+                out["groups"]["splits"].setdefault(s, {})[value] = res_g
+                print(format_table(res_g, title=f"== {s} [{args.group_by} = {value}] ({len(idx)} images)"))
         if len(splits) > 1:
             name = "+".join(splits)
             res = evaluate_predictions(all_dets, all_gts, names, args.task)

@@ -210,3 +210,51 @@ def test_mask_threshold_option(tmp_path, capsys):
                   "--mask-threshold must be in (0, 1)")
     _expect_exit2(capsys, ["--task", "det", *base, "--mask-threshold", "0.4"], lambda w, c, i: StubPredictor("det"),
                   "segmentation weights only")
+
+
+def _write_manifest(data, rows):
+    with open(os.path.join(data, "manifest.csv"), "w") as fh:
+        fh.write("task,split,file,mode\n" + "".join(f"seg,{sp},{f},{m}\n" for sp, f, m in rows))
+
+
+def test_group_by_a_manifest_column_evaluates_each_value_apart(tmp_path, capsys):
+    data = str(tmp_path / "data")
+    _write_dataset(data, "seg")
+    _write_manifest(data, [("valid", "valid/images/img40.png", "lane"), ("valid", "valid/images/img80.png", "headland"),
+                           ("test", "test/images/img120.png", "lane")])
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"stub")
+    out = str(tmp_path / "r.json")
+    argv = ["--task", "seg", "--data", data, "--weights", str(weights), "--json", out, "--group-by", "mode"]
+    assert ev.main(argv, predictor_factory=lambda w, c, i: StubPredictor("seg", drop_level=80)) == 0
+    res = json.load(open(out))
+    assert res["groups"]["column"] == "mode"
+    valid = res["groups"]["splits"]["valid"]
+    assert list(valid) == ["headland", "lane"]                     # sorted by value
+    assert valid["lane"]["num_images"] == 1 and valid["lane"]["mask"]["rows"][0]["map50"] > 0.99
+    assert valid["headland"]["mask"]["rows"][0]["r"] == 0.0          # the stub drops that image's objects
+    assert list(res["groups"]["splits"]["test"]) == ["lane"]
+    assert "[mode = headland] (1 images)" in capsys.readouterr().out
+    # the split's own table is unchanged by grouping
+    assert res["splits"]["valid"]["num_images"] == 2
+
+
+@pytest.mark.parametrize("manifest, message", [
+    (None, "no manifest.csv"),
+    ([("valid", "valid/images/img40.png", "lane")], "img80.png is not listed"),
+])
+def test_group_by_errors_name_the_problem(tmp_path, capsys, manifest, message):
+    data = str(tmp_path / "data")
+    _write_dataset(data, "det")
+    if manifest is not None:
+        _write_manifest(data, manifest)
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"stub")
+    argv = ["--task", "det", "--data", data, "--weights", str(weights), "--json", str(tmp_path / "r.json"),
+            "--group-by", "mode"]
+    assert ev.main(argv, predictor_factory=lambda w, c, i: StubPredictor("det")) == 2
+    assert message in capsys.readouterr().err
+    _write_manifest(data, [])
+    argv[-1] = "sun"
+    assert ev.main(argv, predictor_factory=lambda w, c, i: StubPredictor("det")) == 2
+    assert "no column 'sun' to group by; it has task, split, file, mode" in capsys.readouterr().err
