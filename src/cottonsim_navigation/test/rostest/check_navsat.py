@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """rostest node: navsat_transform's datum and /odometry/gps, gps_localization's map -> base_link."""
 import math
+import time
 import unittest
 
 import rospy
@@ -37,8 +38,17 @@ class NavsatTest(unittest.TestCase):
         return (-(p.position.y - self.datum_world[1]), p.position.x - self.datum_world[0],
                 wrap(yaw(p.orientation) + math.pi / 2))
 
-    def map_base_link(self):
-        t = self.tf_buffer.lookup_transform("map", "base_link", rospy.Time(0), rospy.Duration(5.0))
+    def map_base_link(self, wall_timeout_s=60.0):
+        """map -> base_link (x, y, yaw), waiting up to wall_timeout_s of *wall* time for it.
+
+        The bridge runs as fast as it can (real_time_factor 0), so a timeout in sim time is a
+        fraction of a wall second; under load gps_localization's first map -> odom can come later.
+        """
+        deadline = time.monotonic() + wall_timeout_s
+        while not self.tf_buffer.can_transform("map", "base_link", rospy.Time(0)):
+            self.assertLess(time.monotonic(), deadline, f"no TF map -> base_link within {wall_timeout_s} s (wall)")
+            rospy.rostime.wallsleep(0.05)
+        t = self.tf_buffer.lookup_transform("map", "base_link", rospy.Time(0))
         tr = t.transform
         return tr.translation.x, tr.translation.y, yaw(tr.rotation)
 
