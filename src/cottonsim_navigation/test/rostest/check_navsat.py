@@ -1,7 +1,6 @@
 #!/usr/bin/env python3
 """rostest node: navsat_transform's datum and /odometry/gps, gps_localization's map -> base_link."""
 import math
-import time
 import unittest
 
 import rospy
@@ -12,6 +11,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import NavSatFix
 
 from cottonsim_world.geodesy import HectorGeodesy
+from wall_wait import wait_until
 
 
 def yaw(q):
@@ -44,10 +44,8 @@ class NavsatTest(unittest.TestCase):
         The bridge runs as fast as it can (real_time_factor 0), so a timeout in sim time is a
         fraction of a wall second; under load gps_localization's first map -> odom can come later.
         """
-        deadline = time.monotonic() + wall_timeout_s
-        while not self.tf_buffer.can_transform("map", "base_link", rospy.Time(0)):
-            self.assertLess(time.monotonic(), deadline, f"no TF map -> base_link within {wall_timeout_s} s (wall)")
-            rospy.rostime.wallsleep(0.05)
+        self.assertTrue(wait_until(lambda: self.tf_buffer.can_transform("map", "base_link", rospy.Time(0)),
+                                   wall_timeout_s), f"no TF map -> base_link within {wall_timeout_s} s (wall)")
         t = self.tf_buffer.lookup_transform("map", "base_link", rospy.Time(0))
         tr = t.transform
         return tr.translation.x, tr.translation.y, yaw(tr.rotation)

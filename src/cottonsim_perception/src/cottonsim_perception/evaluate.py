@@ -328,18 +328,16 @@ def main(argv: Optional[Sequence[str]] = None,
         predictor.post_config = post_config = dataclasses.replace(post_config, mask_threshold=args.mask_threshold)
     try:
         names = tuple(getattr(predictor, "class_names", None) or yf.class_names_for(args.data, args.task))
-        # Check every split before the (slow) prediction runs.
-        for s in splits:
-            yf.list_pairs(args.data, s)
+        # Check every split (and its groups) before the (slow) prediction runs.
+        pairs = {s: yf.list_pairs(args.data, s) for s in splits}
+        groups = {s: manifest_groups(args.data, [pr.image_path for pr in pairs[s]], args.group_by)
+                  for s in splits} if args.group_by else {}
         out: Dict[str, object] = {"weights": os.path.abspath(args.weights),
                                   "data": os.path.abspath(args.data),
                                   "conf": args.conf, "iou": args.iou,
                                   "mask_threshold": getattr(post_config, "mask_threshold", None)
                                   if args.task == "seg" else None,
                                   "ignore_boxes": not args.no_ignore, "splits": {}}
-        # the groups of every split are checked before the (slow) prediction runs too
-        groups = {s: manifest_groups(args.data, [pr.image_path for pr in yf.list_pairs(args.data, s)],
-                                     args.group_by) for s in splits} if args.group_by else {}
         if groups:
             out["groups"] = {"column": args.group_by, "splits": {}}
         all_dets, all_gts = [], []

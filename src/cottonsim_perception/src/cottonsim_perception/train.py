@@ -67,8 +67,9 @@ class TrainConfig:
     shipped weights) whose weights start the run (fine-tuning; its model
     configuration must equal this run's; ignored when resuming);
     extra_data_dirs: more YOLO dataset roots whose train and valid splits are
-    added to data_dir's (a root without a valid split adds training images only) (e.g. the paper's images + simulator images; the
-    class names must agree); mosaic_prob: probability that a training item is
+    added to data_dir's (e.g. the paper's images + simulator images; the
+    class names must agree; a root without a valid split adds training
+    images only); mosaic_prob: probability that a training item is
     a 2x2 mosaic of four images (YOLOv8's mosaic, see YoloDataset; 0 = off);
     proto_stride: segmenter prototype stride (4, 2 or 1 input px; None = the
     preset's 4; 1 adds the full-resolution detail path, see heads.Proto); device: torch device to train on ('cpu', 'cuda', 'cuda:1';

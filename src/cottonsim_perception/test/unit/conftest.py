@@ -26,16 +26,26 @@ def perception_script():
     return load
 
 
-@pytest.fixture
-def tiny_seg_weights(tmp_path):
-    """An untrained scene segmenter (width 1/16, 128x96 input) saved as a checkpoint."""
+def _save_untrained(path, preset_name):
+    """An untrained network of the named ModelConfig preset (width 1/16, 128x96 input) saved at ``path``."""
     from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
 
     torch.manual_seed(0)
-    path = str(tmp_path / "seg.pt")
-    cfg = ModelConfig.scene_segmenter(width_multiple=0.0625, input_width=TINY_W, input_height=TINY_H)
+    cfg = getattr(ModelConfig, preset_name)(width_multiple=0.0625, input_width=TINY_W, input_height=TINY_H)
     save_checkpoint(path, build_model(cfg).eval(), {"epochs": 0})
     return path
+
+
+@pytest.fixture
+def tiny_seg_weights(tmp_path):
+    """An untrained scene segmenter (width 1/16, 128x96 input) saved as a checkpoint."""
+    return _save_untrained(str(tmp_path / "seg.pt"), "scene_segmenter")
+
+
+@pytest.fixture
+def tiny_det_weights(tmp_path):
+    """An untrained boll detector (width 1/16, 128x96 input) saved as a checkpoint."""
+    return _save_untrained(str(tmp_path / "det.pt"), "boll_detector")
 
 
 @pytest.fixture

@@ -5,22 +5,12 @@ import torch
 
 from cottonsim_perception.inference import Predictor, class_masks
 from cottonsim_perception.evaluation.calibration import choose_mask_threshold
-from cottonsim_perception.nn.models import (ModelConfig, build_model, load_checkpoint, load_model, save_checkpoint,
-                                            set_inference_settings)
+from cottonsim_perception.nn.models import load_checkpoint, load_model, save_checkpoint, set_inference_settings
 from cottonsim_perception.types import Detections, GroundTruth
 
 
-@pytest.fixture(scope="module")
-def seg_weights(tmp_path_factory):
-    torch.manual_seed(0)
-    cfg = ModelConfig.scene_segmenter(width_multiple=0.0625, input_width=128, input_height=96)
-    path = str(tmp_path_factory.mktemp("w") / "seg.pt")
-    save_checkpoint(path, build_model(cfg).eval(), {"epochs": 0})
-    return path
-
-
-def test_predict_returns_detections_in_original_pixels(seg_weights):
-    p = Predictor(seg_weights, conf_threshold=0.0, iou_threshold=0.7, threads=1)
+def test_predict_returns_detections_in_original_pixels(tiny_seg_weights):
+    p = Predictor(tiny_seg_weights, conf_threshold=0.0, iou_threshold=0.7, threads=1)
     img = np.random.default_rng(0).integers(0, 255, (120, 200, 3), dtype=np.uint8)
     det = p.predict(img)
     assert isinstance(det, Detections) and len(det) > 0      # threshold 0 keeps something
@@ -30,8 +20,8 @@ def test_predict_returns_detections_in_original_pixels(seg_weights):
     assert np.all(np.diff(det.scores) <= 1e-6)               # sorted by score
 
 
-def test_predict_rejects_bad_images(seg_weights):
-    p = Predictor(seg_weights)
+def test_predict_rejects_bad_images(tiny_seg_weights):
+    p = Predictor(tiny_seg_weights)
     with pytest.raises(ValueError, match="uint8"):
         p.predict(np.zeros((10, 10, 3), np.float32))
     with pytest.raises(ValueError, match="H, W, 3"):
@@ -47,12 +37,12 @@ def test_predictor_missing_weights():
         Predictor("/nonexistent/weights.pt")
 
 
-def test_calibrated_mask_threshold_travels_with_the_weights(seg_weights, tmp_path):
-    assert Predictor(seg_weights).post_config.mask_threshold == 0.5          # nothing stored: the default
+def test_calibrated_mask_threshold_travels_with_the_weights(tiny_seg_weights, tmp_path):
+    assert Predictor(tiny_seg_weights).post_config.mask_threshold == 0.5          # nothing stored: the default
     calibrated = str(tmp_path / "calibrated.pt")
-    set_inference_settings(seg_weights, {"mask_threshold": 0.4}, out_path=calibrated)
+    set_inference_settings(tiny_seg_weights, {"mask_threshold": 0.4}, out_path=calibrated)
     assert load_model(calibrated).inference == {"mask_threshold": 0.4}
-    assert load_model(seg_weights).inference == {}                           # the source is untouched
+    assert load_model(tiny_seg_weights).inference == {}                           # the source is untouched
     p = Predictor(calibrated, conf_threshold=0.0)
     assert p.post_config.mask_threshold == 0.4
     assert Predictor(calibrated, mask_threshold=0.6).post_config.mask_threshold == 0.6   # explicit wins
@@ -62,21 +52,21 @@ def test_calibrated_mask_threshold_travels_with_the_weights(seg_weights, tmp_pat
     assert np.array_equal(low.boxes_xyxy, high.boxes_xyxy)
     assert np.all(low.masks | ~high.masks) and low.masks.sum() >= high.masks.sum()
     # weights and metadata are kept as they were
-    a, b = load_checkpoint(seg_weights), load_checkpoint(calibrated)
+    a, b = load_checkpoint(tiny_seg_weights), load_checkpoint(calibrated)
     assert a["train"] == b["train"] and all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])
     with pytest.raises(ValueError, match="mask_threshold"):
         set_inference_settings(calibrated, {"mask_threshold": 1.5})
     with pytest.raises(ValueError, match="unknown key 'nms'"):
         set_inference_settings(calibrated, {"nms": 0.5})
     with pytest.raises(ValueError, match="mask_threshold"):
-        save_checkpoint(str(tmp_path / "bad.pt"), load_model(seg_weights), inference={"mask_threshold": 0.0})
+        save_checkpoint(str(tmp_path / "bad.pt"), load_model(tiny_seg_weights), inference={"mask_threshold": 0.0})
 
 
-def test_decoding_the_network_output_again_equals_predicting_with_that_threshold(seg_weights):
+def test_decoding_the_network_output_again_equals_predicting_with_that_threshold(tiny_seg_weights):
     """forward runs the network once; decode applies whatever post_config holds now."""
     import dataclasses
 
-    p = Predictor(seg_weights, conf_threshold=0.0, threads=1)
+    p = Predictor(tiny_seg_weights, conf_threshold=0.0, threads=1)
     img = np.random.default_rng(2).integers(0, 255, (96, 128, 3), dtype=np.uint8)
     raw = p.forward(img)
     pixels = []

@@ -3,19 +3,10 @@ choice is stored) and class_mask_iou."""
 import json
 
 import numpy as np
-import torch
 
 from cottonsim_perception.evaluate import evaluate_split
 from cottonsim_perception.inference import Predictor
-from cottonsim_perception.nn.models import ModelConfig, build_model, load_model, save_checkpoint
-
-
-def _det_weights(tmp_path):
-    torch.manual_seed(0)
-    path = str(tmp_path / "det.pt")
-    save_checkpoint(path, build_model(ModelConfig.boll_detector(width_multiple=0.0625, input_width=128,
-                                                                 input_height=96)).eval(), {"epochs": 0})
-    return path
+from cottonsim_perception.nn.models import load_model
 
 
 def test_scores_are_evaluates_and_the_choice_is_written(tmp_path, perception_script, monkeypatch,
@@ -44,9 +35,9 @@ def test_scores_are_evaluates_and_the_choice_is_written(tmp_path, perception_scr
 
 
 def test_errors_are_one_line_and_exit_2(tmp_path, perception_script, capsys, tiny_seg_weights,
-                                        self_labelled_seg_data):
+                                        tiny_det_weights, self_labelled_seg_data):
     script = perception_script("calibrate_mask_threshold")
-    seg, det, data = tiny_seg_weights, _det_weights(tmp_path), self_labelled_seg_data
+    seg, det, data = tiny_seg_weights, tiny_det_weights, self_labelled_seg_data
     cases = [(["--weights", seg, "--data", data, "--thresholds", "0.5,1.2"], "--thresholds"),
              (["--weights", seg, "--data", str(tmp_path / "none")], "does not exist"),
              (["--weights", det, "--data", data], "'det' model"),
@@ -58,7 +49,7 @@ def test_errors_are_one_line_and_exit_2(tmp_path, perception_script, capsys, tin
 
 
 def test_class_mask_iou_prints_iou_and_the_pixel_breakdown(perception_script, capsys, tiny_seg_weights,
-                                                           self_labelled_seg_data, tmp_path):
+                                                           tiny_det_weights, self_labelled_seg_data):
     script = perception_script("class_mask_iou")
     for class_id in (0, 1, 2):
         if script.main(["--weights", tiny_seg_weights, "--data", self_labelled_seg_data, "--split", "valid",
@@ -66,6 +57,6 @@ def test_class_mask_iou_prints_iou_and_the_pixel_breakdown(perception_script, ca
             break
     out = capsys.readouterr().out
     assert "mean IoU" in out and "labelled px: missed" in out and "pooled IoU" in out
-    assert script.main(["--weights", _det_weights(tmp_path), "--data", self_labelled_seg_data,
+    assert script.main(["--weights", tiny_det_weights, "--data", self_labelled_seg_data,
                         "--split", "valid"]) == 2
     assert "not a segmenter" in capsys.readouterr().err
