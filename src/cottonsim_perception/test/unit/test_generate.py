@@ -384,3 +384,23 @@ def test_cli_defoliated_probability_sets_every_farms_growth_stage(tmp_path, caps
     assert stages == {"1": {"defoliated"}, "0": {"cutout"}}
     assert script.main(["--out", str(tmp_path / "bad"), "--defoliated-probability", "1.5"]) == 2
     assert "defoliated_probability" in capsys.readouterr().err
+
+
+def test_cli_close_probability_sets_every_det_images_mode(tmp_path, capsys, perception_script):
+    import csv
+
+    script = perception_script("generate_dataset")
+    farm_yaml = tmp_path / "farm.yaml"
+    farm_yaml.write_text("rows: 2\nplants_per_row: 3\nplant_variants: 2\n")
+    modes = {}
+    for p in ("1", "0"):
+        out = tmp_path / f"p{p}"
+        code = script.main(["--task", "det", "--out", str(out), "--images", "3", "--seeds", "0,1",
+                            "--val-fraction", "0", "--imgsz", "96x72", "--farm-config", str(farm_yaml),
+                            "--close-probability", p, "--quiet"])
+        assert code == 0
+        with open(out / "det" / "manifest.csv") as fh:
+            modes[p] = {row["mode"] for row in csv.DictReader(fh)}
+    assert modes == {"1": {"close"}, "0": {"side"}}
+    assert script.main(["--out", str(tmp_path / "bad"), "--close-probability", "-0.1"]) == 2
+    assert "front_close_probability" in capsys.readouterr().err
