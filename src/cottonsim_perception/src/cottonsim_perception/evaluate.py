@@ -284,6 +284,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-ignore", action="store_true",
                    help="count predictions on the images' ignore boxes as false positives "
                         "(default: drop them, see the module docstring)")
+    p.add_argument("--flip-tta", action="store_true",
+                   help="det only: also run the network on each image mirrored left-right and merge the "
+                        "boxes in one NMS (test-time augmentation, Predictor's flip_tta)")
     p.add_argument("--group-by", metavar="COLUMN", default=None,
                    help="also evaluate each value of this column of DIR/manifest.csv (generate_dataset's: "
                         "mode, camera, growth_stage, farm_seed, ...) separately")
@@ -306,6 +309,8 @@ def main(argv: Optional[Sequence[str]] = None,
         return _fail(f"--iou must be in (0, 1], got {args.iou}")
     if args.mask_threshold is not None and not (0.0 < args.mask_threshold < 1.0):
         return _fail(f"--mask-threshold must be in (0, 1), got {args.mask_threshold}")
+    if args.flip_tta and args.task != "det":
+        return _fail("--flip-tta applies to detection weights only")
     splits = [s.strip() for s in args.split.split(",") if s.strip()]
     if not splits:
         return _fail("--split names no split")
@@ -326,6 +331,8 @@ def main(argv: Optional[Sequence[str]] = None,
         if args.task != "seg" or post_config is None:
             return _fail("--mask-threshold applies to segmentation weights only")
         predictor.post_config = post_config = dataclasses.replace(post_config, mask_threshold=args.mask_threshold)
+    if args.flip_tta:
+        predictor.flip_tta = True
     try:
         names = tuple(getattr(predictor, "class_names", None) or yf.class_names_for(args.data, args.task))
         # Check every split (and its groups) before the (slow) prediction runs.
@@ -337,7 +344,8 @@ def main(argv: Optional[Sequence[str]] = None,
                                   "conf": args.conf, "iou": args.iou,
                                   "mask_threshold": getattr(post_config, "mask_threshold", None)
                                   if args.task == "seg" else None,
-                                  "ignore_boxes": not args.no_ignore, "splits": {}}
+                                  "ignore_boxes": not args.no_ignore, "flip_tta": args.flip_tta,
+                                  "splits": {}}
         if groups:
             out["groups"] = {"column": args.group_by, "splits": {}}
         all_dets, all_gts = [], []

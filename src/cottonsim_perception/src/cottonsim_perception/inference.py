@@ -49,7 +49,9 @@ class Predictor:
     False runs the fused eager model, e.g. to compare); mask_threshold: mask
     pixel probability threshold (0..1); None (default) = the value calibrated
     for these weights and stored in the checkpoint (``scripts/calibrate_mask_threshold``),
-    else PostprocessConfig's 0.5.
+    else PostprocessConfig's 0.5; flip_tta: detector only, also run the network on
+    the left-right mirrored input and merge both sets of boxes in one NMS
+    (test-time augmentation; twice the network time).
     ``model`` is the fused network (for introspection), ``network(x)`` what
     ``predict`` runs on a letterboxed (1, 3, H, W) float 0..1 tensor.
     Raises FileNotFoundError / ValueError for missing or invalid weights.
@@ -57,7 +59,7 @@ class Predictor:
 
     def __init__(self, weights_path: str, device: str = "cpu", conf_threshold: float = 0.25,
                  iou_threshold: float = 0.7, threads: Optional[int] = None, optimise: bool = True,
-                 mask_threshold: Optional[float] = None):
+                 mask_threshold: Optional[float] = None, flip_tta: bool = False):
         if threads is not None:
             if not isinstance(threads, int) or threads < 1:
                 raise ValueError(f"threads must be a positive int or None, got {threads!r}")
@@ -72,6 +74,9 @@ class Predictor:
         self.model = fuse_model(loaded)
         self.config = self.model.config
         self.class_names = self.config.class_names
+        if flip_tta and self.config.task != "det":
+            raise ValueError(f"flip_tta is for detectors only; {weights_path} is a {self.config.task} network")
+        self.flip_tta = bool(flip_tta)
         self._network = self.model
         self.optimised = False
         if optimise:
@@ -113,7 +118,21 @@ class Predictor:
             if self.config.task == "seg":
                 detail = out[2].float().cpu() if len(out) > 2 else None      # proto_stride 1
                 return NetworkOutput(out[0].float().cpu(), out[1].float().cpu(), detail, tf)
-            return NetworkOutput(out.float().cpu(), None, None, tf)
+            predictions = out.float().cpu()
+            if self.flip_tta:
+                predictions = torch.cat([predictions, self._mirrored_predictions(x)], dim=1)
+            return NetworkOutput(predictions, None, None, tf)
+
+    def _mirrored_predictions(self, x: torch.Tensor) -> torch.Tensor:
+        """Detector output for the left-right mirror of the letterboxed input ``x``, with its
+        boxes mirrored back into ``x``'s pixels (x1' = W - x2, x2' = W - x1)."""
+        mirrored = self._network(x.flip(-1)).float().cpu()
+        width = float(self.config.input_width)
+        x1 = width - mirrored[..., 2]
+        x2 = width - mirrored[..., 0]
+        mirrored[..., 0] = x1
+        mirrored[..., 2] = x2
+        return mirrored
 
     def decode(self, output: "NetworkOutput") -> Detections:
         """Detections in the frame's pixels from ``forward``'s output (thresholds: ``post_config``)."""

@@ -212,6 +212,18 @@ def test_mask_threshold_option(tmp_path, capsys):
                   "segmentation weights only")
 
 
+def test_flip_tta_option_switches_the_predictor_and_is_recorded(tmp_path, capsys):
+    stub = StubPredictor("det")
+    code, out = _run(tmp_path, "det", stub)
+    assert code == 0 and json.load(open(out))["flip_tta"] is False and not hasattr(stub, "flip_tta")
+    code, out = _run(tmp_path, "det", stub, ["--flip-tta"])
+    assert code == 0 and json.load(open(out))["flip_tta"] is True and stub.flip_tta is True
+    capsys.readouterr()
+    base = ["--data", str(tmp_path / "data"), "--weights", str(tmp_path / "w.pt"), "--json", str(tmp_path / "x.json")]
+    _expect_exit2(capsys, ["--task", "seg", *base, "--flip-tta"], lambda w, c, i: StubPredictor("seg"),
+                  "detection weights only")
+
+
 def _write_manifest(data, rows):
     with open(os.path.join(data, "manifest.csv"), "w") as fh:
         fh.write("task,split,file,mode\n" + "".join(f"seg,{sp},{f},{m}\n" for sp, f, m in rows))

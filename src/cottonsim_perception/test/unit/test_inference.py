@@ -37,6 +37,31 @@ def test_predictor_missing_weights():
         Predictor("/nonexistent/weights.pt")
 
 
+def test_flip_tta_adds_the_mirrored_images_boxes_mirrored_back(tiny_det_weights):
+    img = np.random.default_rng(1).integers(0, 255, (96, 128, 3), dtype=np.uint8)   # the input size
+    plain = Predictor(tiny_det_weights, threads=1)
+    tta = Predictor(tiny_det_weights, threads=1, flip_tta=True)
+    own = plain.forward(img).predictions
+    mirrored = plain.forward(np.ascontiguousarray(img[:, ::-1])).predictions
+    both = tta.forward(img).predictions
+    anchors = own.shape[1]
+    assert both.shape == (1, 2 * anchors, own.shape[2])
+    torch.testing.assert_close(both[:, :anchors], own, atol=1e-4, rtol=1e-4)
+    second = both[:, anchors:]
+    torch.testing.assert_close(second[..., 4:], mirrored[..., 4:], atol=1e-4, rtol=1e-4)     # scores
+    torch.testing.assert_close(second[..., 0], 128.0 - mirrored[..., 2], atol=1e-3, rtol=1e-4)
+    torch.testing.assert_close(second[..., 2], 128.0 - mirrored[..., 0], atol=1e-3, rtol=1e-4)
+    torch.testing.assert_close(second[..., [1, 3]], mirrored[..., [1, 3]], atol=1e-3, rtol=1e-4)
+    assert np.all(second[..., 2].numpy() >= second[..., 0].numpy())
+    det = tta.predict(img)                       # one NMS over both halves, still in the frame
+    assert np.all(det.boxes_xyxy[:, [0, 2]] <= 128 + 1e-3)
+
+
+def test_flip_tta_is_refused_for_a_segmenter(tiny_seg_weights):
+    with pytest.raises(ValueError, match="flip_tta is for detectors"):
+        Predictor(tiny_seg_weights, flip_tta=True)
+
+
 def test_calibrated_mask_threshold_travels_with_the_weights(tiny_seg_weights, tmp_path):
     assert Predictor(tiny_seg_weights).post_config.mask_threshold == 0.5          # nothing stored: the default
     calibrated = str(tmp_path / "calibrated.pt")
