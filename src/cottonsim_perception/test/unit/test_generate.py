@@ -366,41 +366,27 @@ def test_cli_parsers():
             g.parse_image_size(bad)
 
 
-def test_cli_defoliated_probability_sets_every_farms_growth_stage(tmp_path, capsys, perception_script):
+@pytest.mark.parametrize("task, option, column, values_at_1_and_0, bad_value, field", [
+    ("seg", "--defoliated-probability", "growth_stage", ("defoliated", "cutout"), "1.5", "defoliated_probability"),
+    ("det", "--close-probability", "mode", ("close", "side"), "-0.1", "front_close_probability"),
+])
+def test_cli_probability_options_set_every_images_manifest_value(tmp_path, capsys, perception_script, task,
+                                                                 option, column, values_at_1_and_0, bad_value,
+                                                                 field):
     import csv
 
     script = perception_script("generate_dataset")
     farm_yaml = tmp_path / "farm.yaml"
     farm_yaml.write_text("rows: 2\nplants_per_row: 3\nplant_variants: 2\n")
-    stages = {}
+    seen = {}
     for p in ("1", "0"):
         out = tmp_path / f"p{p}"
-        code = script.main(["--task", "seg", "--out", str(out), "--images", "2", "--seeds", "0,1",
+        code = script.main(["--task", task, "--out", str(out), "--images", "3", "--seeds", "0,1",
                             "--val-fraction", "0", "--imgsz", "96x72", "--farm-config", str(farm_yaml),
-                            "--defoliated-probability", p, "--quiet"])
+                            option, p, "--quiet"])
         assert code == 0
-        with open(out / "seg" / "manifest.csv") as fh:
-            stages[p] = {row["growth_stage"] for row in csv.DictReader(fh)}
-    assert stages == {"1": {"defoliated"}, "0": {"cutout"}}
-    assert script.main(["--out", str(tmp_path / "bad"), "--defoliated-probability", "1.5"]) == 2
-    assert "defoliated_probability" in capsys.readouterr().err
-
-
-def test_cli_close_probability_sets_every_det_images_mode(tmp_path, capsys, perception_script):
-    import csv
-
-    script = perception_script("generate_dataset")
-    farm_yaml = tmp_path / "farm.yaml"
-    farm_yaml.write_text("rows: 2\nplants_per_row: 3\nplant_variants: 2\n")
-    modes = {}
-    for p in ("1", "0"):
-        out = tmp_path / f"p{p}"
-        code = script.main(["--task", "det", "--out", str(out), "--images", "3", "--seeds", "0,1",
-                            "--val-fraction", "0", "--imgsz", "96x72", "--farm-config", str(farm_yaml),
-                            "--close-probability", p, "--quiet"])
-        assert code == 0
-        with open(out / "det" / "manifest.csv") as fh:
-            modes[p] = {row["mode"] for row in csv.DictReader(fh)}
-    assert modes == {"1": {"close"}, "0": {"side"}}
-    assert script.main(["--out", str(tmp_path / "bad"), "--close-probability", "-0.1"]) == 2
-    assert "front_close_probability" in capsys.readouterr().err
+        with open(out / task / "manifest.csv") as fh:
+            seen[p] = {row[column] for row in csv.DictReader(fh)}
+    assert seen == {"1": {values_at_1_and_0[0]}, "0": {values_at_1_and_0[1]}}
+    assert script.main(["--out", str(tmp_path / "bad"), option, bad_value]) == 2
+    assert field in capsys.readouterr().err
