@@ -17,8 +17,9 @@ def assert_map_matches_truth(test, farm, grid, resolution_m, origin, label):
     truth, tres, torigin = rasterize_occupancy(farm, OccupancyMapConfig(resolution_m=resolution_m),
                                                frame=farm.spawn)
     q = evaluate_map(grid, resolution_m, origin, truth, tres, torigin, MapQualityConfig(cell_m=0.25))
-    rospy.loginfo("%s: %d x %d cells, IoU %.3f precision %.3f recall %.3f rotation %.3f deg shift %.3f m",
-                  label, grid.shape[1], grid.shape[0], q.iou, q.precision, q.recall, q.rotation_deg, q.shift_m)
+    rospy.loginfo("%s: %d x %d cells, IoU %.3f precision %.3f recall %.3f rotation %.3f deg shift %.3f m (x %.2f, y %.2f)",
+                  label, grid.shape[1], grid.shape[0], q.iou, q.precision, q.recall, q.rotation_deg, q.shift_m,
+                  q.shift_x_m, q.shift_y_m)
     test.assertGreaterEqual(q.iou, 0.25)
     test.assertGreaterEqual(q.precision, 0.8)
     test.assertLessEqual(q.rotation_error_deg, 1.5)

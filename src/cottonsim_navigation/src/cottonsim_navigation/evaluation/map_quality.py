@@ -11,11 +11,15 @@ Method:
 
 1. Alignment. The map frame and the truth frame are meant to be the same (the
    Home frame) but SLAM leaves a small rigid error. We search the rigid
-   transform ``p_truth = R(theta) p_map + t`` that maximises the number of the
-   map's occupied cells landing on true plant cells: ``theta`` on a coarse
-   then a fine grid of angles, and for each angle every whole-cell ``t`` in a
-   window at once (the overlap for all shifts is one cross-correlation, done
-   with FFTs).
+   transform ``p_truth = R(theta) p_map + t`` that maximises the plant IoU
+   over the observed area (step 2, on truth cells): ``theta`` on a coarse then
+   a fine grid of angles, and for each angle every whole-cell ``t`` in a window
+   at once (``|M & T|`` and ``|T & observed|`` for all shifts are two
+   cross-correlations, done with FFTs). The overlap ``|M & T|`` alone is not
+   enough: plants repeat every plant spacing along a row, so a map of part of a
+   row overlaps the truth as well one spacing further on as in place (only the
+   row's end tells them apart, by a true plant falling on ground the map saw
+   free); the IoU counts that plant, the overlap does not.
 2. Scores at the best transform, over the *observed area* (cells the map
    knows, i.e. not -1, resampled into the truth grid): plant IoU
    ``|M & T| / |M | T|`` where M = map-occupied, T = truth-occupied and
@@ -178,6 +182,7 @@ class _Aligner:
         self.qx = tox + c * jx * tres - s * jy * tres
         self.qy = toy + s * jx * tres + c * jy * tres
         self.kernel = self.truth_occ[::-1, ::-1].astype(np.float32)
+        self.truth_cells = float(self.truth_occ.sum())
 
     def rotated_map(self, theta_rad: float) -> np.ndarray:
         """Map values at the padded truth cells after rotating the map by theta: map(R^T q)."""
@@ -187,16 +192,25 @@ class _Aligner:
         return _resample(*self.m, px, py)
 
     def best_shift(self, theta_rad: float) -> Tuple[int, int, float]:
-        """(sx, sy, overlap): the whole-cell shift of the rotated map with the most occupied cells on plants."""
-        occ = (self.rotated_map(theta_rad) >= self.config.occupied_value).astype(np.float32)
-        if not occ.any() or not self.truth_occ.any():
+        """(sx, sy, iou): the whole-cell shift of the rotated map with the highest plant IoU over the observed
+        area (truth-resolution cells)."""
+        rotated = self.rotated_map(theta_rad)
+        occ = (rotated >= self.config.occupied_value).astype(np.float32)
+        if not occ.any() or not self.truth_cells:
             return 0, 0, 0.0
-        # corr[a, b] = sum_q T(q) * M(q + (a, b) - pad): overlap when the map moves by (pad - a, pad - b)
-        corr = fftconvolve(occ, self.kernel, mode="valid")
+        # overlap[a, b] = sum_q T(q) * M(q + (a, b) - pad): |M & T| when the map moves by (pad - a, pad - b);
+        # seen[a, b]: the true plant cells on observed map cells; inside[a, b]: |M| within the truth grid
+        overlap = np.rint(fftconvolve(occ, self.kernel, mode="valid"))
+        seen = np.rint(fftconvolve((rotated >= 0).astype(np.float32), self.kernel, mode="valid"))
+        h, w = self.truth_occ.shape
+        csum = np.pad(np.cumsum(np.cumsum(occ, axis=0), axis=1), ((1, 0), (1, 0)))
+        inside = csum[h:, w:] - csum[:-h, w:] - csum[h:, :-w] + csum[:-h, :-w]
+        union = np.maximum(inside + seen - overlap, 1.0)
+        corr = overlap / union
         a, b = np.unravel_index(int(np.argmax(corr)), corr.shape)
         # prefer the smallest shift among (numerically) equal maxima
         best = corr[a, b]
-        ties = np.argwhere(corr >= best - 0.5)
+        ties = np.argwhere(corr >= best - 1e-9)
         if len(ties) > 1:
             d2 = (ties[:, 0] - self.pad) ** 2 + (ties[:, 1] - self.pad) ** 2
             a, b = ties[int(np.argmin(d2))]
