@@ -166,6 +166,33 @@ def mask_iou(masks_a, masks_b, chunk: int = 64) -> np.ndarray:
     return out
 
 
+def assign_by_score(iou_same_class, scores, iou_threshold: float) -> np.ndarray:
+    """The labelled box each prediction takes at one IoU threshold: (N,) index, -1 for none.
+
+    iou_same_class (N, M): prediction x labelled-box IoU, negative (or 0) for pairs of different
+    classes; scores (N,). Predictions in descending score each take the free labelled box of highest
+    IoU >= iou_threshold (``match_predictions``' method 'score').
+    """
+    iou = np.asarray(iou_same_class, dtype=np.float64)
+    if iou.ndim != 2:
+        raise ValueError(f"assign_by_score: iou must be (N, M), got shape {iou.shape}")
+    n, m = iou.shape
+    s = np.asarray(scores, dtype=np.float64).reshape(-1)
+    if s.size != n:
+        raise ValueError(f"match_predictions: {s.size} scores for {n} predictions")
+    assigned = np.full(n, -1, dtype=np.int64)
+    if n == 0 or m == 0:
+        return assigned
+    taken = np.zeros(m, dtype=bool)
+    for i in np.argsort(-s, kind="stable"):
+        cand = np.where(taken, -1.0, iou[i])
+        j = int(np.argmax(cand))
+        if cand[j] >= iou_threshold:
+            taken[j] = True
+            assigned[i] = j
+    return assigned
+
+
 def match_predictions(pred_classes, gt_classes, iou, iou_thresholds=IOU_THRESHOLDS,
                       scores=None, method: str = "score") -> np.ndarray:
     """True-positive flags of the predictions of one image: (N, T) bool.
@@ -189,18 +216,8 @@ def match_predictions(pred_classes, gt_classes, iou, iou_thresholds=IOU_THRESHOL
     if method == "score":
         if scores is None:
             raise ValueError("match_predictions: method 'score' needs scores")
-        s = np.asarray(scores, dtype=np.float64).reshape(-1)
-        if s.size != n:
-            raise ValueError(f"match_predictions: {s.size} scores for {n} predictions")
-        order = np.argsort(-s, kind="stable")
         for ti, t in enumerate(thr):
-            taken = np.zeros(m, dtype=bool)
-            for i in order:
-                cand = np.where(taken, -1.0, iou_same[i])
-                j = int(np.argmax(cand))
-                if cand[j] >= t:
-                    taken[j] = True
-                    correct[i, ti] = True
+            correct[:, ti] = assign_by_score(iou_same, scores, t) >= 0
     elif method == "iou":
         for ti, t in enumerate(thr):
             pi, gj = np.nonzero(iou_same >= t)
