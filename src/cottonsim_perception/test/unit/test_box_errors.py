@@ -7,7 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from cottonsim_perception.evaluation.box_errors import BoxErrorConfig, BoxErrors, box_errors, format_box_errors
+from cottonsim_perception.evaluation.box_errors import (BoxErrorConfig, BoxErrors, box_errors, format_box_errors,
+                                                       format_misses_by_size, misses_by_size)
 from cottonsim_perception.evaluation.metrics import box_iou, match_predictions
 from cottonsim_perception.types import Detections
 
@@ -33,6 +34,19 @@ def test_hand_counted_misses_and_false_positives():
     assert e.missed == 3 and e.as_dict()["missed"] == 3
     text = format_box_errors(e)
     assert "found 1 (25.0 %), missed 3" in text and "misplaced (a prediction at IoU 0.3-0.5) 1" in text
+
+
+def test_misses_by_size_and_touching():
+    table = misses_by_size(PRED, SCORES, np.zeros(6, int), GT, np.zeros(4, int), IGNORE, size_edges_px=(5, 20))
+    assert table.shape == (3, 2, 2)
+    # every labelled box is 10 px: bin 1; C stands alone and is missed, of A, B, D (touching) B and D are
+    assert table[1].tolist() == [[1, 1], [3, 2]] and table[0].sum() == 0 and table[2].sum() == 0
+    text = format_misses_by_size(table, (5, 20))
+    assert "5-20: 100.0 % of    1 |  66.7 % of    3" in text and ">= 20" in text
+    with pytest.raises(ValueError, match="size_edges_px"):
+        misses_by_size(PRED, SCORES, np.zeros(6, int), GT, np.zeros(4, int), size_edges_px=(20, 5))
+    with pytest.raises(ValueError, match="does not fit"):
+        format_misses_by_size(table, (5,))
 
 
 def test_found_boxes_are_the_aps_true_positives():
@@ -121,6 +135,9 @@ def test_script_reports_per_group_and_writes_json(tmp_path, perception_script, m
     assert reports["close"]["found"] == 1 and reports["side"]["misplaced"] == 2
     assert reports["all"]["labelled"] == 9 and reports["all"]["weak"] == 3 and reports["all"]["images"] == 3
     assert reports["all"]["false_positives"] == 15
+    # 4 px boxes, all in the first bin: C alone (missed), A and B touching (B missed), in each of 3 images
+    assert reports["all"]["by_size"]["labelled_missed_alone_touching"][0] == [[3, 3], [6, 3]]
+    assert "misses by box size" in printed
     assert script.main(["--weights", "w.pt", "--data", data, "--conf", "0.65", "--json", out]) == 0
     with open(out) as fh:
         assert json.load(fh)["reports"]["all"]["false_positives"] == 6      # P2 and P5, per image
@@ -136,3 +153,5 @@ def test_script_errors_are_one_line_and_exit_2(tmp_path, perception_script, caps
     assert "box_errors: error:" in capsys.readouterr().err
     assert script.main(["--weights", tiny_seg_weights, "--data", data, "--conf", "1.5"]) == 2
     assert "--conf" in capsys.readouterr().err
+    assert script.main(["--weights", tiny_seg_weights, "--data", data, "--size-edges", "16,x"]) == 2
+    assert "--size-edges" in capsys.readouterr().err

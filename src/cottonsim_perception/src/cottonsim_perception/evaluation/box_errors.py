@@ -111,6 +111,40 @@ def _boxes(name: str, boxes) -> np.ndarray:
     return b
 
 
+class _Matched:
+    """One image's predictions matched to its labelled boxes (see the module docstring)."""
+
+    def __init__(self, pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes,
+                 config: BoxErrorConfig):
+        if not isinstance(config, BoxErrorConfig):
+            raise ValueError(f"config must be a BoxErrorConfig, got {type(config).__name__}")
+        p = _boxes("pred_boxes", pred_boxes)
+        g = _boxes("gt_boxes", gt_boxes)
+        ign = _boxes("ignore_boxes", ignore_boxes)
+        ps = np.asarray(pred_scores, dtype=np.float64).reshape(-1)
+        pc = np.asarray(pred_classes).reshape(-1)
+        gc = np.asarray(gt_classes).reshape(-1)
+        if ps.size != p.shape[0] or pc.size != p.shape[0]:
+            raise ValueError(f"{p.shape[0]} predicted boxes with {ps.size} scores and {pc.size} classes")
+        if gc.size != g.shape[0]:
+            raise ValueError(f"{g.shape[0]} labelled boxes with {gc.size} classes")
+        iou = box_iou(p, g)                                              # checks finiteness
+        same = pc[:, None] == gc[None, :]
+        self.iou_same = np.where(same, iou, 0.0)
+        assigned = assign_by_score(np.where(same, iou, -1.0), ps, config.match_iou)
+        self.matched_pred = assigned >= 0
+        self.found = np.zeros(g.shape[0], dtype=bool)
+        self.found[assigned[self.matched_pred]] = True
+        # a labelled box touches when it intersects another labelled box or an ignore box
+        inter = box_iou(g, np.concatenate([g, ign])) > 0
+        inter[np.arange(g.shape[0]), np.arange(g.shape[0])] = False
+        self.touching = inter.any(axis=1)
+        self.best_iou = self.iou_same.max(axis=0) if p.shape[0] else np.zeros(g.shape[0])
+        self.ignored = (on_ignore_regions(p, self.matched_pred, ign) if ign.shape[0]
+                        else np.zeros(p.shape[0], dtype=bool))
+        self.side_px = np.maximum(g[:, 2] - g[:, 0], g[:, 3] - g[:, 1])
+
+
 def box_errors(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes=None,
                config: BoxErrorConfig = BoxErrorConfig()) -> BoxErrors:
     """The :class:`BoxErrors` of one image.
@@ -119,52 +153,57 @@ def box_errors(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, igno
     cut at the caller's confidence); gt_boxes (M, 4), gt_classes (M,): the labelled boxes; ignore_boxes
     (K, 4) or None: don't-care regions. Raises ValueError for mismatched shapes or non-finite boxes.
     """
-    if not isinstance(config, BoxErrorConfig):
-        raise ValueError(f"config must be a BoxErrorConfig, got {type(config).__name__}")
-    p = _boxes("pred_boxes", pred_boxes)
-    g = _boxes("gt_boxes", gt_boxes)
-    ign = _boxes("ignore_boxes", ignore_boxes)
-    ps = np.asarray(pred_scores, dtype=np.float64).reshape(-1)
-    pc = np.asarray(pred_classes).reshape(-1)
-    gc = np.asarray(gt_classes).reshape(-1)
-    if ps.size != p.shape[0] or pc.size != p.shape[0]:
-        raise ValueError(f"{p.shape[0]} predicted boxes with {ps.size} scores and {pc.size} classes")
-    if gc.size != g.shape[0]:
-        raise ValueError(f"{g.shape[0]} labelled boxes with {gc.size} classes")
-    iou = box_iou(p, g)                                              # checks finiteness
-    same = pc[:, None] == gc[None, :]
-    iou_same = np.where(same, iou, 0.0)
-    assigned = assign_by_score(np.where(same, iou, -1.0), ps, config.match_iou)
-    matched_pred = assigned >= 0
-    found = np.zeros(g.shape[0], dtype=bool)
-    found[assigned[matched_pred]] = True
-
-    others = np.concatenate([g, ign]) if ign.shape[0] else g
-    touch_iou = box_iou(g, others) if g.shape[0] else np.zeros((0, 0))
-    inter = touch_iou > 0
-    if g.shape[0]:
-        inter[np.arange(g.shape[0]), np.arange(g.shape[0])] = False    # a box does not touch itself
-    touching = inter.any(axis=1) if g.shape[0] else np.zeros(0, dtype=bool)
-
+    m = _Matched(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes, config)
     counts = {k: 0 for k in MISS_KINDS}
     counts_touching = {k: 0 for k in MISS_KINDS}
-    best = iou_same.max(axis=0) if p.shape[0] else np.zeros(g.shape[0])
-    for j in np.nonzero(~found)[0]:
-        kind = "misplaced" if best[j] >= config.near_iou else ("weak" if best[j] >= config.weak_iou else "unseen")
+    for j in np.nonzero(~m.found)[0]:
+        b = m.best_iou[j]
+        kind = "misplaced" if b >= config.near_iou else ("weak" if b >= config.weak_iou else "unseen")
         counts[kind] += 1
-        counts_touching[kind] += int(touching[j])
-
-    unmatched = ~matched_pred
-    ignored = on_ignore_regions(p, matched_pred, ign) if ign.shape[0] else np.zeros(p.shape[0], dtype=bool)
-    fp = unmatched & ~ignored
-    near = (iou_same.max(axis=1) >= config.near_iou) if g.shape[0] else np.zeros(p.shape[0], dtype=bool)
+        counts_touching[kind] += int(m.touching[j])
+    unmatched = ~m.matched_pred
+    fp = unmatched & ~m.ignored
+    near = m.iou_same.max(axis=1) >= config.near_iou if m.iou_same.shape[1] else np.zeros(fp.shape, dtype=bool)
     return BoxErrors(
-        labelled=int(g.shape[0]), touching=int(touching.sum()), found=int(found.sum()),
+        labelled=int(m.found.size), touching=int(m.touching.sum()), found=int(m.found.sum()),
         misplaced=counts["misplaced"], weak=counts["weak"], unseen=counts["unseen"],
         misplaced_touching=counts_touching["misplaced"], weak_touching=counts_touching["weak"],
         unseen_touching=counts_touching["unseen"],
         false_positives=int(fp.sum()), fp_near_label=int((fp & near).sum()), fp_background=int((fp & ~near).sum()),
-        on_ignore=int((unmatched & ignored).sum()))
+        on_ignore=int((unmatched & m.ignored).sum()))
+
+
+def misses_by_size(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes=None,
+                   size_edges_px=(12.0, 16.0, 24.0, 32.0), config: BoxErrorConfig = BoxErrorConfig()) -> np.ndarray:
+    """Labelled and missed boxes of one image by size and by touching: (B, 2, 2) int array.
+
+    ``[b, t, 0]`` counts the labelled boxes of size bin b (their longer side [px]; bins split at the
+    increasing ``size_edges_px``, so B = len(size_edges_px) + 1) that touch (t = 1) or not (t = 0) another
+    box; ``[b, t, 1]`` how many of them were missed. Sum the arrays of many images for a table.
+    """
+    edges = np.asarray(size_edges_px, dtype=np.float64).reshape(-1)
+    if not np.all(np.isfinite(edges)) or np.any(edges <= 0) or np.any(np.diff(edges) <= 0):
+        raise ValueError(f"size_edges_px must be increasing positive numbers, got {tuple(size_edges_px)!r}")
+    m = _Matched(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes, config)
+    out = np.zeros((edges.size + 1, 2, 2), dtype=np.int64)
+    bins = np.searchsorted(edges, m.side_px, side="right")
+    np.add.at(out, (bins, m.touching.astype(int), 0), 1)
+    np.add.at(out, (bins, m.touching.astype(int), 1), (~m.found).astype(int))
+    return out
+
+
+def format_misses_by_size(table: np.ndarray, size_edges_px) -> str:
+    """``misses_by_size`` (summed over images) as text: one line per size bin, miss rate alone / touching."""
+    edges = [0.0] + [float(e) for e in size_edges_px] + [float("inf")]
+    if table.shape != (len(edges) - 1, 2, 2):
+        raise ValueError(f"table of shape {table.shape} does not fit {len(edges) - 2} size edges")
+    rate = (lambda n, d: f"{100.0 * n / d:5.1f} % of {d:4d}" if d else "     - of    0")
+    lines = ["  misses by box size (longer side) [px]: standing alone | touching another box"]
+    for b in range(len(edges) - 1):
+        lo, hi = edges[b], edges[b + 1]
+        name = f"{lo:g}-{hi:g}" if np.isfinite(hi) else f">= {lo:g}"
+        lines.append(f"    {name:>8}: {rate(table[b, 0, 1], table[b, 0, 0])} | {rate(table[b, 1, 1], table[b, 1, 0])}")
+    return "\n".join(lines)
 
 
 def format_box_errors(errors: BoxErrors, config: BoxErrorConfig = BoxErrorConfig(),
