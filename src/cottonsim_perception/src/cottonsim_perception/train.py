@@ -260,7 +260,9 @@ def init_from_checkpoint(model: YoloModel, path: str) -> str:
     """Load a checkpoint's weights into ``model`` (fine-tuning start); returns a log line.
 
     The checkpoint's model configuration must equal ``model.config``, except
-    that a segmenter's proto_stride (and detail_channels) may differ: then every tensor whose name
+    for the input size (a fully convolutional network's weights do not depend
+    on it: fine-tuning at another ``imgsz`` starts from the same tensors) and
+    a segmenter's proto_stride (and detail_channels): then every tensor whose name
     and shape match is loaded and the other Proto layers keep their own
     initialisation, which for a finer stride is the identity (nearest-
     neighbour copy, zero detail): the finer network starts with the coarse
@@ -268,19 +270,24 @@ def init_from_checkpoint(model: YoloModel, path: str) -> str:
     """
     init = load_checkpoint(path)
     init_cfg = ModelConfig.from_dict(init["model_config"])
+    size = (model.config.input_width, model.config.input_height)
+    resized = ""
+    if (init_cfg.input_width, init_cfg.input_height) != size:
+        resized = f" (trained at input {init_cfg.input_width}x{init_cfg.input_height}, now {size[0]}x{size[1]})"
+        init_cfg = replace(init_cfg, input_width=size[0], input_height=size[1])
     if init_cfg == model.config:
         model.load_state_dict(init["state_dict"])
-        return f"initialised from {path}"
+        return f"initialised from {path}{resized}"
     if replace(init_cfg, proto_stride=model.config.proto_stride,
                detail_channels=model.config.detail_channels) == model.config:
         own = model.state_dict()
         loaded = {k: v for k, v in init["state_dict"].items() if k in own and own[k].shape == v.shape}
         model.load_state_dict(loaded, strict=False)
         fresh = sorted(k for k in own if k not in loaded)
-        return (f"initialised from {path} (proto_stride {init_cfg.proto_stride} -> "
+        return (f"initialised from {path}{resized} (proto_stride {init_cfg.proto_stride} -> "
                 f"{model.config.proto_stride}): {len(loaded)} tensors loaded, {len(fresh)} new: {fresh}")
     raise ValueError(f"{path}: its model_config differs from this run's "
-                     f"(task / imgsz / width / classes must match to fine-tune)")
+                     f"(task / width / classes must match to fine-tune; the input size may differ)")
 
 
 def _single_threaded_worker(_worker_id: int) -> None:

@@ -95,8 +95,26 @@ def test_fine_tuning_and_mixing_errors_are_clear(tmp_path):
         train(_cfg(tmp_path, "x", extra_data_dirs=(str(tmp_path / "c"),)), log=lambda s: None)
     train(_cfg(tmp_path, "first"), log=lambda s: None)
     with pytest.raises(ValueError, match="model_config differs"):
-        train(_cfg(tmp_path, "y", imgsz=(96, 64), init_weights=str(tmp_path / "first" / "last.pt")),
+        train(_cfg(tmp_path, "y", width_multiple=0.125, init_weights=str(tmp_path / "first" / "last.pt")),
               log=lambda s: None)
+
+
+def test_fine_tuning_at_another_input_size_starts_from_the_same_weights(tmp_path):
+    from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
+    from cottonsim_perception.train import init_from_checkpoint
+
+    torch.manual_seed(0)
+    small = build_model(ModelConfig.boll_detector(width_multiple=0.0625, input_width=128, input_height=96)).eval()
+    path = str(tmp_path / "small.pt")
+    save_checkpoint(path, small)
+    torch.manual_seed(1)
+    large = build_model(ModelConfig.boll_detector(width_multiple=0.0625, input_width=160, input_height=128))
+    line = init_from_checkpoint(large, path)
+    assert "trained at input 128x96, now 160x128" in line
+    assert all(torch.equal(v, large.state_dict()[k]) for k, v in small.state_dict().items())
+    assert (large.config.input_width, large.config.input_height) == (160, 128)      # the run's own size
+    with pytest.raises(ValueError, match="model_config differs"):     # another width still refuses
+        init_from_checkpoint(build_model(ModelConfig.boll_detector(width_multiple=0.125)), path)
 
 
 def test_fine_tuning_to_finer_prototypes_keeps_every_matching_tensor(tmp_path):
