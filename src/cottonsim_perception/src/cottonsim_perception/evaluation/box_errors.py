@@ -23,6 +23,10 @@ Rules, per image:
   box (the AP's rule, ``metrics.on_ignore_regions``). It is 'near a label'
   when its IoU with some same-class labelled box is >= ``near_iou`` (a
   duplicate or a misplaced box), else 'background'.
+
+:func:`box_errors` counts these per image (:class:`BoxErrors`, summed with ``+``);
+:func:`misses_by_size` counts labelled and missed boxes by size bin (the box's
+longer side) and by touching, for the miss-rate table of ``scripts/box_errors``.
 """
 from __future__ import annotations
 
