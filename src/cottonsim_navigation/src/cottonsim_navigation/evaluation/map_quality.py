@@ -182,7 +182,6 @@ class _Aligner:
         self.qx = tox + c * jx * tres - s * jy * tres
         self.qy = toy + s * jx * tres + c * jy * tres
         self.kernel = self.truth_occ[::-1, ::-1].astype(np.float32)
-        self.truth_cells = float(self.truth_occ.sum())
 
     def rotated_map(self, theta_rad: float) -> np.ndarray:
         """Map values at the padded truth cells after rotating the map by theta: map(R^T q)."""
@@ -196,7 +195,7 @@ class _Aligner:
         area (truth-resolution cells)."""
         rotated = self.rotated_map(theta_rad)
         occ = (rotated >= self.config.occupied_value).astype(np.float32)
-        if not occ.any() or not self.truth_cells:
+        if not occ.any() or not self.truth_occ.any():
             return 0, 0, 0.0
         # overlap[a, b] = sum_q T(q) * M(q + (a, b) - pad): |M & T| when the map moves by (pad - a, pad - b);
         # seen[a, b]: the true plant cells on observed map cells; inside[a, b]: |M| within the truth grid

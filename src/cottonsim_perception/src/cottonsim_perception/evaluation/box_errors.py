@@ -24,9 +24,11 @@ Rules, per image:
   when its IoU with some same-class labelled box is >= ``near_iou`` (a
   duplicate or a misplaced box), else 'background'.
 
-:func:`box_errors` counts these per image (:class:`BoxErrors`, summed with ``+``);
-:func:`misses_by_size` counts labelled and missed boxes by size bin (the box's
-longer side) and by touching, for the miss-rate table of ``scripts/box_errors``.
+:class:`BoxMatch` matches one image once; its ``errors()`` counts the above
+(:class:`BoxErrors`, summed with ``+``) and its ``misses_by_size()`` counts
+labelled and missed boxes by size bin (the box's longer side) and by touching,
+for the miss-rate table of ``scripts/box_errors``. :func:`box_errors` and
+:func:`misses_by_size` do either for one image.
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ from typing import Dict, Optional
 
 import numpy as np
 
-from cottonsim_perception.evaluation.metrics import assign_by_score, box_iou, on_ignore_regions
+from cottonsim_perception.evaluation.metrics import as_boxes, assign_by_score, box_iou, on_ignore_regions
 
 MISS_KINDS = ("misplaced", "weak", "unseen")
 
@@ -106,25 +108,31 @@ class BoxErrors:
         return out
 
 
-def _boxes(name: str, boxes) -> np.ndarray:
-    b = np.asarray(boxes if boxes is not None else np.zeros((0, 4)), dtype=np.float64)
-    if b.size == 0:
-        return b.reshape(0, 4)
-    if b.ndim != 2 or b.shape[1] != 4:
-        raise ValueError(f"{name} must be (N, 4) xyxy boxes, got shape {b.shape}")
-    return b
+def check_size_edges(size_edges_px) -> np.ndarray:
+    """The size bins' edges [px] as a float array; ValueError unless increasing positive numbers."""
+    edges = np.asarray(size_edges_px, dtype=np.float64).reshape(-1)
+    if not np.all(np.isfinite(edges)) or np.any(edges <= 0) or np.any(np.diff(edges) <= 0):
+        raise ValueError(f"size_edges_px must be increasing positive numbers, got {tuple(size_edges_px)!r}")
+    return edges
 
 
-class _Matched:
-    """One image's predictions matched to its labelled boxes (see the module docstring)."""
+class BoxMatch:
+    """One image's predictions matched to its labelled boxes (see the module docstring); count them with
+    :meth:`errors` and :meth:`misses_by_size`, which share this one matching.
 
-    def __init__(self, pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes,
-                 config: BoxErrorConfig):
+    pred_boxes (N, 4) xyxy [px], pred_scores (N,), pred_classes (N,): the predictions to score (already
+    cut at the caller's confidence); gt_boxes (M, 4), gt_classes (M,): the labelled boxes; ignore_boxes
+    (K, 4) or None: don't-care regions. Raises ValueError for mismatched shapes or non-finite boxes.
+    """
+
+    def __init__(self, pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes=None,
+                 config: BoxErrorConfig = BoxErrorConfig()):
         if not isinstance(config, BoxErrorConfig):
             raise ValueError(f"config must be a BoxErrorConfig, got {type(config).__name__}")
-        p = _boxes("pred_boxes", pred_boxes)
-        g = _boxes("gt_boxes", gt_boxes)
-        ign = _boxes("ignore_boxes", ignore_boxes)
+        self.config = config
+        p = as_boxes("pred_boxes", pred_boxes)
+        g = as_boxes("gt_boxes", gt_boxes)
+        ign = as_boxes("ignore_boxes", ignore_boxes if ignore_boxes is not None else np.zeros((0, 4)))
         ps = np.asarray(pred_scores, dtype=np.float64).reshape(-1)
         pc = np.asarray(pred_classes).reshape(-1)
         gc = np.asarray(gt_classes).reshape(-1)
@@ -132,7 +140,7 @@ class _Matched:
             raise ValueError(f"{p.shape[0]} predicted boxes with {ps.size} scores and {pc.size} classes")
         if gc.size != g.shape[0]:
             raise ValueError(f"{g.shape[0]} labelled boxes with {gc.size} classes")
-        iou = box_iou(p, g)                                              # checks finiteness
+        iou = box_iou(p, g)
         same = pc[:, None] == gc[None, :]
         self.iou_same = np.where(same, iou, 0.0)
         assigned = assign_by_score(np.where(same, iou, -1.0), ps, config.match_iou)
@@ -148,52 +156,54 @@ class _Matched:
                         else np.zeros(p.shape[0], dtype=bool))
         self.side_px = np.maximum(g[:, 2] - g[:, 0], g[:, 3] - g[:, 1])
 
+    def errors(self) -> BoxErrors:
+        """The :class:`BoxErrors` of this image."""
+        config = self.config
+        counts = {k: 0 for k in MISS_KINDS}
+        counts_touching = {k: 0 for k in MISS_KINDS}
+        for j in np.nonzero(~self.found)[0]:
+            b = self.best_iou[j]
+            kind = "misplaced" if b >= config.near_iou else ("weak" if b >= config.weak_iou else "unseen")
+            counts[kind] += 1
+            counts_touching[kind] += int(self.touching[j])
+        unmatched = ~self.matched_pred
+        fp = unmatched & ~self.ignored
+        near = (self.iou_same.max(axis=1) >= config.near_iou if self.iou_same.shape[1]
+                else np.zeros(fp.shape, dtype=bool))
+        return BoxErrors(
+            labelled=int(self.found.size), touching=int(self.touching.sum()), found=int(self.found.sum()),
+            misplaced=counts["misplaced"], weak=counts["weak"], unseen=counts["unseen"],
+            misplaced_touching=counts_touching["misplaced"], weak_touching=counts_touching["weak"],
+            unseen_touching=counts_touching["unseen"],
+            false_positives=int(fp.sum()), fp_near_label=int((fp & near).sum()),
+            fp_background=int((fp & ~near).sum()), on_ignore=int((unmatched & self.ignored).sum()))
+
+    def misses_by_size(self, size_edges_px=(12.0, 16.0, 24.0, 32.0)) -> np.ndarray:
+        """Labelled and missed boxes by size and by touching: (B, 2, 2) int array.
+
+        ``[b, t, 0]`` counts the labelled boxes of size bin b (their longer side [px]; bins split at the
+        increasing ``size_edges_px``, so B = len(size_edges_px) + 1) that touch (t = 1) or not (t = 0)
+        another box; ``[b, t, 1]`` how many of them were missed. Sum the arrays of many images for a table.
+        """
+        edges = check_size_edges(size_edges_px)
+        out = np.zeros((edges.size + 1, 2, 2), dtype=np.int64)
+        bins = np.searchsorted(edges, self.side_px, side="right")
+        np.add.at(out, (bins, self.touching.astype(int), 0), 1)
+        np.add.at(out, (bins, self.touching.astype(int), 1), (~self.found).astype(int))
+        return out
+
 
 def box_errors(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes=None,
                config: BoxErrorConfig = BoxErrorConfig()) -> BoxErrors:
-    """The :class:`BoxErrors` of one image.
-
-    pred_boxes (N, 4) xyxy [px], pred_scores (N,), pred_classes (N,): the predictions to score (already
-    cut at the caller's confidence); gt_boxes (M, 4), gt_classes (M,): the labelled boxes; ignore_boxes
-    (K, 4) or None: don't-care regions. Raises ValueError for mismatched shapes or non-finite boxes.
-    """
-    m = _Matched(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes, config)
-    counts = {k: 0 for k in MISS_KINDS}
-    counts_touching = {k: 0 for k in MISS_KINDS}
-    for j in np.nonzero(~m.found)[0]:
-        b = m.best_iou[j]
-        kind = "misplaced" if b >= config.near_iou else ("weak" if b >= config.weak_iou else "unseen")
-        counts[kind] += 1
-        counts_touching[kind] += int(m.touching[j])
-    unmatched = ~m.matched_pred
-    fp = unmatched & ~m.ignored
-    near = m.iou_same.max(axis=1) >= config.near_iou if m.iou_same.shape[1] else np.zeros(fp.shape, dtype=bool)
-    return BoxErrors(
-        labelled=int(m.found.size), touching=int(m.touching.sum()), found=int(m.found.sum()),
-        misplaced=counts["misplaced"], weak=counts["weak"], unseen=counts["unseen"],
-        misplaced_touching=counts_touching["misplaced"], weak_touching=counts_touching["weak"],
-        unseen_touching=counts_touching["unseen"],
-        false_positives=int(fp.sum()), fp_near_label=int((fp & near).sum()), fp_background=int((fp & ~near).sum()),
-        on_ignore=int((unmatched & m.ignored).sum()))
+    """The :class:`BoxErrors` of one image (arguments as :class:`BoxMatch`)."""
+    return BoxMatch(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes, config).errors()
 
 
 def misses_by_size(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes=None,
                    size_edges_px=(12.0, 16.0, 24.0, 32.0), config: BoxErrorConfig = BoxErrorConfig()) -> np.ndarray:
-    """Labelled and missed boxes of one image by size and by touching: (B, 2, 2) int array.
-
-    ``[b, t, 0]`` counts the labelled boxes of size bin b (their longer side [px]; bins split at the
-    increasing ``size_edges_px``, so B = len(size_edges_px) + 1) that touch (t = 1) or not (t = 0) another
-    box; ``[b, t, 1]`` how many of them were missed. Sum the arrays of many images for a table.
-    """
-    edges = np.asarray(size_edges_px, dtype=np.float64).reshape(-1)
-    if not np.all(np.isfinite(edges)) or np.any(edges <= 0) or np.any(np.diff(edges) <= 0):
-        raise ValueError(f"size_edges_px must be increasing positive numbers, got {tuple(size_edges_px)!r}")
-    m = _Matched(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes, config)
-    out = np.zeros((edges.size + 1, 2, 2), dtype=np.int64)
-    bins = np.searchsorted(edges, m.side_px, side="right")
-    np.add.at(out, (bins, m.touching.astype(int), 0), 1)
-    np.add.at(out, (bins, m.touching.astype(int), 1), (~m.found).astype(int))
-    return out
+    """:meth:`BoxMatch.misses_by_size` of one image (arguments as :class:`BoxMatch`)."""
+    return BoxMatch(pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes,
+                    config).misses_by_size(size_edges_px)
 
 
 def format_misses_by_size(table: np.ndarray, size_edges_px) -> str:

@@ -77,7 +77,8 @@ IGNORE_MIN_IOA = 0.5
 _EPS = 1e-16
 
 
-def _as_boxes(name: str, boxes) -> np.ndarray:
+def as_boxes(name: str, boxes) -> np.ndarray:
+    """``boxes`` as a (N, 4) float64 array ((0, 4) when empty); ValueError naming ``name`` otherwise."""
     b = np.asarray(boxes, dtype=np.float64)
     if b.size == 0:
         return b.reshape(0, 4)
@@ -90,8 +91,8 @@ def _as_boxes(name: str, boxes) -> np.ndarray:
 
 def _pairwise_intersection(boxes_a, boxes_b):
     """(N, M) intersection areas of (N, 4) and (M, 4) xyxy boxes, and their (N,), (M,) areas."""
-    a = _as_boxes("boxes_a", boxes_a)
-    b = _as_boxes("boxes_b", boxes_b)
+    a = as_boxes("boxes_a", boxes_a)
+    b = as_boxes("boxes_b", boxes_b)
     area_a = np.clip(a[:, 2] - a[:, 0], 0, None) * np.clip(a[:, 3] - a[:, 1], 0, None)
     area_b = np.clip(b[:, 2] - b[:, 0], 0, None) * np.clip(b[:, 3] - b[:, 1], 0, None)
     lt = np.maximum(a[:, None, :2], b[None, :, :2])
@@ -130,11 +131,11 @@ def on_ignore_regions(pred_boxes, matched_at_first_threshold, ignore_boxes,
     labelling rules exclude, e.g. bolls beyond the working range). Returns
     (N,) bool.
     """
-    p = _as_boxes("pred_boxes", pred_boxes)
+    p = as_boxes("pred_boxes", pred_boxes)
     matched = np.asarray(matched_at_first_threshold, dtype=bool).reshape(-1)
     if matched.shape[0] != p.shape[0]:
         raise ValueError(f"{matched.shape[0]} match flags for {p.shape[0]} predictions")
-    ign = _as_boxes("ignore_boxes", ignore_boxes)
+    ign = as_boxes("ignore_boxes", ignore_boxes)
     if p.shape[0] == 0 or ign.shape[0] == 0:
         return np.zeros(p.shape[0], dtype=bool)
     return ~matched & (box_ioa(p, ign).max(axis=1) >= float(min_ioa))
@@ -179,7 +180,7 @@ def assign_by_score(iou_same_class, scores, iou_threshold: float) -> np.ndarray:
     n, m = iou.shape
     s = np.asarray(scores, dtype=np.float64).reshape(-1)
     if s.size != n:
-        raise ValueError(f"match_predictions: {s.size} scores for {n} predictions")
+        raise ValueError(f"assign_by_score: {s.size} scores for {n} predictions")
     assigned = np.full(n, -1, dtype=np.int64)
     if n == 0 or m == 0:
         return assigned
