@@ -5,8 +5,10 @@ Measures the whole per-frame work of the perception nodes:
 Predictor.predict (letterbox + network + post-processing + masks mapped back
 to 640x480) and, for the segmenter, the label image the row-centring node
 reads (localisation.label_image_from_detections), for the scene segmenter
-and the boll detector at 1 and 2 torch threads. By default the shipped
-weights (src/cottonsim_perception/weights/) run on real frames (the paper's
+and the boll detector at 1 and 2 torch threads. By default the weights the
+nodes run (src/cottonsim_perception/weights/: scene_segmenter.pt and
+boll_detector_sim.pt; --det-weights boll_detector.pt times the paper-domain
+detector, 960x736 input) run on real frames (the paper's
 Segmentation / Detection valid images, cycled), so post-processing handles
 the instances a trained model really outputs; --random-weights measures an
 untrained network of the default (or given) configuration instead.
@@ -123,7 +125,8 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=10, help="with --compare: rounds of 5 frames (default 10)")
     ap.add_argument("--threads", default="1,2", help="torch thread counts to time, comma-separated (default 1,2)")
     ap.add_argument("--seg-weights", default=os.path.join(WEIGHTS, "scene_segmenter.pt"))
-    ap.add_argument("--det-weights", default=os.path.join(WEIGHTS, "boll_detector.pt"))
+    ap.add_argument("--det-weights", default=os.path.join(WEIGHTS, "boll_detector_sim.pt"),
+                    help="boll detector (default: boll_detector_sim.pt, the one perception.launch runs)")
     ap.add_argument("--seg-weights-b", default=None,
                     help="with --compare: frozen --seg-weights vs frozen these weights (A/B of two segmenters)")
     ap.add_argument("--seg-images", default=os.path.join(ORIGINAL, "Segmentation", "valid", "images"))

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import asdict, dataclass, replace
-from typing import Any, Dict, Optional, Tuple, Union
+from typing import Any, Dict, Optional, Sequence, Tuple, Union
 
 import torch
 import torch.nn as nn
@@ -313,6 +313,56 @@ def set_inference_settings(path: str, settings: Dict[str, float], out_path: Opti
     merged.update(check_inference_settings(settings))
     ckpt["inference"] = merged
     _write_checkpoint(out_path or path, ckpt)
+
+
+def average_checkpoints(paths: Sequence[str], out_path: str) -> Dict[str, Any]:
+    """Write the uniform average of several checkpoints' weights to ``out_path`` (a "weight soup").
+
+    Meant for runs of one recipe that differ only in their seed, fine-tuned from the
+    same start: their weights lie in one basin, and the average is one network of the
+    same size and speed. Floating-point tensors (weights and BatchNorm statistics) are
+    averaged in float64 and stored in their own dtype; integer tensors (BatchNorm's
+    update counters) are taken from the first checkpoint. The result keeps the first
+    checkpoint's model_config and inference settings (recalibrate a segmenter's mask
+    threshold for the average), and its "train" metadata records
+    the files averaged (``averaged_from``) and each one's own metadata (``members``).
+    Returns the metadata written. Raises ValueError for fewer than two paths, for
+    checkpoints whose model_config (input size included) or tensor names / shapes
+    differ, and for a checkpoint holding non-finite weights; FileNotFoundError for a
+    missing file.
+    """
+    paths = list(paths)
+    if len(paths) < 2:
+        raise ValueError(f"average_checkpoints needs at least two checkpoints, got {len(paths)}")
+    ckpts = [load_checkpoint(p) for p in paths]
+    first = ckpts[0]
+    for path, ck in zip(paths[1:], ckpts[1:]):
+        if ck["model_config"] != first["model_config"]:
+            raise ValueError(f"{path}: its model_config differs from {paths[0]}'s; only checkpoints of one "
+                             f"network (same task, width, classes and input size) can be averaged")
+        if set(ck["state_dict"]) != set(first["state_dict"]):
+            raise ValueError(f"{path}: its tensor names differ from {paths[0]}'s")
+    averaged: Dict[str, torch.Tensor] = {}
+    for name, ref in first["state_dict"].items():
+        tensors = [ck["state_dict"][name] for ck in ckpts]
+        for path, t in zip(paths, tensors):
+            if t.shape != ref.shape:
+                raise ValueError(f"{path}: tensor {name} has shape {tuple(t.shape)}, "
+                                 f"{paths[0]} has {tuple(ref.shape)}")
+            if t.is_floating_point() and not torch.isfinite(t).all():
+                raise ValueError(f"{path}: tensor {name} holds non-finite values")
+        if ref.is_floating_point():
+            averaged[name] = (sum(t.double() for t in tensors) / len(tensors)).to(ref.dtype)
+        else:
+            averaged[name] = ref.clone()
+    meta = {"averaged_from": [os.path.abspath(p) for p in paths],
+            "members": [dict(ck.get("train") or {}) for ck in ckpts]}
+    out = {"format": CHECKPOINT_FORMAT, "format_version": CHECKPOINT_VERSION,
+           "model_config": dict(first["model_config"]), "state_dict": averaged, "train": meta}
+    if first.get("inference"):
+        out["inference"] = dict(first["inference"])
+    _write_checkpoint(out_path, out)
+    return meta
 
 
 def load_checkpoint(path: str) -> Dict[str, Any]:
