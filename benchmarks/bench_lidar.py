@@ -11,10 +11,15 @@ Prints the build time of the LiDAR's scene structure, CPU ms per cast (time.proc
 over threads: run with NUMBA_NUM_THREADS=1 for the work itself) and CPU ms per whole update
 (scan with noise + PassThrough + the two LaserScans, as ``Simulator._lidar`` does).
 
-  NUMBA_NUM_THREADS=1 python benchmarks/bench_lidar.py [--repeats 5] [--save out.npz | --compare ref.npz]
+  NUMBA_NUM_THREADS=1 python benchmarks/bench_lidar.py [--repeats 5] [--evict-mb 32] [--save out.npz | --compare ref.npz]
 
 --save writes every pose's ranges [m] and hit ids (noise-free ``Vlp16Model`` internals); --compare
 checks a later tree against such a file (ranges to 1e-9 m, hit classes and plant ids exact).
+--evict-mb N streams through an N MB buffer before every timed cast and update: in the simulator
+a camera render (and the physics) run between two LiDAR casts and push the tree out of the caches,
+which a loop of back-to-back casts never does. 32 (the EPYC's L3) is a good value: the figures are
+then per cast from cold caches (session 15: +0.8 ms median in the lane, within the VM's drift;
+docs/benchmarks.md).
 --callgrind (under ``valgrind --tool=callgrind --instr-atstart=no``) instruments the casts only
 (one cast per pose): "Collected : N" is the instruction count of the 4 lane + 4 headland casts,
 and --callgrind-place restricts them to one place.
@@ -64,11 +69,34 @@ def main():
     parser.add_argument("--repeats", type=int, default=5, help="casts per pose")
     parser.add_argument("--save", help="write every pose's ranges and hit ids to this .npz")
     parser.add_argument("--compare", help="compare every pose's ranges and hits with this .npz")
+    parser.add_argument("--evict-mb", type=float, default=0.0,
+                        help="stream through a buffer of this many MB before each timed cast (0: hot caches)")
     parser.add_argument("--callgrind", action="store_true")
     parser.add_argument("--callgrind-place", choices=sorted(POSES))
     args = parser.parse_args()
+    if args.evict_mb < 0:
+        parser.error("--evict-mb must be >= 0")
+    evict_buffer = np.zeros(int(args.evict_mb * 1e6 / 8))
+
+    def timed_ms(work) -> float:
+        """Mean CPU ms of ``work()`` over --repeats calls, each after the cache sweep (if any)."""
+        total = 0.0
+        for _ in range(args.repeats):
+            if evict_buffer.size:
+                np.add(evict_buffer, 1.0, out=evict_buffer)    # reads and writes every line of the buffer
+            c = time.process_time()
+            work()
+            total += time.process_time() - c
+        return 1e3 * total / args.repeats
+
+    def update(pose):
+        scan = lidar.scan(pose)
+        original_passthrough_mask(scan.points, PassThroughConfig())
+        cloud_to_laserscans(scan.points, scan_configs)
+
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; "
-          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'unset')}")
+          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'unset')}; "
+          f"{'caches hot' if not evict_buffer.size else f'caches swept by {args.evict_mb:g} MB before each cast'}")
     farm = generate_farm(FarmConfig())
     scene = SensorScene(farm, SceneConfig())
     t0 = time.process_time()
@@ -94,16 +122,8 @@ def main():
         for k, pose in enumerate(poses):
             rng, sem, pid = lidar.ranges(pose)
             saved[f"{place}{k}_range"], saved[f"{place}{k}_sem"], saved[f"{place}{k}_pid"] = rng, sem, pid
-            c = time.process_time()
-            for _ in range(args.repeats):
-                lidar.ranges(pose)
-            cast_ms.append(1e3 * (time.process_time() - c) / args.repeats)
-            c = time.process_time()
-            for _ in range(args.repeats):
-                scan = lidar.scan(pose)
-                original_passthrough_mask(scan.points, PassThroughConfig())
-                cloud_to_laserscans(scan.points, scan_configs)
-            update_ms.append(1e3 * (time.process_time() - c) / args.repeats)
+            cast_ms.append(timed_ms(lambda: lidar.ranges(pose)))
+            update_ms.append(timed_ms(lambda: update(pose)))
         hits = np.mean([np.mean(saved[f"{place}{k}_sem"] != int(SemanticClass.SKY)) for k in range(len(poses))])
         print(f"{place:9s}: cast {np.mean(cast_ms):6.2f} ms CPU (per pose {', '.join(f'{m:.2f}' for m in cast_ms)}); "
               f"scan + PassThrough + 2 LaserScans {np.mean(update_ms):6.2f} ms CPU; {hits:.0%} of rays hit")
