@@ -1,8 +1,9 @@
 #!/bin/bash
-# Session 15 GPU sweep driver (run2.sh), kept as the record of how the sweep ran (docs/perception.md 'Session 15').
+# Session 15 GPU sweep driver (run 2), kept as the record of how the sweep ran (docs/perception.md 'Session 15').
 # data/gpu_s15 held real copies (not links: the device tool carries no link targets) of the paper's Detection
 # folder (Detection/) and of data/paper_det_holdout (holdout/, the weights/README.md split command with cp).
-# Ran as: bash run2.sh OUTDIR cuda 100 MAXMIN   (run 1: MAXMIN 6, OUTDIR $OUT; run 2: MAXMIN 7, OUTDIR /tmp/s15)
+# Ran as: bash gpu_sweep.sh /tmp/s15 cuda 100 7. Run 1 was this script with its candidates (see the doc table),
+# --threads 1 --workers 1, soups of a1-a2 and b1-b3, the four best by hold-out returned, MAXMIN 6.
 set -u
 OUTD=$1; DEV=$2; SCALE=$3; MAXMIN=$4
 export PYTHONPATH=$PWD/src/cottonsim_perception/src PYTHONUNBUFFERED=1 OMP_NUM_THREADS=${OMP:-1}
