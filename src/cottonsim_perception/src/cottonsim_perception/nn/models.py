@@ -357,10 +357,8 @@ def average_checkpoints(paths: Sequence[str], out_path: str) -> Dict[str, Any]:
             averaged[name] = ref.clone()
     meta = {"averaged_from": [os.path.abspath(p) for p in paths],
             "members": [dict(ck.get("train") or {}) for ck in ckpts]}
-    out = {"format": CHECKPOINT_FORMAT, "format_version": CHECKPOINT_VERSION,
-           "model_config": dict(first["model_config"]), "state_dict": averaged, "train": meta}
-    if first.get("inference"):
-        out["inference"] = dict(first["inference"])
+    out = dict(first, state_dict=averaged, train=meta)   # format, model_config, inference as the first file's
+    out.pop("optimizer", None)                           # a last.pt's optimizer state does not fit the average
     _write_checkpoint(out_path, out)
     return meta
 
