@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-BOX_PAD_M = 1e-5          # boxes grown by this [m] on every side (float32 boxes, float64 slab test)
+BOX_PAD_M = 1e-4          # boxes grown by this [m] on every side (float32 boxes and slab test; see raycast)
 _BINS = 32                # SAH bins per axis
 _MAX_LEAF = 8             # a node with more triangles is always split (by count if its centroids coincide)
 _TRAVERSAL_COST = 1.0     # cost of one node visit, in units of a ray/triangle test (measured: 4-wide packets)

@@ -36,22 +36,25 @@ PACKET = 8                 # rays traversing the tree together (consecutive rays
 _WORK_ITEMS = 16           # parallel items; item i casts packets i, i + 16, i + 32, ...
 _STACK = 256               # pending entries: at most 3 per wide level (+ 1), and 3 * bvh.MAX_DEPTH + 1 < _STACK
 _SLOT_OF_BIT = np.array([0, 0, 1, 0, 2, 0, 0, 0, 3], np.int64)   # child slot of a one-bit mask
-_AXIS_PARALLEL_INV = 1e300  # reciprocal used for a zero direction component (finite: no 0 * inf)
+_MAX_RECIPROCAL = 1e30    # cap on |1 / direction component| in the float32 slab test (finite: no 0 * inf)
+_LIMIT_SLACK = 1e-6        # the slab test's limit: min(best, max_range) * (1 + this) + _LIMIT_SLACK_M
+_LIMIT_SLACK_M = 1e-4      # [m]; with BOX_PAD_M it covers float32 rounding (see the module doc)
 _MIN_DET = 1e-14           # |determinant| below this: the ray runs parallel to the triangle
 
 
 @njit(cache=True, inline="always")
 def _child_box(wide_box, w, slot, ox, oy, oz):  # pragma: no cover
-    """Child ``slot`` of wide node w: its min and max corners relative to the origin (x0, y0, z0, x1, y1, z1) [m]."""
-    return (np.float64(wide_box[w, slot]) - ox, np.float64(wide_box[w, 4 + slot]) - oy,
-            np.float64(wide_box[w, 8 + slot]) - oz, np.float64(wide_box[w, 12 + slot]) - ox,
-            np.float64(wide_box[w, 16 + slot]) - oy, np.float64(wide_box[w, 20 + slot]) - oz)
+    """Child ``slot`` of wide node w: its min and max corners relative to the origin (x0, y0, z0, x1, y1, z1)
+    [m], float32 (origin float32 too)."""
+    return (wide_box[w, slot] - ox, wide_box[w, 4 + slot] - oy, wide_box[w, 8 + slot] - oz,
+            wide_box[w, 12 + slot] - ox, wide_box[w, 16 + slot] - oy, wide_box[w, 20 + slot] - oz)
 
 
 @njit(cache=True, inline="always")
-def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit):  # pragma: no cover
-    """1 if the ray with reciprocal direction (ix, iy, iz) meets the box (corners relative to its origin)
-    within [0, limit] [m], else 0 (slab test; min / max spelled as selects, which vectorise)."""
+def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit, zero):  # pragma: no cover
+    """Whether the ray with reciprocal direction (ix, iy, iz) meets the box (corners relative to its origin)
+    within [0, limit] [m] (slab test in float32: every argument and ``zero`` are float32, so the
+    packet's 8 rays fill one AVX2 vector; min / max spelled as selects, which vectorise)."""
     t0x, t1x = b0x * ix, b1x * ix
     t0y, t1y = b0y * iy, b1y * iy
     t0z, t1z = b0z * iz, b1z * iz
@@ -63,11 +66,31 @@ def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit):  # pragma: no cover
     fz = t0z if t0z > t1z else t1z
     near = nx if nx > ny else ny
     near = near if near > nz else nz
-    near = near if near > 0.0 else 0.0
+    near = near if near > zero else zero
     far = fx if fx < fy else fy
     far = far if far < fz else fz
     far = far if far < limit else limit
-    return 1 if near <= far else 0
+    return near <= far
+
+
+@njit(cache=True, inline="always")
+def _reciprocal32(d):  # pragma: no cover
+    """1 / d as float32, its magnitude capped at _MAX_RECIPROCAL (a zero or tiny component: finite, signed)."""
+    if d == 0.0:
+        return np.float32(_MAX_RECIPROCAL)
+    r = 1.0 / d
+    if r > _MAX_RECIPROCAL:
+        r = _MAX_RECIPROCAL
+    elif r < -_MAX_RECIPROCAL:
+        r = -_MAX_RECIPROCAL
+    return np.float32(r)
+
+
+@njit(cache=True, inline="always")
+def _box_limit32(t):  # pragma: no cover
+    """A float32 limit for the slab test at or beyond t [m] (rounding never prunes a box that holds a
+    hit nearer than t)."""
+    return np.float32(t * (1.0 + _LIMIT_SLACK) + _LIMIT_SLACK_M)
 
 
 @njit(parallel=True, cache=True, nogil=True, error_model="numpy")
@@ -85,6 +108,8 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
     """
     n = dirs.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
+    ox32, oy32, oz32 = np.float32(ox), np.float32(oy), np.float32(oz)
+    zero32, one32 = np.float32(0.0), np.float32(1.0)
     n_packets = (n + PACKET - 1) // PACKET
     has_tree = tri.shape[0] > 0
     for item in prange(_WORK_ITEMS):
@@ -92,11 +117,11 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
         dxa = np.empty(PACKET)
         dya = np.empty(PACKET)
         dza = np.empty(PACKET)
-        ixa = np.empty(PACKET)
-        iya = np.empty(PACKET)
-        iza = np.empty(PACKET)
-        best = np.empty(PACKET)           # nearest hit so far per ray [m]
-        limit = np.empty(PACKET)          # min(best, max_range) [m]: boxes beyond are skipped
+        ixa = np.empty(PACKET, np.float32)   # reciprocal directions for the float32 slab tests
+        iya = np.empty(PACKET, np.float32)
+        iza = np.empty(PACKET, np.float32)
+        best = np.empty(PACKET)              # nearest hit so far per ray [m]
+        limit = np.empty(PACKET, np.float32)  # >= min(best, max_range) [m]: boxes beyond are skipped
         hit = np.empty(PACKET, np.int32)
         for packet in range(item, n_packets, _WORK_ITEMS):
             r0 = packet * PACKET
@@ -107,9 +132,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
                 dy = rot[1, 0] * sx + rot[1, 1] * sy + rot[1, 2] * sz
                 dz = rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
                 dxa[k], dya[k], dza[k] = dx, dy, dz
-                ixa[k] = 1.0 / dx if dx != 0.0 else _AXIS_PARALLEL_INV
-                iya[k] = 1.0 / dy if dy != 0.0 else _AXIS_PARALLEL_INV
-                iza[k] = 1.0 / dz if dz != 0.0 else _AXIS_PARALLEL_INV
+                ixa[k], iya[k], iza[k] = _reciprocal32(dx), _reciprocal32(dy), _reciprocal32(dz)
                 t_first = math.inf
                 what = HIT_NONE
                 if dz < 0.0 and oz > 0.0:
@@ -119,19 +142,21 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
                         what = HIT_GROUND
                 best[k] = t_first
                 hit[k] = what
-                limit[k] = min(t_first, max_range)
+                limit[k] = _box_limit32(min(t_first, max_range))
+            for k in range(m, PACKET):    # the lanes of a short last packet meet no box
+                ixa[k], iya[k], iza[k], limit[k] = one32, one32, one32, -one32
             # the octant the packet's middle ray looks to picks each node's visiting order
             h = m // 2
             octant = (1 if dxa[h] >= 0.0 else 0) | (2 if dya[h] >= 0.0 else 0) | (4 if dza[h] >= 0.0 else 0)
             sp = 0
             if has_tree:     # the root's own box first: a packet that misses the farm costs one box test
-                b0x, b1x = root_box[0] - ox, root_box[3] - ox
-                b0y, b1y = root_box[1] - oy, root_box[4] - oy
-                b0z, b1z = root_box[2] - oz, root_box[5] - oz
-                meeting = 0
-                for k in range(m):
-                    meeting |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], limit[k])
-                if meeting != 0:
+                b0x, b1x = np.float32(root_box[0]) - ox32, np.float32(root_box[3]) - ox32
+                b0y, b1y = np.float32(root_box[1]) - oy32, np.float32(root_box[4]) - oy32
+                b0z, b1z = np.float32(root_box[2]) - oz32, np.float32(root_box[5]) - oz32
+                meeting = False
+                for k in range(PACKET):
+                    meeting |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], limit[k], zero32)
+                if meeting:
                     stack[0] = 0
                     sp = 1
             while sp > 0:
@@ -141,17 +166,18 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
                 if node >= 0:
                     # the 4 children's boxes against every ray of the packet, in one vectorised loop;
                     # bit s of met: some ray meets child s
-                    a0x, a0y, a0z, a1x, a1y, a1z = _child_box(wide_box, node, 0, ox, oy, oz)
-                    b0x, b0y, b0z, b1x, b1y, b1z = _child_box(wide_box, node, 1, ox, oy, oz)
-                    c0x, c0y, c0z, c1x, c1y, c1z = _child_box(wide_box, node, 2, ox, oy, oz)
-                    d0x, d0y, d0z, d1x, d1y, d1z = _child_box(wide_box, node, 3, ox, oy, oz)
-                    met = 0
-                    for k in range(m):
+                    a0x, a0y, a0z, a1x, a1y, a1z = _child_box(wide_box, node, 0, ox32, oy32, oz32)
+                    b0x, b0y, b0z, b1x, b1y, b1z = _child_box(wide_box, node, 1, ox32, oy32, oz32)
+                    c0x, c0y, c0z, c1x, c1y, c1z = _child_box(wide_box, node, 2, ox32, oy32, oz32)
+                    d0x, d0y, d0z, d1x, d1y, d1z = _child_box(wide_box, node, 3, ox32, oy32, oz32)
+                    met_a = met_b = met_c = met_d = False
+                    for k in range(PACKET):
                         ix, iy, iz, lim = ixa[k], iya[k], iza[k], limit[k]
-                        met |= (_meets(a0x, a0y, a0z, a1x, a1y, a1z, ix, iy, iz, lim)
-                                | (_meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, lim) << 1)
-                                | (_meets(c0x, c0y, c0z, c1x, c1y, c1z, ix, iy, iz, lim) << 2)
-                                | (_meets(d0x, d0y, d0z, d1x, d1y, d1z, ix, iy, iz, lim) << 3))
+                        met_a |= _meets(a0x, a0y, a0z, a1x, a1y, a1z, ix, iy, iz, lim, zero32)
+                        met_b |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, lim, zero32)
+                        met_c |= _meets(c0x, c0y, c0z, c1x, c1y, c1z, ix, iy, iz, lim, zero32)
+                        met_d |= _meets(d0x, d0y, d0z, d1x, d1y, d1z, ix, iy, iz, lim, zero32)
+                    met = (1 if met_a else 0) | (2 if met_b else 0) | (4 if met_c else 0) | (8 if met_d else 0)
                     if met & (met - 1) == 0:          # none or one child met: no order to look up
                         if met != 0:
                             stack[sp] = wide_child[node, _SLOT_OF_BIT[met]]
@@ -191,7 +217,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
                             best[k] = t if nearer else best[k]
                             hit[k] = gid if nearer else hit[k]
                     for k in range(m):
-                        limit[k] = min(best[k], max_range)
+                        limit[k] = _box_limit32(min(best[k], max_range))
                 # pending entries are not tested again: nearer hits since they were pushed may make them moot
             for k in range(m):
                 far_hit = best[k] > max_range
