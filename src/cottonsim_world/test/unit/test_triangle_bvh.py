@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 
 from cottonsim_world.farm.generator import FarmConfig, generate_farm
-from cottonsim_world.sensors.fast.bvh import BOX_PAD_M, FAR_M, WIDTH, TriangleBVH
+from cottonsim_world.sensors.fast.bvh import (BOX_PAD_M, FAR_M, LEAF_COUNT_BITS, RECORD_CHILD, RECORD_ORDER, WIDTH,
+                                             TriangleBVH, pack_records)
 from cottonsim_world.sensors.fast.raycast import HIT_GROUND, HIT_NONE, PACKET, cast_rays
 from cottonsim_world.sensors.scene import SensorScene
 
@@ -77,8 +78,7 @@ def cast(bvh, origin, directions, max_range_m):
     """Ranges [m] and hits of rays from one origin along directions (N, 3), cast in packets."""
     out_r, out_h = np.empty(len(directions)), np.empty(len(directions), np.int32)
     cast_rays(np.asarray(origin, float), np.eye(3), np.ascontiguousarray(directions, dtype=float), max_range_m,
-              bvh.tri, bvh.tri_id, bvh.root_box, bvh.wide_box, bvh.wide_child, bvh.wide_order, bvh.leaf_first,
-              bvh.leaf_count, out_r, out_h)
+              bvh.tri, bvh.tri_id, bvh.root_box, bvh.wide_record_f, bvh.wide_record, out_r, out_h)
     return out_r, out_h
 
 
@@ -196,6 +196,49 @@ def test_wide_tree_holds_the_binary_leaves_once_with_their_boxes(farm_bvh):
     assert sorted(seen) == sorted(binary), "every binary leaf exactly once"
     assert np.all(inner_seen == 1), "every wide node reached exactly once"
     assert bvh.wide_total < bvh.node_total / 3
+
+
+def test_records_hold_the_wide_tree_the_caster_walks(farm_bvh):
+    """Each 128-byte record decodes to its node's boxes, child references (leaves with their triangle
+    range) and the 8 visiting orders; a leaf too large for the packing is refused."""
+    _, _, _, bvh = farm_bvh
+    rec = bvh.wide_record
+    assert rec.shape == (bvh.wide_total, 32) and rec.ctypes.data % 64 == 0
+    assert np.array_equal(bvh.wide_record_f[:, :RECORD_CHILD], bvh.wide_box)
+    for slot in range(WIDTH):
+        ref = rec[:, RECORD_CHILD + slot].astype(np.int64)
+        child = bvh.wide_child[:, slot].astype(np.int64)
+        inner = child >= 0
+        assert np.array_equal(ref[inner], child[inner])
+        leaf = -1 - child[~inner]
+        packed = -1 - ref[~inner]
+        assert np.array_equal(packed >> LEAF_COUNT_BITS, bvh.leaf_first[leaf])
+        assert np.array_equal(packed & ((1 << LEAF_COUNT_BITS) - 1), bvh.leaf_count[leaf])
+    for octant in range(8):
+        word = rec[:, RECORD_ORDER + octant // 4].view(np.uint32).astype(np.int64)
+        assert np.array_equal((word >> (8 * (octant % 4))) & 0xFF, bvh.wide_order[:, octant])
+    too_big = bvh.leaf_count.copy()
+    too_big[0] = 1 << LEAF_COUNT_BITS
+    with pytest.raises(ValueError, match="leaf holds 16 triangles"):
+        pack_records(bvh.wide_box, bvh.wide_child, bvh.wide_order, bvh.leaf_first, too_big)
+
+
+def test_far_origins_match_brute_force(farm_bvh):
+    """The slab tests run in float32: from 60-120 m away (long t, large coordinates) no triangle is lost."""
+    farm, _, _, bvh = farm_bvh
+    rng = np.random.default_rng(11)
+    centre = 0.5 * (bvh.node_box[0, :3].astype(np.float64) + bvh.node_box[0, 3:])
+    hits_on_plants = 0
+    for _ in range(200):
+        distance = rng.uniform(60.0, 120.0)
+        bearing = rng.uniform(-math.pi, math.pi)
+        origin = centre + np.array([distance * math.cos(bearing), distance * math.sin(bearing), 0.0])
+        origin[2] = rng.uniform(0.3, 2.0)
+        target = centre + rng.uniform([-3.0, -3.0, 0.2], [3.0, 3.0, 0.9])   # somewhere in the plants
+        d = (target - origin) / np.linalg.norm(target - origin)
+        got_r, got_h = cast_one(bvh, origin, d, 130.0)
+        hits_on_plants += check_against_brute_force(bvh, origin, d, got_r, got_h, 130.0)
+    assert hits_on_plants >= 20, f"only {hits_on_plants} rays hit a plant: the test would prove little"
 
 
 @pytest.mark.parametrize("place", ["lane", "headland"])

@@ -14,7 +14,7 @@ two edges, exactly what the ray/triangle test reads (float32 storage:
 float64 copies of triangles and boxes saved ~5 % of the lane cast's
 instructions but no CPU time, the larger arrays missing the caches more); the boxes are computed from those
 corners (so they bound the triangle the test sees) and padded by
-``BOX_PAD_M`` against rounding in the slab test.
+``BOX_PAD_M`` against rounding in the (float32) slab test.
 
 The caster walks a **4-wide** tree collapsed from the binary one
 (``_collapse``): each wide node holds up to 4 child boxes (grandchildren or
@@ -24,7 +24,9 @@ vectorised loop per visit and visits about half as many nodes. Per wide
 node and per octant of a packet's looking direction, ``wide_order`` holds
 the order in which the binary tree would have visited those children, so
 the hits (and the triangle reported when two lie at the same distance) are
-those of the binary walk.
+those of the binary walk. The caster reads each wide node as one 128-byte
+record (``pack_records``): boxes, child references with the leaves'
+triangle ranges, and the visiting orders.
 
 Build: top-down binned surface-area heuristic (SAH): per node the triangle
 centroids are binned into ``_BINS`` bins along each axis, the split with
@@ -46,6 +48,10 @@ _TOP_FACE_WEIGHT = 0.2    # weight of a box's horizontal faces in its SAH area (
 WIDTH = 4                 # children per node of the caster's wide tree
 FAR_M = 1e30              # an unused wide child's box is the point (FAR_M, FAR_M, FAR_M) [m]: never met
 MAX_DEPTH = 60            # the tree is never deeper (the caster's stack holds one entry per level)
+RECORD_WORDS = 32         # 4-byte words of one wide node's record (128 bytes: two cache lines)
+RECORD_CHILD = 24         # record words: 0..23 the 4 child boxes (as wide_box), 24..27 the child references,
+RECORD_ORDER = 28         # 28..29 the 8 octants' visiting orders (one byte each), 30..31 unused (0)
+LEAF_COUNT_BITS = 4       # a leaf reference packs first << LEAF_COUNT_BITS | count (count < 16)
 
 
 @njit(cache=True)
@@ -325,7 +331,9 @@ class TriangleBVH:
     int32; node_near (N,) int8 which child a packet of rays visits first
     (see ``_near_side``); depth: the tree's depth (root = 1). Wide tree (what
     the caster walks, see ``_collapse``): root_box (6,) float64 [m],
-    wide_box (float32), wide_child, wide_order, leaf_first, leaf_count.
+    wide_box (float32), wide_child, wide_order, leaf_first, leaf_count, and
+    the same packed as the caster reads it: wide_record (W, 32) int32 and
+    its float32 view wide_record_f (``pack_records``).
     """
 
     def __init__(self, triangles: np.ndarray, triangle_ids: np.ndarray) -> None:
@@ -369,6 +377,9 @@ class TriangleBVH:
             self.wide_order = np.full((1, 8), 0b11100100, np.int32)
             self.leaf_first = np.zeros(WIDTH, np.int32)
             self.leaf_count = np.zeros(WIDTH, np.int32)
+        self.wide_record = pack_records(self.wide_box, self.wide_child, self.wide_order, self.leaf_first,
+                                        self.leaf_count)
+        self.wide_record_f = self.wide_record.view(np.float32)
 
     @property
     def node_total(self) -> int:
@@ -379,6 +390,45 @@ class TriangleBVH:
     def wide_total(self) -> int:
         """Number of inner nodes of the 4-wide tree."""
         return len(self.wide_child)
+
+
+def _aligned_int32(rows: int, cols: int, alignment_bytes: int = 64) -> np.ndarray:
+    """A zeroed C-contiguous (rows, cols) int32 array whose first byte lies on an ``alignment_bytes`` boundary."""
+    spare = alignment_bytes // 4
+    flat = np.zeros(rows * cols + spare, np.int32)
+    skip = (-flat.ctypes.data % alignment_bytes) // 4
+    return flat[skip:skip + rows * cols].reshape(rows, cols)
+
+
+def pack_records(wide_box: np.ndarray, wide_child: np.ndarray, wide_order: np.ndarray, leaf_first: np.ndarray,
+                 leaf_count: np.ndarray) -> np.ndarray:
+    """The caster's view of the wide tree: one 128-byte record per wide node, (W, RECORD_WORDS) int32.
+
+    Why: a visit then reads two cache lines (boxes, child references and
+    visiting orders side by side) instead of lines of three arrays, and a
+    leaf's triangle range comes with its reference instead of from two more
+    arrays. Words 0..23 hold ``wide_box`` (float32 bits: read them through a
+    float32 view); 24..27 the child references: ``wide_child`` for an inner
+    child (>= 0), else -1 - (first << LEAF_COUNT_BITS | count) of its leaf;
+    word 28 + octant // 4, byte octant % 4 the 8-bit ``wide_order`` code.
+    """
+    n_wide = wide_box.shape[0]
+    if np.any(leaf_count >= 1 << LEAF_COUNT_BITS) or np.any(leaf_count < 0):
+        raise ValueError(f"a leaf holds {int(leaf_count.max())} triangles; the record packs at most "
+                         f"{(1 << LEAF_COUNT_BITS) - 1}")
+    if len(leaf_first) and int(leaf_first.max()) >= 1 << (31 - LEAF_COUNT_BITS):
+        raise ValueError(f"{int(leaf_first.max())} triangles are too many for the record's leaf references")
+    if np.any(wide_order >= 256) or np.any(wide_order < 0):
+        raise ValueError("wide_order codes must fit one byte")
+    record = _aligned_int32(n_wide, RECORD_WORDS)
+    record[:, :RECORD_CHILD] = np.ascontiguousarray(wide_box, np.float32).view(np.int32)
+    child = wide_child.astype(np.int64)
+    leaf = np.maximum(-1 - child, 0)
+    packed_leaf = (leaf_first.astype(np.int64)[leaf] << LEAF_COUNT_BITS) | leaf_count.astype(np.int64)[leaf]
+    record[:, RECORD_CHILD:RECORD_CHILD + WIDTH] = np.where(child >= 0, child, -1 - packed_leaf)
+    order = wide_order.astype(np.int64).reshape(n_wide, 2, 4) << (8 * np.arange(4))
+    record[:, RECORD_ORDER:RECORD_ORDER + 2] = order.sum(axis=2).astype(np.uint32).view(np.int32)
+    return record
 
 
 def _near_side(box: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:

@@ -7,7 +7,17 @@ rays of a scan share the sensor's origin, and rays next to each other in a
 ring (0.4 deg apart) cross nearly the same boxes, so at each node the packet
 tests the 4 children's boxes against all its rays in one loop that LLVM
 vectorises over the rays (the box corners minus the origin are shared;
-each ray adds two multiplications per axis and box). A child is entered
+each ray adds two multiplications per axis and box). The slab tests run in
+float32 with a loop of exactly ``PACKET`` = 8 iterations, so one AVX2
+vector holds the packet (a short last packet fills its spare lanes with
+rays that meet nothing) and each child's "some ray meets it" is one
+boolean any-reduction. They only prune, so they only need to be
+conservative: boxes are padded by ``bvh.BOX_PAD_M`` (0.1 mm) and the limit
+is rounded up by ``_LIMIT_SLACK``, which covers float32 rounding of the
+corners minus the origin (< 4 um for boxes within 64 m) and of t (about
+1e-7 of it); hits are then exactly those of float64 slab tests (session 16:
+0 differences on ``bench_lidar``'s poses). The tree is read from one
+128-byte record per wide node (``bvh.pack_records``). A child is entered
 when at least one ray meets it before that ray's nearest hit so far (the
 ground's included), in the order the binary tree would visit them for the
 octant the packet looks to (``bvh._collapse``), so hits and ties are those
@@ -30,11 +40,14 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from cottonsim_world.sensors.fast.bvh import LEAF_COUNT_BITS, RECORD_CHILD, RECORD_ORDER
+
 HIT_NONE = -1
 HIT_GROUND = -2
 PACKET = 8                 # rays traversing the tree together (consecutive rays: neighbours in a ring)
 _WORK_ITEMS = 16           # parallel items; item i casts packets i, i + 16, i + 32, ...
 _STACK = 256               # pending entries: at most 3 per wide level (+ 1), and 3 * bvh.MAX_DEPTH + 1 < _STACK
+_LEAF_COUNT_MASK = (1 << LEAF_COUNT_BITS) - 1
 _SLOT_OF_BIT = np.array([0, 0, 1, 0, 2, 0, 0, 0, 3], np.int64)   # child slot of a one-bit mask
 _MAX_RECIPROCAL = 1e30    # cap on |1 / direction component| in the float32 slab test (finite: no 0 * inf)
 _LIMIT_SLACK = 1e-6        # the slab test's limit: min(best, max_range) * (1 + this) + _LIMIT_SLACK_M
@@ -43,11 +56,11 @@ _MIN_DET = 1e-14           # |determinant| below this: the ray runs parallel to 
 
 
 @njit(cache=True, inline="always")
-def _child_box(wide_box, w, slot, ox, oy, oz):  # pragma: no cover
+def _child_box(record_f, w, slot, ox, oy, oz):  # pragma: no cover
     """Child ``slot`` of wide node w: its min and max corners relative to the origin (x0, y0, z0, x1, y1, z1)
     [m], float32 (origin float32 too)."""
-    return (wide_box[w, slot] - ox, wide_box[w, 4 + slot] - oy, wide_box[w, 8 + slot] - oz,
-            wide_box[w, 12 + slot] - ox, wide_box[w, 16 + slot] - oy, wide_box[w, 20 + slot] - oz)
+    return (record_f[w, slot] - ox, record_f[w, 4 + slot] - oy, record_f[w, 8 + slot] - oz,
+            record_f[w, 12 + slot] - ox, record_f[w, 16 + slot] - oy, record_f[w, 20 + slot] - oz)
 
 
 @njit(cache=True, inline="always")
@@ -94,14 +107,14 @@ def _box_limit32(t):  # pragma: no cover
 
 
 @njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wide_child, wide_order, leaf_first,
-              leaf_count, out_range, out_hit):  # pragma: no cover
+def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, record_f, record_i, out_range,
+              out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
 
     tri (G, 9) float32: corner, edge, edge per sorted triangle; tri_id maps
-    the sorted index to the global id; root_box, wide_box, wide_child,
-    wide_order, leaf_first, leaf_count: the 4-wide tree of
-    ``bvh.TriangleBVH``.
+    the sorted index to the global id; root_box (6,) [m]; record_f /
+    record_i: float32 and int32 views of ``bvh.TriangleBVH.wide_record``
+    (the 4-wide tree, one 128-byte record per node, see ``bvh.pack_records``).
 
     Writes out_range (N,) [m] (inf when nothing is hit) and out_hit (N,)
     int32: triangle id, HIT_GROUND or HIT_NONE.
@@ -113,7 +126,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
     n_packets = (n + PACKET - 1) // PACKET
     has_tree = tri.shape[0] > 0
     for item in prange(_WORK_ITEMS):
-        stack = np.empty(_STACK, np.int32)   # pending children: >= 0 a wide node, < 0 leaf number -1 - entry
+        stack = np.empty(_STACK, np.int32)   # pending children: references as in the record (>= 0 a wide node)
         dxa = np.empty(PACKET)
         dya = np.empty(PACKET)
         dza = np.empty(PACKET)
@@ -148,6 +161,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
             # the octant the packet's middle ray looks to picks each node's visiting order
             h = m // 2
             octant = (1 if dxa[h] >= 0.0 else 0) | (2 if dya[h] >= 0.0 else 0) | (4 if dza[h] >= 0.0 else 0)
+            order_word, order_shift = RECORD_ORDER + (octant >> 2), 8 * (octant & 3)
             sp = 0
             if has_tree:     # the root's own box first: a packet that misses the farm costs one box test
                 b0x, b1x = np.float32(root_box[0]) - ox32, np.float32(root_box[3]) - ox32
@@ -166,10 +180,10 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
                 if node >= 0:
                     # the 4 children's boxes against every ray of the packet, in one vectorised loop;
                     # bit s of met: some ray meets child s
-                    a0x, a0y, a0z, a1x, a1y, a1z = _child_box(wide_box, node, 0, ox32, oy32, oz32)
-                    b0x, b0y, b0z, b1x, b1y, b1z = _child_box(wide_box, node, 1, ox32, oy32, oz32)
-                    c0x, c0y, c0z, c1x, c1y, c1z = _child_box(wide_box, node, 2, ox32, oy32, oz32)
-                    d0x, d0y, d0z, d1x, d1y, d1z = _child_box(wide_box, node, 3, ox32, oy32, oz32)
+                    a0x, a0y, a0z, a1x, a1y, a1z = _child_box(record_f, node, 0, ox32, oy32, oz32)
+                    b0x, b0y, b0z, b1x, b1y, b1z = _child_box(record_f, node, 1, ox32, oy32, oz32)
+                    c0x, c0y, c0z, c1x, c1y, c1z = _child_box(record_f, node, 2, ox32, oy32, oz32)
+                    d0x, d0y, d0z, d1x, d1y, d1z = _child_box(record_f, node, 3, ox32, oy32, oz32)
                     met_a = met_b = met_c = met_d = False
                     for k in range(PACKET):
                         ix, iy, iz, lim = ixa[k], iya[k], iza[k], limit[k]
@@ -180,19 +194,19 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, wide_box, wid
                     met = (1 if met_a else 0) | (2 if met_b else 0) | (4 if met_c else 0) | (8 if met_d else 0)
                     if met & (met - 1) == 0:          # none or one child met: no order to look up
                         if met != 0:
-                            stack[sp] = wide_child[node, _SLOT_OF_BIT[met]]
+                            stack[sp] = record_i[node, RECORD_CHILD + _SLOT_OF_BIT[met]]
                             sp += 1
                     else:
-                        order = wide_order[node, octant]
+                        order = (record_i[node, order_word] >> order_shift) & 0xFF
                         for j in range(3, -1, -1):    # the last to visit is pushed first
                             slot = (order >> (2 * j)) & 3
                             if (met >> slot) & 1:
-                                stack[sp] = wide_child[node, slot]
+                                stack[sp] = record_i[node, RECORD_CHILD + slot]
                                 sp += 1
                 else:
                     leaf = -1 - node
-                    first = leaf_first[leaf]
-                    for g in range(first, first + leaf_count[leaf]):
+                    first = leaf >> LEAF_COUNT_BITS
+                    for g in range(first, first + (leaf & _LEAF_COUNT_MASK)):
                         ax, ay, az = np.float64(tri[g, 0]), np.float64(tri[g, 1]), np.float64(tri[g, 2])
                         e1x, e1y, e1z = np.float64(tri[g, 3]), np.float64(tri[g, 4]), np.float64(tri[g, 5])
                         e2x, e2y, e2z = np.float64(tri[g, 6]), np.float64(tri[g, 7]), np.float64(tri[g, 8])
