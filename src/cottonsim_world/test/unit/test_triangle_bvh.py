@@ -78,7 +78,8 @@ def cast(bvh, origin, directions, max_range_m):
     """Ranges [m] and hits of rays from one origin along directions (N, 3), cast in packets."""
     out_r, out_h = np.empty(len(directions)), np.empty(len(directions), np.int32)
     cast_rays(np.asarray(origin, float), np.eye(3), np.ascontiguousarray(directions, dtype=float), max_range_m,
-              bvh.tri, bvh.tri_id, bvh.root_box, bvh.wide_record_f, bvh.wide_record, out_r, out_h)
+              bvh.tri, bvh.tri_id, bvh.root_box, bvh.anchor, bvh.wide_record_f, bvh.wide_record,
+              out_r, out_h)
     return out_r, out_h
 
 
@@ -204,7 +205,12 @@ def test_records_hold_the_wide_tree_the_caster_walks(farm_bvh):
     _, _, _, bvh = farm_bvh
     rec = bvh.wide_record
     assert rec.shape == (bvh.wide_total, 32) and rec.ctypes.data % 64 == 0
-    assert np.array_equal(bvh.wide_record_f[:, :RECORD_CHILD], bvh.wide_box)
+    boxes = bvh.wide_record_f[:, :RECORD_CHILD].reshape(-1, 6, WIDTH).astype(np.float64)
+    world = bvh.wide_box.reshape(-1, 6, WIDTH).astype(np.float64)
+    used = world[:, 0:1, :] < FAR_M
+    expected = world - np.tile(bvh.anchor, 2)[None, :, None]
+    assert np.all(np.abs(boxes - expected)[np.broadcast_to(used, boxes.shape)] <= 1e-6), "boxes relative to the anchor"
+    assert np.all(boxes[np.broadcast_to(~used, boxes.shape)] == np.float32(FAR_M)), "unused slots stay far away"
     for slot in range(WIDTH):
         ref = rec[:, RECORD_CHILD + slot].astype(np.int64)
         child = bvh.wide_child[:, slot].astype(np.int64)
@@ -220,7 +226,7 @@ def test_records_hold_the_wide_tree_the_caster_walks(farm_bvh):
     too_big = bvh.leaf_count.copy()
     too_big[0] = 1 << LEAF_COUNT_BITS
     with pytest.raises(ValueError, match="leaf holds 16 triangles"):
-        pack_records(bvh.wide_box, bvh.wide_child, bvh.wide_order, bvh.leaf_first, too_big)
+        pack_records(bvh.wide_box, bvh.wide_child, bvh.wide_order, bvh.leaf_first, too_big, bvh.anchor)
 
 
 def test_far_origins_match_brute_force(farm_bvh):

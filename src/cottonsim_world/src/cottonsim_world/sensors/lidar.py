@@ -180,7 +180,8 @@ class Vlp16Model:
             numba.set_num_threads(min(cfg.num_threads, numba.config.NUMBA_NUM_THREADS))
         try:
             cast_rays(np.ascontiguousarray(pose[:3, 3]), np.ascontiguousarray(pose[:3, :3]), self._dirs,
-                      float(cfg.max_range_m), b.tri, b.tri_id, b.root_box, b.wide_record_f, b.wide_record,
+                      float(cfg.max_range_m), b.tri, b.tri_id, b.root_box, b.anchor, b.wide_record_f,
+                      b.wide_record,
                       self._range, self._hit)
         finally:
             numba.set_num_threads(before)

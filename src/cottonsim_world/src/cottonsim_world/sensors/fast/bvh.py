@@ -377,8 +377,10 @@ class TriangleBVH:
             self.wide_order = np.full((1, 8), 0b11100100, np.int32)
             self.leaf_first = np.zeros(WIDTH, np.int32)
             self.leaf_count = np.zeros(WIDTH, np.int32)
+        self.anchor = (0.5 * (self.root_box[:3] + self.root_box[3:]) if len(tri)
+                       else np.zeros(3))   # [m]; the records' boxes are relative to it
         self.wide_record = pack_records(self.wide_box, self.wide_child, self.wide_order, self.leaf_first,
-                                        self.leaf_count)
+                                        self.leaf_count, self.anchor)
         self.wide_record_f = self.wide_record.view(np.float32)
 
     @property
@@ -401,14 +403,16 @@ def _aligned_int32(rows: int, cols: int, alignment_bytes: int = 64) -> np.ndarra
 
 
 def pack_records(wide_box: np.ndarray, wide_child: np.ndarray, wide_order: np.ndarray, leaf_first: np.ndarray,
-                 leaf_count: np.ndarray) -> np.ndarray:
+                 leaf_count: np.ndarray, anchor: np.ndarray) -> np.ndarray:
     """The caster's view of the wide tree: one 128-byte record per wide node, (W, RECORD_WORDS) int32.
 
     Why: a visit then reads two cache lines (boxes, child references and
     visiting orders side by side) instead of lines of three arrays, and a
     leaf's triangle range comes with its reference instead of from two more
-    arrays. Words 0..23 hold ``wide_box`` (float32 bits: read them through a
-    float32 view); 24..27 the child references: ``wide_child`` for an inner
+    arrays. Words 0..23 hold ``wide_box`` minus ``anchor`` (3,) [m] (float32
+    bits: read them through a float32 view; unused slots keep ``FAR_M``):
+    coordinates near 0 keep the caster's float32 rounding small wherever
+    the farm lies in the world; 24..27 the child references: ``wide_child`` for an inner
     child (>= 0), else -1 - (first << LEAF_COUNT_BITS | count) of its leaf;
     word 28 + octant // 4, byte octant % 4 the 8-bit ``wide_order`` code.
     """
@@ -421,7 +425,11 @@ def pack_records(wide_box: np.ndarray, wide_child: np.ndarray, wide_order: np.nd
     if np.any(wide_order >= 256) or np.any(wide_order < 0):
         raise ValueError("wide_order codes must fit one byte")
     record = _aligned_int32(n_wide, RECORD_WORDS)
-    record[:, :RECORD_CHILD] = np.ascontiguousarray(wide_box, np.float32).view(np.int32)
+    boxes = wide_box.astype(np.float64).reshape(n_wide, 6, WIDTH)
+    used = boxes[:, 0:1, :] < FAR_M
+    relative = boxes - np.tile(np.asarray(anchor, np.float64), 2)[None, :, None]
+    boxes = np.where(used, relative, FAR_M).astype(np.float32).reshape(n_wide, 6 * WIDTH)
+    record[:, :RECORD_CHILD] = boxes.view(np.int32)
     child = wide_child.astype(np.int64)
     leaf = np.maximum(-1 - child, 0)
     packed_leaf = (leaf_first.astype(np.int64)[leaf] << LEAF_COUNT_BITS) | leaf_count.astype(np.int64)[leaf]

@@ -6,18 +6,22 @@ the 4-wide tree of ``bvh.TriangleBVH`` in *packets* of ``PACKET`` rays: all
 rays of a scan share the sensor's origin, and rays next to each other in a
 ring (0.4 deg apart) cross nearly the same boxes, so at each node the packet
 tests the 4 children's boxes against all its rays in one loop that LLVM
-vectorises over the rays (the box corners minus the origin are shared;
-each ray adds two multiplications per axis and box). The slab tests run in
-float32 with a loop of exactly ``PACKET`` = 8 iterations, so one AVX2
-vector holds the packet (a short last packet fills its spare lanes with
-rays that meet nothing) and each child's "some ray meets it" is one
-boolean any-reduction. They only prune, so they only need to be
-conservative: boxes are padded by ``bvh.BOX_PAD_M`` (0.1 mm) and the limit
-is rounded up by ``_LIMIT_SLACK``, which covers float32 rounding of the
-corners minus the origin (< 4 um for boxes within 64 m) and of t (about
-1e-7 of it); hits are then exactly those of float64 slab tests (session 16:
-0 differences on ``bench_lidar``'s poses). The tree is read from one
-128-byte record per wide node (``bvh.pack_records``). A child is entered
+vectorises over the rays: per axis t = corner / d - origin / d, one fused
+multiply-subtract per ray, corner and axis (``_meets`` alone is compiled
+with fast-math contraction; the triangle tests keep plain float64
+arithmetic). The slab tests run in float32 with a loop of exactly
+``PACKET`` = 8 iterations, so one AVX2 vector holds the packet (a short
+last packet fills its spare lanes with rays that meet nothing) and each
+child's "some ray meets it" is one boolean any-reduction. They only prune,
+so they only need to be conservative: the records hold the boxes relative
+to the tree's anchor (coordinates of a few metres wherever the farm lies),
+padded by ``bvh.BOX_PAD_M`` (0.1 mm), and the limit is rounded up by
+``_LIMIT_SLACK``; float32 rounding of the products (~1e-7 of coordinates
+and distances of tens of metres) stays well inside that margin, so hits
+are exactly those of float64 slab tests (session 16: 0 differences on
+``bench_lidar``'s poses; ``test_triangle_bvh`` casts from 60-120 m too).
+The tree is read from one 128-byte record per wide node
+(``bvh.pack_records``). A child is entered
 when at least one ray meets it before that ray's nearest hit so far (the
 ground's included), in the order the binary tree would visit them for the
 octant the packet looks to (``bvh._collapse``), so hits and ties are those
@@ -56,21 +60,27 @@ _MIN_DET = 1e-14           # |determinant| below this: the ray runs parallel to 
 
 
 @njit(cache=True, inline="always")
-def _child_box(record_f, w, slot, ox, oy, oz):  # pragma: no cover
-    """Child ``slot`` of wide node w: its min and max corners relative to the origin (x0, y0, z0, x1, y1, z1)
-    [m], float32 (origin float32 too)."""
-    return (record_f[w, slot] - ox, record_f[w, 4 + slot] - oy, record_f[w, 8 + slot] - oz,
-            record_f[w, 12 + slot] - ox, record_f[w, 16 + slot] - oy, record_f[w, 20 + slot] - oz)
+def _child_box(record_f, w, slot):  # pragma: no cover
+    """Child ``slot`` of wide node w: its min and max corners (x0, y0, z0, x1, y1, z1) [m] relative to the
+    records' anchor, float32."""
+    return (record_f[w, slot], record_f[w, 4 + slot], record_f[w, 8 + slot],
+            record_f[w, 12 + slot], record_f[w, 16 + slot], record_f[w, 20 + slot])
 
 
-@njit(cache=True, inline="always")
-def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, limit, zero):  # pragma: no cover
-    """Whether the ray with reciprocal direction (ix, iy, iz) meets the box (corners relative to its origin)
-    within [0, limit] [m] (slab test in float32: every argument and ``zero`` are float32, so the
-    packet's 8 rays fill one AVX2 vector; min / max spelled as selects, which vectorise)."""
-    t0x, t1x = b0x * ix, b1x * ix
-    t0y, t1y = b0y * iy, b1y * iy
-    t0z, t1z = b0z * iz, b1z * iz
+@njit(cache=True, fastmath={"contract"})
+def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, oix, oiy, oiz, limit, zero):  # pragma: no cover
+    """Whether the ray from o with reciprocal direction (ix, iy, iz) meets the box within [0, limit] [m].
+
+    oix = o_x * ix etc.; box corners and o relative to the tree's anchor.
+    Slab test in float32: every argument and ``zero`` are float32, so the
+    packet's 8 rays fill one AVX2 vector; t = corner * i - o * i is one
+    fused multiply-subtract; min / max are spelled as selects, which
+    vectorise. Not inlined by numba, so that its fast-math contraction
+    stays with it: LLVM inlines it into the caller's vectorised loop.
+    """
+    t0x, t1x = b0x * ix - oix, b1x * ix - oix
+    t0y, t1y = b0y * iy - oiy, b1y * iy - oiy
+    t0z, t1z = b0z * iz - oiz, b1z * iz - oiz
     nx = t0x if t0x < t1x else t1x
     fx = t0x if t0x > t1x else t1x
     ny = t0y if t0y < t1y else t1y
@@ -107,14 +117,15 @@ def _box_limit32(t):  # pragma: no cover
 
 
 @njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, record_f, record_i, out_range,
+def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, record_f, record_i, out_range,
               out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
 
     tri (G, 9) float32: corner, edge, edge per sorted triangle; tri_id maps
-    the sorted index to the global id; root_box (6,) [m]; record_f /
-    record_i: float32 and int32 views of ``bvh.TriangleBVH.wide_record``
-    (the 4-wide tree, one 128-byte record per node, see ``bvh.pack_records``).
+    the sorted index to the global id; root_box (6,) [m]; anchor (3,) [m]:
+    the point the records' boxes are relative to; record_f / record_i:
+    float32 and int32 views of ``bvh.TriangleBVH.wide_record`` (the 4-wide
+    tree, one 128-byte record per node, see ``bvh.pack_records``).
 
     Writes out_range (N,) [m] (inf when nothing is hit) and out_hit (N,)
     int32: triangle id, HIT_GROUND or HIT_NONE.
@@ -122,6 +133,8 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, record_f, rec
     n = dirs.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
     ox32, oy32, oz32 = np.float32(ox), np.float32(oy), np.float32(oz)
+    # the origin relative to the records' anchor, for the slab tests (small numbers wherever the farm is)
+    ax32, ay32, az32 = np.float32(ox - anchor[0]), np.float32(oy - anchor[1]), np.float32(oz - anchor[2])
     zero32, one32 = np.float32(0.0), np.float32(1.0)
     n_packets = (n + PACKET - 1) // PACKET
     has_tree = tri.shape[0] > 0
@@ -133,6 +146,9 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, record_f, rec
         ixa = np.empty(PACKET, np.float32)   # reciprocal directions for the float32 slab tests
         iya = np.empty(PACKET, np.float32)
         iza = np.empty(PACKET, np.float32)
+        oixa = np.empty(PACKET, np.float32)  # origin times reciprocal direction: t = corner * i - o * i
+        oiya = np.empty(PACKET, np.float32)
+        oiza = np.empty(PACKET, np.float32)
         best = np.empty(PACKET)              # nearest hit so far per ray [m]
         limit = np.empty(PACKET, np.float32)  # >= min(best, max_range) [m]: boxes beyond are skipped
         hit = np.empty(PACKET, np.int32)
@@ -146,6 +162,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, record_f, rec
                 dz = rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
                 dxa[k], dya[k], dza[k] = dx, dy, dz
                 ixa[k], iya[k], iza[k] = _reciprocal32(dx), _reciprocal32(dy), _reciprocal32(dz)
+                oixa[k], oiya[k], oiza[k] = ax32 * ixa[k], ay32 * iya[k], az32 * iza[k]
                 t_first = math.inf
                 what = HIT_NONE
                 if dz < 0.0 and oz > 0.0:
@@ -158,18 +175,20 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, record_f, rec
                 limit[k] = _box_limit32(min(t_first, max_range))
             for k in range(m, PACKET):    # the lanes of a short last packet meet no box
                 ixa[k], iya[k], iza[k], limit[k] = one32, one32, one32, -one32
+                oixa[k], oiya[k], oiza[k] = zero32, zero32, zero32
             # the octant the packet's middle ray looks to picks each node's visiting order
             h = m // 2
             octant = (1 if dxa[h] >= 0.0 else 0) | (2 if dya[h] >= 0.0 else 0) | (4 if dza[h] >= 0.0 else 0)
             order_word, order_shift = RECORD_ORDER + (octant >> 2), 8 * (octant & 3)
             sp = 0
             if has_tree:     # the root's own box first: a packet that misses the farm costs one box test
-                b0x, b1x = np.float32(root_box[0]) - ox32, np.float32(root_box[3]) - ox32
-                b0y, b1y = np.float32(root_box[1]) - oy32, np.float32(root_box[4]) - oy32
-                b0z, b1z = np.float32(root_box[2]) - oz32, np.float32(root_box[5]) - oz32
+                b0x, b1x = np.float32(root_box[0] - anchor[0]), np.float32(root_box[3] - anchor[0])
+                b0y, b1y = np.float32(root_box[1] - anchor[1]), np.float32(root_box[4] - anchor[1])
+                b0z, b1z = np.float32(root_box[2] - anchor[2]), np.float32(root_box[5] - anchor[2])
                 meeting = False
                 for k in range(PACKET):
-                    meeting |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], limit[k], zero32)
+                    meeting |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ixa[k], iya[k], iza[k], oixa[k], oiya[k], oiza[k],
+                                      limit[k], zero32)
                 if meeting:
                     stack[0] = 0
                     sp = 1
@@ -180,17 +199,18 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, record_f, rec
                 if node >= 0:
                     # the 4 children's boxes against every ray of the packet, in one vectorised loop;
                     # bit s of met: some ray meets child s
-                    a0x, a0y, a0z, a1x, a1y, a1z = _child_box(record_f, node, 0, ox32, oy32, oz32)
-                    b0x, b0y, b0z, b1x, b1y, b1z = _child_box(record_f, node, 1, ox32, oy32, oz32)
-                    c0x, c0y, c0z, c1x, c1y, c1z = _child_box(record_f, node, 2, ox32, oy32, oz32)
-                    d0x, d0y, d0z, d1x, d1y, d1z = _child_box(record_f, node, 3, ox32, oy32, oz32)
+                    a0x, a0y, a0z, a1x, a1y, a1z = _child_box(record_f, node, 0)
+                    b0x, b0y, b0z, b1x, b1y, b1z = _child_box(record_f, node, 1)
+                    c0x, c0y, c0z, c1x, c1y, c1z = _child_box(record_f, node, 2)
+                    d0x, d0y, d0z, d1x, d1y, d1z = _child_box(record_f, node, 3)
                     met_a = met_b = met_c = met_d = False
                     for k in range(PACKET):
                         ix, iy, iz, lim = ixa[k], iya[k], iza[k], limit[k]
-                        met_a |= _meets(a0x, a0y, a0z, a1x, a1y, a1z, ix, iy, iz, lim, zero32)
-                        met_b |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, lim, zero32)
-                        met_c |= _meets(c0x, c0y, c0z, c1x, c1y, c1z, ix, iy, iz, lim, zero32)
-                        met_d |= _meets(d0x, d0y, d0z, d1x, d1y, d1z, ix, iy, iz, lim, zero32)
+                        oix, oiy, oiz = oixa[k], oiya[k], oiza[k]
+                        met_a |= _meets(a0x, a0y, a0z, a1x, a1y, a1z, ix, iy, iz, oix, oiy, oiz, lim, zero32)
+                        met_b |= _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, oix, oiy, oiz, lim, zero32)
+                        met_c |= _meets(c0x, c0y, c0z, c1x, c1y, c1z, ix, iy, iz, oix, oiy, oiz, lim, zero32)
+                        met_d |= _meets(d0x, d0y, d0z, d1x, d1y, d1z, ix, iy, iz, oix, oiy, oiz, lim, zero32)
                     met = (1 if met_a else 0) | (2 if met_b else 0) | (4 if met_c else 0) | (8 if met_d else 0)
                     if met & (met - 1) == 0:          # none or one child met: no order to look up
                         if met != 0:
