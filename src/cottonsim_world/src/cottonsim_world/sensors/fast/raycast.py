@@ -98,14 +98,11 @@ def _meets(b0x, b0y, b0z, b1x, b1y, b1z, ix, iy, iz, oix, oiy, oiz, limit, zero)
 
 @njit(cache=True, inline="always")
 def _reciprocal32(d):  # pragma: no cover
-    """1 / d as float32, its magnitude capped at _MAX_RECIPROCAL (a zero or tiny component: finite, signed)."""
-    if d == 0.0:
-        return np.float32(_MAX_RECIPROCAL)
+    """1 / d as float32, its magnitude capped at _MAX_RECIPROCAL (a zero component: +-inf capped, finite;
+    selects, no branches, so that the packet's set-up loop vectorises)."""
     r = 1.0 / d
-    if r > _MAX_RECIPROCAL:
-        r = _MAX_RECIPROCAL
-    elif r < -_MAX_RECIPROCAL:
-        r = -_MAX_RECIPROCAL
+    r = r if r < _MAX_RECIPROCAL else _MAX_RECIPROCAL
+    r = r if r > -_MAX_RECIPROCAL else -_MAX_RECIPROCAL
     return np.float32(r)
 
 
@@ -163,16 +160,12 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                 dxa[k], dya[k], dza[k] = dx, dy, dz
                 ixa[k], iya[k], iza[k] = _reciprocal32(dx), _reciprocal32(dy), _reciprocal32(dz)
                 oixa[k], oiya[k], oiza[k] = ax32 * ixa[k], ay32 * iya[k], az32 * iza[k]
-                t_first = math.inf
-                what = HIT_NONE
-                if dz < 0.0 and oz > 0.0:
-                    tg = -oz / dz
-                    if tg <= max_range:
-                        t_first = tg
-                        what = HIT_GROUND
+                tg = -oz / dz
+                on_ground = (dz < 0.0) & (oz > 0.0) & (tg <= max_range)
+                t_first = tg if on_ground else math.inf
                 best[k] = t_first
-                hit[k] = what
-                limit[k] = _box_limit32(min(t_first, max_range))
+                hit[k] = HIT_GROUND if on_ground else HIT_NONE
+                limit[k] = _box_limit32(t_first if t_first < max_range else max_range)
             for k in range(m, PACKET):    # the lanes of a short last packet meet no box
                 ixa[k], iya[k], iza[k], limit[k] = one32, one32, one32, -one32
                 oixa[k], oiya[k], oiza[k] = zero32, zero32, zero32
@@ -251,7 +244,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                             best[k] = t if nearer else best[k]
                             hit[k] = gid if nearer else hit[k]
                     for k in range(m):
-                        limit[k] = _box_limit32(min(best[k], max_range))
+                        limit[k] = _box_limit32(best[k] if best[k] < max_range else max_range)
                 # pending entries are not tested again: nearer hits since they were pushed may make them moot
             for k in range(m):
                 far_hit = best[k] > max_range
