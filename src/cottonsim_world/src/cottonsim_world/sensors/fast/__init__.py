@@ -16,4 +16,17 @@ loops over flat arrays:
 
 All kernels are compiled with ``cache=True`` (first use compiles for a few
 seconds, later processes load the machine code from ``__pycache__``).
+
+Threads: the parallel kernels run on numba's OpenMP threads, whose GNU
+OpenMP default is to spin after each kernel, waiting for the next. Beside
+other busy processes (the ROS nodes next to the bridge, a second job) a
+spinning thread holds a core that the simulator's main thread needs: with
+one core taken by another process, nav @ lane ran at real-time factor 3.2
+with the default and 8.9 with ``OMP_WAIT_POLICY=PASSIVE`` (session 16,
+docs/benchmarks.md). So this package asks for passive waiting unless the
+environment says otherwise; it must be set before numba starts its
+threads, i.e. before the first parallel kernel runs.
 """
+import os
+
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
