@@ -5,7 +5,8 @@ The ray caster is exact only if the tree never loses a triangle a ray hits
 Its hits on random rays through a small generated farm (from inside a lane,
 from the headland and from anywhere above the ground) are compared with a
 brute-force test of every triangle, done in numpy with the same float32
-corners and the same float64 formulas, so the ranges must agree to the bit;
+corners, origin and directions and the same float32 formulas (operation by
+operation, no fused multiply-add), so the ranges must agree to the bit;
 two triangles at exactly the same distance (a shared edge) may trade places.
 The tree's structure is checked too: every triangle in exactly one leaf,
 every box around what it holds, and the 4-wide tree the caster walks holds
@@ -41,22 +42,27 @@ def dot(a, b):
 
 
 def brute_force(origin, dirs, tri, max_range_m):
-    """Nearest hit per ray over every packed triangle (G, 9): range [m] and sorted triangle index (-1 none)."""
-    a, e1, e2 = (tri[:, k:k + 3].astype(np.float64) for k in (0, 3, 6))
-    s = origin[None, :] - a                                    # (G, 3)
+    """Nearest hit per ray over every packed triangle (G, 9): range [m] and sorted triangle index (-1 none).
+
+    In float32 like the caster: origin and unit directions rounded to float32, then the caster's formulas.
+    """
+    a, e1, e2 = (np.ascontiguousarray(tri[:, k:k + 3], dtype=np.float32) for k in (0, 3, 6))
+    s = np.asarray(origin, np.float64).astype(np.float32)[None, :] - a      # (G, 3)
     q = np.cross(s, e1)
+    t_num = dot(e2, q)
+    one, zero = np.float32(1.0), np.float32(0.0)
     best = np.full(len(dirs), np.inf)
     index = np.full(len(dirs), -1)
-    for r, d in enumerate(dirs):
+    for r, d in enumerate(np.asarray(dirs, np.float64).astype(np.float32)):
         p = np.cross(np.broadcast_to(d, e2.shape), e2)
         det = dot(e1, p)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            inv = one / det
             u = dot(s, p) * inv
             v = (d[0] * q[:, 0] + d[1] * q[:, 1] + d[2] * q[:, 2]) * inv
-            t = dot(e2, q) * inv
-        ok = (np.abs(det) >= 1e-14) & (u >= 0.0) & (u <= 1.0) & (v >= 0.0) & (u + v <= 1.0) & (t >= 0.0)
-        ok &= t <= max_range_m
+            t = t_num * inv
+            ok = (np.abs(det) >= np.float32(1e-14)) & (u >= zero) & (u <= one) & (v >= zero) & (u + v <= one)
+            ok &= (t >= zero) & (t.astype(np.float64) <= max_range_m)
         if ok.any():
             k = np.flatnonzero(ok)[np.argmin(t[ok])]
             best[r], index[r] = t[k], k
@@ -92,7 +98,7 @@ def check_against_brute_force(bvh, o, d, got_r, got_h, max_range_m):
     """Asserts one ray's cast result against brute force; returns True when it hit a plant."""
     ref_r, ref_k = brute_force(o, d[None, :], bvh.tri, max_range_m)
     ground = -o[2] / d[2] if d[2] < 0.0 else math.inf
-    ground = ground if ground <= max_range_m else math.inf
+    ground = float(np.float32(ground)) if ground <= max_range_m else math.inf    # (the caster keeps it in float32)
     if math.isfinite(ground) and ground <= ref_r[0]:       # (the ground wins a tie)
         assert got_h == HIT_GROUND and got_r == ground, (o, d, got_r, got_h, ref_r)
         return False

@@ -8,31 +8,38 @@ ring (0.4 deg apart) cross nearly the same boxes, so at each node the packet
 tests the 4 children's boxes against all its rays in one loop that LLVM
 vectorises over the rays: per axis t = corner / d - origin / d, one fused
 multiply-subtract per ray, corner and axis (``_meets`` alone is compiled
-with fast-math contraction; the triangle tests keep plain float64
-arithmetic). The slab tests run in float32 with a loop of exactly
-``PACKET`` = 8 iterations, so one AVX2 vector holds the packet (a short
-last packet fills its spare lanes with rays that meet nothing) and each
-child's "some ray meets it" is one boolean any-reduction. They only prune,
-so they only need to be conservative: the records hold the boxes relative
-to the tree's anchor (coordinates of a few metres wherever the farm lies),
-padded by ``bvh.BOX_PAD_M`` (0.1 mm), and the limit is rounded up by
-``_LIMIT_SLACK``; float32 rounding of the products (~1e-7 of coordinates
-and distances of tens of metres) stays well inside that margin, so hits
-are exactly those of float64 slab tests (session 16: 0 differences on
-``bench_lidar``'s poses; ``test_triangle_bvh`` casts from 60-120 m too).
+with fast-math contraction). Everything per ray runs in float32, in loops
+that LLVM vectorises, so one AVX2 vector holds a packet's 8 rays:
+
+* slab tests: exactly ``PACKET`` iterations (a short last packet fills its
+  spare lanes with rays that meet nothing); each child's "some ray meets
+  it" is one boolean any-reduction. They only prune, so they only need to
+  be conservative: the records hold the boxes relative to the tree's
+  anchor (coordinates of a few metres wherever the farm lies), padded by
+  ``bvh.BOX_PAD_M`` (0.1 mm), and the limit is rounded up by
+  ``_LIMIT_SLACK``; float32 rounding of the products (~1e-7 of coordinates
+  and distances of tens of metres) stays well inside that margin, so the
+  boxes entered are never fewer than float64 slab tests enter
+  (``test_triangle_bvh`` casts from 60-120 m too);
+* triangle tests (Moeller-Trumbore, both faces count; the cross products
+  with the shared corner are done once per triangle, the vector computes
+  per ray exactly what a lone ray's test computes). In float32 a range
+  carries ~1e-7 of itself in rounding (1 um at 10 m, far below the 8 mm
+  range noise and the float32 points published), and a ray within about
+  that of a triangle's edge may hit the neighbouring triangle instead.
+  Against the float64 test of sessions 7-15: 2 of 115,200 rays of
+  ``bench_lidar``'s 8 poses hit another triangle, ranges within 5 mm
+  (those two) and 2e-4 m (the rest); the lane cast costs 12 % less.
+
 The tree is read from one 128-byte record per wide node
-(``bvh.pack_records``). A child is entered
-when at least one ray meets it before that ray's nearest hit so far (the
-ground's included), in the order the binary tree would visit them for the
-octant the packet looks to (``bvh._collapse``), so hits and ties are those
-of a binary walk. Leaves test their triangles against every ray of the packet
-(Moeller-Trumbore, both faces count, the vector computes per ray exactly
-what a lone ray's test computes: the cross products with the shared corner
-are done once per triangle). The ground is the analytic plane z = 0
-(infinite, like pybullet's GEOM_PLANE). Packets are independent and run in
-parallel (``prange``), interleaved so that both threads get rays of every
-ring (the low rings end on the ground early, the high ones cross the
-hedges).
+(``bvh.pack_records``). A child is entered when at least one ray meets it
+before that ray's nearest hit so far (the ground's included), in the order
+the binary tree would visit them for the octant the packet looks to
+(``bvh._collapse``), so hits and ties are those of a binary walk. The
+ground is the analytic plane z = 0 (infinite, like pybullet's
+GEOM_PLANE). Packets are independent and run in parallel (``prange``),
+interleaved so that both threads get rays of every ring (the low rings end
+on the ground early, the high ones cross the hedges).
 
 Result per ray: the hit distance [m] along the unit direction and what was
 hit: a global triangle id (>= 0), ``HIT_GROUND`` or ``HIT_NONE``.
@@ -132,21 +139,21 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
     ox32, oy32, oz32 = np.float32(ox), np.float32(oy), np.float32(oz)
     # the origin relative to the records' anchor, for the slab tests (small numbers wherever the farm is)
     ax32, ay32, az32 = np.float32(ox - anchor[0]), np.float32(oy - anchor[1]), np.float32(oz - anchor[2])
-    zero32, one32 = np.float32(0.0), np.float32(1.0)
+    zero32, one32, min_det32 = np.float32(0.0), np.float32(1.0), np.float32(_MIN_DET)
     n_packets = (n + PACKET - 1) // PACKET
     has_tree = tri.shape[0] > 0
     for item in prange(_WORK_ITEMS):
         stack = np.empty(_STACK, np.int32)   # pending children: references as in the record (>= 0 a wide node)
-        dxa = np.empty(PACKET)
-        dya = np.empty(PACKET)
-        dza = np.empty(PACKET)
+        dxa = np.empty(PACKET, np.float32)
+        dya = np.empty(PACKET, np.float32)
+        dza = np.empty(PACKET, np.float32)
         ixa = np.empty(PACKET, np.float32)   # reciprocal directions for the float32 slab tests
         iya = np.empty(PACKET, np.float32)
         iza = np.empty(PACKET, np.float32)
         oixa = np.empty(PACKET, np.float32)  # origin times reciprocal direction: t = corner * i - o * i
         oiya = np.empty(PACKET, np.float32)
         oiza = np.empty(PACKET, np.float32)
-        best = np.empty(PACKET)              # nearest hit so far per ray [m]
+        best = np.empty(PACKET, np.float32)  # nearest hit so far per ray [m]
         limit = np.empty(PACKET, np.float32)  # >= min(best, max_range) [m]: boxes beyond are skipped
         hit = np.empty(PACKET, np.int32)
         for packet in range(item, n_packets, _WORK_ITEMS):
@@ -157,13 +164,13 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                 dx = rot[0, 0] * sx + rot[0, 1] * sy + rot[0, 2] * sz
                 dy = rot[1, 0] * sx + rot[1, 1] * sy + rot[1, 2] * sz
                 dz = rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
-                dxa[k], dya[k], dza[k] = dx, dy, dz
+                dxa[k], dya[k], dza[k] = np.float32(dx), np.float32(dy), np.float32(dz)
                 ixa[k], iya[k], iza[k] = _reciprocal32(dx), _reciprocal32(dy), _reciprocal32(dz)
                 oixa[k], oiya[k], oiza[k] = ax32 * ixa[k], ay32 * iya[k], az32 * iza[k]
                 tg = -oz / dz
                 on_ground = (dz < 0.0) & (oz > 0.0) & (tg <= max_range)
                 t_first = tg if on_ground else math.inf
-                best[k] = t_first
+                best[k] = np.float32(t_first)
                 hit[k] = HIT_GROUND if on_ground else HIT_NONE
                 limit[k] = _box_limit32(t_first if t_first < max_range else max_range)
             for k in range(m, PACKET):    # the lanes of a short last packet meet no box
@@ -171,7 +178,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                 oixa[k], oiya[k], oiza[k] = zero32, zero32, zero32
             # the octant the packet's middle ray looks to picks each node's visiting order
             h = m // 2
-            octant = (1 if dxa[h] >= 0.0 else 0) | (2 if dya[h] >= 0.0 else 0) | (4 if dza[h] >= 0.0 else 0)
+            octant = (1 if dxa[h] >= zero32 else 0) | (2 if dya[h] >= zero32 else 0) | (4 if dza[h] >= zero32 else 0)
             order_word, order_shift = RECORD_ORDER + (octant >> 2), 8 * (octant & 3)
             sp = 0
             if has_tree:     # the root's own box first: a packet that misses the farm costs one box test
@@ -220,10 +227,10 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                     leaf = -1 - node
                     first = leaf >> LEAF_COUNT_BITS
                     for g in range(first, first + (leaf & _LEAF_COUNT_MASK)):
-                        ax, ay, az = np.float64(tri[g, 0]), np.float64(tri[g, 1]), np.float64(tri[g, 2])
-                        e1x, e1y, e1z = np.float64(tri[g, 3]), np.float64(tri[g, 4]), np.float64(tri[g, 5])
-                        e2x, e2y, e2z = np.float64(tri[g, 6]), np.float64(tri[g, 7]), np.float64(tri[g, 8])
-                        sx, sy, sz = ox - ax, oy - ay, oz - az
+                        ax, ay, az = tri[g, 0], tri[g, 1], tri[g, 2]
+                        e1x, e1y, e1z = tri[g, 3], tri[g, 4], tri[g, 5]
+                        e2x, e2y, e2z = tri[g, 6], tri[g, 7], tri[g, 8]
+                        sx, sy, sz = ox32 - ax, oy32 - ay, oz32 - az
                         qx = sy * e1z - sz * e1y
                         qy = sz * e1x - sx * e1z
                         qz = sx * e1y - sy * e1x
@@ -235,19 +242,20 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                             py = dz * e2x - dx * e2z
                             pz = dx * e2y - dy * e2x
                             det = e1x * px + e1y * py + e1z * pz
-                            inv = 1.0 / det
+                            inv = one32 / det
                             u = (sx * px + sy * py + sz * pz) * inv
                             v = (dx * qx + dy * qy + dz * qz) * inv
                             t = t_num * inv
-                            nearer = (abs(det) >= _MIN_DET) & (u >= 0.0) & (u <= 1.0) & (v >= 0.0) \
-                                & (u + v <= 1.0) & (t >= 0.0) & (t < best[k])
+                            nearer = (abs(det) >= min_det32) & (u >= zero32) & (u <= one32) & (v >= zero32) \
+                                & (u + v <= one32) & (t >= zero32) & (t < best[k])
                             best[k] = t if nearer else best[k]
                             hit[k] = gid if nearer else hit[k]
                     for k in range(m):
-                        limit[k] = _box_limit32(best[k] if best[k] < max_range else max_range)
+                        b = np.float64(best[k])
+                        limit[k] = _box_limit32(b if b < max_range else max_range)
                 # pending entries are not tested again: nearer hits since they were pushed may make them moot
             for k in range(m):
-                far_hit = best[k] > max_range
+                far_hit = np.float64(best[k]) > max_range
                 out_range[r0 + k] = math.inf if far_hit else best[k]
                 out_hit[r0 + k] = HIT_NONE if far_hit else hit[k]
 
