@@ -84,6 +84,23 @@ def test_range_limits_and_noise(backend):
     assert abs(np.mean(x_err)) < 0.01
 
 
+def test_numba_scan_noise_is_the_seeds_normal_stream():
+    # the numba backend draws its range noise into a reused buffer; two scans in a row must carry the draws of
+    # Generator.normal(0, std, n) from the configured seed, bit for bit
+    cfg = LidarConfig(samples_per_ring=180, noise_std_m=0.05, seed=5)
+    with SensorScene(wall_farm(5.0)) as scene:
+        model = Vlp16Model(scene, cfg)
+        clean, _, _ = model.ranges(sensor_at(3.0))
+        scans = [model.scan(sensor_at(3.0)) for _ in range(2)]
+    expected_rng = np.random.default_rng(5)
+    for scan in scans:
+        noisy = clean + expected_rng.normal(0.0, 0.05, len(clean))
+        with np.errstate(invalid="ignore"):
+            keep = np.isfinite(clean) & (noisy >= cfg.min_range_m) & (noisy <= cfg.max_range_m)
+        assert keep.sum() > 1000
+        np.testing.assert_array_equal(scan.points, (model._dirs[keep] * noisy[keep, None]).astype(np.float32))
+
+
 def test_primitive_collision_canopy_is_hit():
     model = standin_plant_model(seed=0, bolls=0)               # canopy cylinder radius 0.35 m, 0.25-1.0 m
     farm = Farm(None, [Plant(0, 0, 0, 3.0, 0.0, 0.0, model)], [], Pose2D(0.0, 0.0, 0.0))
