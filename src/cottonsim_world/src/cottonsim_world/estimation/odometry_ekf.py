@@ -127,16 +127,7 @@ class FilteredOdometry:
         return (self.x_m, self.y_m, 0.0), self.orientation_xyzw
 
 
-def _tiny_diagonal_flat(indices: Sequence[int], tiny: float = 1e-9) -> List[float]:
-    """A flat row-major 6x6 zero matrix with ``tiny`` on the given diagonal entries."""
-    flat = [0.0] * 36
-    for i in indices:
-        flat[7 * i] = tiny
-    return flat
-
-
-_TWO_D_POSE = np.array(_tiny_diagonal_flat((2, 3, 4))).reshape(6, 6)        # z, roll, pitch
-_TWO_D_TWIST = np.array(_tiny_diagonal_flat((1, 2, 3, 4))).reshape(6, 6)    # vy, vz, roll and pitch rates
+_TWO_D_TINY_VARIANCE = 1e-9   # of the 3-D entries a planar filter does not observe (robot_localization's two_d_mode)
 
 
 def forward_acceleration(specific_force_m_s2: Sequence[float], orientation_xyzw: Optional[Sequence[float]],
@@ -145,18 +136,25 @@ def forward_acceleration(specific_force_m_s2: Sequence[float], orientation_xyzw:
     its attitude quaternion (body -> world, x y z w): a_x = f_x - g R[2][0] (R[2][0] = 2 (x z - w y)).
     No attitude = a level robot. Raises ValueError on non-finite or malformed input."""
     try:
-        f = [float(v) for v in specific_force_m_s2]
-        q = [0.0, 0.0, 0.0, 1.0] if orientation_xyzw is None else [float(v) for v in orientation_xyzw]
+        f = _floats(specific_force_m_s2)
+        q = [0.0, 0.0, 0.0, 1.0] if orientation_xyzw is None else _floats(orientation_xyzw)
     except (TypeError, ValueError):
         raise ValueError("accel_body_m_s2 / orientation_xyzw must be numbers") from None
-    if len(f) != 3 or len(q) != 4 or not all(math.isfinite(v) for v in f + q):
+    if len(f) != 3 or len(q) != 4 or not all(map(math.isfinite, f + q)):
         raise ValueError(f"accel_body_m_s2 must be 3 and orientation_xyzw 4 finite numbers, got {f!r}, {q!r}")
-    n = math.sqrt(sum(v * v for v in q))
+    qx, qy, qz, qw = q
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     if n < 1e-9:
         raise ValueError("orientation_xyzw is a zero quaternion")
-    x, y, z, w = (v / n for v in q)
+    x, y, z, w = qx / n, qy / n, qz / n, qw / n
     return f[0] - gravity_m_s2 * 2.0 * (x * z - w * y)
 
+
+def _floats(values) -> List[float]:
+    """values as a list of Python floats; a 1-D float64 array (the IMU's, at 50 Hz) by one tolist()."""
+    if isinstance(values, np.ndarray) and values.ndim == 1 and values.dtype == np.float64:
+        return values.tolist()
+    return [float(v) for v in values]
 
 
 # The filter's arithmetic, compiled. At 50 Hz on 5-vectors and 5x5 matrices the interpreter's cost per
@@ -255,21 +253,30 @@ def _update_two_kernel(s, p, r0, r1, z0, z1, q0, q1):  # pragma: no cover
     s[YAW] = _wrap(s[YAW])
 
 
-# /odometry/filtered's 6x6 covariances (x, y, z, roll, pitch, yaw) from the 5x5 state covariance:
-# (6x6 row, 6x6 column) <- (state row, state column)
-_POSE_CELLS = ((0, 1, 5), (X, Y, YAW))
-_TWIST_CELLS = ((0, 5), (VX, VYAW))
+@njit(cache=True)
+def _covariances_6x6(p, tiny):  # pragma: no cover
+    """/odometry/filtered's pose and twist covariances, 6x6 in (x, y, z, roll, pitch, yaw), from the 5x5 P.
 
-
-def _cells(cells):
-    """Index arrays (6x6 rows, 6x6 columns, state rows, state columns) of every pair of the given cells."""
-    out, state = cells
-    pairs = [(a, b, sa, sb) for a, sa in zip(out, state) for b, sb in zip(out, state)]
-    return tuple(np.array(v, dtype=np.int64) for v in zip(*pairs))
-
-
-_POSE_INDEX = _cells(_POSE_CELLS)
-_TWIST_INDEX = _cells(_TWIST_CELLS)
+    Pose: x, y, yaw of P; twist: vx and vyaw of P (at vx and yaw rate). The entries a planar filter does
+    not observe get ``tiny`` on the diagonal (two_d_mode): z, roll, pitch; vy, vz, roll and pitch rates.
+    """
+    pose = np.zeros((6, 6))
+    twist = np.zeros((6, 6))
+    for i in (2, 3, 4):
+        pose[i, i] = tiny
+    for i in (1, 2, 3, 4):
+        twist[i, i] = tiny
+    pose_cells = (0, 1, 5)
+    pose_states = (X, Y, YAW)
+    for a in range(3):
+        for b in range(3):
+            pose[pose_cells[a], pose_cells[b]] = p[pose_states[a], pose_states[b]]
+    twist_cells = (0, 5)
+    twist_states = (VX, VYAW)
+    for a in range(2):
+        for b in range(2):
+            twist[twist_cells[a], twist_cells[b]] = p[twist_states[a], twist_states[b]]
+    return pose, twist
 
 
 class OdometryEkf:
@@ -443,12 +450,6 @@ class OdometryEkf:
     # -------------------------------------------------------------- output
     def output(self) -> FilteredOdometry:
         """Current estimate as /odometry/filtered contents."""
-        p = self._p
-        pose = _TWO_D_POSE.copy()                   # z, roll, pitch: tiny variance (unobserved in 2-D mode)
-        twist = _TWO_D_TWIST.copy()                 # vy, vz, roll and pitch rates: tiny
-        rows, cols, state_rows, state_cols = _POSE_INDEX
-        pose[rows, cols] = p[state_rows, state_cols]
-        rows, cols, state_rows, state_cols = _TWIST_INDEX
-        twist[rows, cols] = p[state_rows, state_cols]
+        pose, twist = _covariances_6x6(self._p, _TWO_D_TINY_VARIANCE)
         x, y, yaw, vx, vyaw = self._s.tolist()
         return FilteredOdometry(x, y, yaw, vx, vyaw, pose, twist)
