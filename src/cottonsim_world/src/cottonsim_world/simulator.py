@@ -66,7 +66,7 @@ from cottonsim_world.robot.ur5e import JOINT_NAMES as ARM_JOINTS, Ur5eArm
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.sensors.camera import CameraConfig, CameraFrame, CameraIntrinsics, CameraModel
 from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscans,
-                                                   original_passthrough_mask)
+                                                   original_passthrough)
 from cottonsim_world.sensors.lidar import LidarConfig, LidarScan, Vlp16Model
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene
 from cottonsim_world.transforms import matrix_to_quaternion, pose_matrix
@@ -735,7 +735,7 @@ class Simulator:
 
     def _lidar(self, now: float, world_T_lidar: np.ndarray) -> LidarReading:
         scan = self.lidar.scan(world_T_lidar)
-        kept = scan.points[original_passthrough_mask(scan.points, self.config.passthrough)]
+        kept = original_passthrough(scan.points, self.config.passthrough)
         ranges, ranges_360 = cloud_to_laserscans(scan.points, (self.config.laserscan, self.config.laserscan_360))
         return LidarReading(now, LIDAR_FRAME, scan, kept, ranges, self.config.laserscan,
                             ranges_360, self.config.laserscan_360)

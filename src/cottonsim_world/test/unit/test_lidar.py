@@ -6,7 +6,8 @@ import pytest
 
 from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
-                                                   cloud_to_laserscans, original_passthrough_mask, passthrough)
+                                                   cloud_to_laserscans, original_passthrough, original_passthrough_mask,
+                                                   passthrough)
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene, standin_plant_model
 
@@ -83,6 +84,23 @@ def test_range_limits_and_noise(backend):
     assert abs(np.mean(x_err)) < 0.01
 
 
+def test_numba_scan_noise_is_the_seeds_normal_stream():
+    # the numba backend draws its range noise into a reused buffer; two scans in a row must carry the draws of
+    # Generator.normal(0, std, n) from the configured seed, bit for bit
+    cfg = LidarConfig(samples_per_ring=180, noise_std_m=0.05, seed=5)
+    with SensorScene(wall_farm(5.0)) as scene:
+        model = Vlp16Model(scene, cfg)
+        clean, _, _ = model.ranges(sensor_at(3.0))
+        scans = [model.scan(sensor_at(3.0)) for _ in range(2)]
+    expected_rng = np.random.default_rng(5)
+    for scan in scans:
+        noisy = clean + expected_rng.normal(0.0, 0.05, len(clean))
+        with np.errstate(invalid="ignore"):
+            keep = np.isfinite(clean) & (noisy >= cfg.min_range_m) & (noisy <= cfg.max_range_m)
+        assert keep.sum() > 1000
+        np.testing.assert_array_equal(scan.points, (model._dirs[keep] * noisy[keep, None]).astype(np.float32))
+
+
 def test_primitive_collision_canopy_is_hit():
     model = standin_plant_model(seed=0, bolls=0)               # canopy cylinder radius 0.35 m, 0.25-1.0 m
     farm = Farm(None, [Plant(0, 0, 0, 3.0, 0.0, 0.0, model)], [], Pose2D(0.0, 0.0, 0.0))
@@ -152,6 +170,58 @@ def test_laserscans_of_one_cloud_match_a_point_by_point_reference():
                 expected[b] = min(expected[b], r)
         np.testing.assert_allclose(ranges, expected.astype(np.float32), rtol=1e-6)
         assert np.count_nonzero(np.isfinite(ranges) & (ranges < cfg.range_max_m)) > cfg.bin_count // 4
+
+
+def _numpy_laserscans(points, configs):
+    """The numpy expressions cloud_to_laserscans used before its compiled pass (the reference)."""
+    pts = np.asarray(points).astype(np.float64, copy=False)
+    x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
+    with np.errstate(invalid="ignore"):
+        r = np.hypot(x, y)
+        ang = np.arctan2(y, x)
+    scans = []
+    for config in configs:
+        ranges = np.full(config.bin_count, np.inf if config.use_inf else config.range_max_m + 1.0)
+        with np.errstate(invalid="ignore"):
+            keep = (z >= config.min_height_m) & (z <= config.max_height_m)
+            keep &= (r >= config.range_min_m) & (r <= config.range_max_m)
+            keep &= (ang >= config.angle_min_rad) & (ang <= config.angle_max_rad)
+        if np.any(keep):
+            idx = ((ang[keep] - config.angle_min_rad) / config.angle_increment_rad).astype(np.int64)
+            np.minimum.at(ranges, np.minimum(idx, config.bin_count - 1), r[keep])
+        scans.append(ranges.astype(np.float32))
+    return scans
+
+
+def test_compiled_cloud_filters_are_bit_identical_to_the_numpy_masks():
+    # the simulator's PassThrough and LaserScans run compiled; they must give what the numpy masks give, bit for
+    # bit, on clouds with points on the limits, bin edges, NaN and inf (float32 as the VLP-16 gives, and float64)
+    rng = np.random.default_rng(11)
+    n = 20000
+    pts = np.concatenate([rng.uniform(-15.0, 15.0, (n, 2)), rng.uniform(-0.6, 0.7, (n, 1))], axis=1)
+    cfg = LaserScanConfig()
+    edges = cfg.angle_min_rad + cfg.angle_increment_rad * np.arange(cfg.bin_count + 1)
+    on_edges = np.stack([5.0 * np.cos(edges), 5.0 * np.sin(edges), np.full(len(edges), 0.05)], axis=1)
+    limits = np.array([[1.0, 0.0, 0.0], [1.0, -10.0, 0.5], [0.2, 0.0, 0.1], [0.0, 20.0, -0.25], [0.1, 0.0, 0.1],
+                       [np.nan, -1.0, 0.0], [1.0, np.nan, 0.0], [np.inf, -1.0, 0.05], [-np.inf, 0.0, 0.05]])
+    configs = (cfg, LaserScanConfig(min_height_m=-0.25, angle_min_rad=-math.pi, angle_max_rad=math.pi - 0.0087),
+               LaserScanConfig(min_height_m=-0.3, max_height_m=0.3, range_min_m=0.0, angle_increment_rad=0.05,
+                               use_inf=False))
+    for dtype in (np.float32, np.float64):
+        cloud = np.concatenate([pts, on_edges, limits]).astype(dtype)
+        kept = original_passthrough(cloud, PassThroughConfig())
+        assert kept.dtype == dtype
+        np.testing.assert_array_equal(kept, cloud[original_passthrough_mask(cloud, PassThroughConfig())])
+        odd = PassThroughConfig(y_min_m=-3.3, y_max_m=0.1, z_min_m=0.05, z_max_m=0.45)   # not exact in float32
+        at_odd_limits = np.array([[0.0, 0.1, 0.2], [0.0, -3.3, 0.05], [0.0, -1.0, 0.45]]).astype(dtype)
+        odd_cloud = np.concatenate([cloud, at_odd_limits])
+        np.testing.assert_array_equal(original_passthrough(odd_cloud, odd),
+                                      odd_cloud[original_passthrough_mask(odd_cloud, odd)])
+        for got, want in zip(cloud_to_laserscans(cloud, configs), _numpy_laserscans(cloud, configs)):
+            assert got.dtype == want.dtype and got.shape == want.shape
+            assert got.tobytes() == want.tobytes()
+    assert original_passthrough(np.zeros((0, 3), np.float32)).shape == (0, 3)
+    np.testing.assert_array_equal(original_passthrough(np.array([[0, -1, 0], [0, 1, 0]])), [[0, -1, 0]])  # ints
 
 
 def test_lidar_config_validation():

@@ -191,3 +191,83 @@ def test_slip_ends_when_the_wheels_stop_and_the_imu_speed_cannot_run_away():
         ekf.predict(dt)
         ekf.update_wheel_odometry(0.0, 0.0, (0.03 ** 2, 0.03 ** 2))
     assert not ekf.slipping and abs(ekf.state[0] - x) < 0.05
+
+
+# ---- the compiled kernels against the list code they replaced (the reference, kept here)
+
+def _wrap_ref(angle):
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _predict_ref(s, p, dt, q):
+    c, si = math.cos(s[2]), math.sin(s[2])
+    f_x_yaw, f_x_vx = -s[3] * si * dt, c * dt
+    f_y_yaw, f_y_vx = s[3] * c * dt, si * dt
+    s[0] += s[3] * c * dt
+    s[1] += s[3] * si * dt
+    s[2] = _wrap_ref(s[2] + s[4] * dt)
+
+    def mix(v):
+        return [v[0] + f_x_yaw * v[2] + f_x_vx * v[3], v[1] + f_y_yaw * v[2] + f_y_vx * v[3],
+                v[2] + dt * v[4], v[3], v[4]]
+
+    fpf = [mix(row) for row in zip(*[mix(col) for col in zip(*p)])]
+    for i in range(5):
+        fpf[i][i] += q[i] * dt
+    return s, fpf
+
+
+def _update_ref(s, p, rows, z, r_diag):
+    innovation = [z[i] - s[row] for i, row in enumerate(rows)]
+    innovation = [_wrap_ref(v) if row == 2 else v for v, row in zip(innovation, rows)]
+    r0 = rows[0]
+    col0 = [p[i][r0] for i in range(5)]
+    if len(rows) == 1:
+        k0 = [v / (col0[r0] + r_diag[0]) for v in col0]
+        s = [s[i] + k0[i] * innovation[0] for i in range(5)]
+        a_mat = [[pij - ki * hj for pij, hj in zip(pi, p[r0])] for pi, ki in zip(p, k0)]
+        r = r_diag[0]
+        p = [[aij - ai[r0] * kj + ki * r * kj for aij, kj in zip(ai, k0)] for ai, ki in zip(a_mat, k0)]
+    else:
+        r1 = rows[1]
+        col1 = [p[i][r1] for i in range(5)]
+        a, b, c, d = col0[r0] + r_diag[0], col1[r0], col0[r1], col1[r1] + r_diag[1]
+        det = a * d - b * c
+        ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det
+        k0 = [x * ia + y * ic for x, y in zip(col0, col1)]
+        k1 = [x * ib + y * id_ for x, y in zip(col0, col1)]
+        s = [s[i] + (k0[i] * innovation[0] + k1[i] * innovation[1]) for i in range(5)]
+        a_mat = [[pij - ki * h0 - li * h1 for pij, h0, h1 in zip(pi, p[r0], p[r1])] for pi, ki, li in zip(p, k0, k1)]
+        q0, q1 = r_diag
+        p = [[aij - ai[r0] * kj - ai[r1] * lj + ki * q0 * kj + li * q1 * lj for aij, kj, lj in zip(ai, k0, k1)]
+             for ai, ki, li in zip(a_mat, k0, k1)]
+    s[2] = _wrap_ref(s[2])
+    return s, p
+
+
+def test_compiled_kernels_are_bit_identical_to_the_list_arithmetic():
+    from cottonsim_world.estimation.odometry_ekf import _predict_kernel, _update_one_kernel, _update_two_kernel
+    rng = np.random.default_rng(4)
+    q = [0.05, 0.05, 0.06, 0.025, 0.02]
+    for trial in range(300):
+        m = rng.normal(size=(5, 5))
+        p_list = (m @ m.T * 0.1 + np.eye(5) * 1e-3).tolist()
+        s_list = rng.normal(size=5).tolist()
+        s_list[2] = float(rng.choice([math.pi - 1e-3, -math.pi + 1e-3, rng.uniform(-math.pi, math.pi)]))
+        s_arr, p_arr = np.array(s_list), np.array(p_list)
+        op = trial % 4
+        if op == 0:
+            dt = float(rng.choice([0.02, 0.0, 0.5]))
+            want_s, want_p = _predict_ref(list(s_list), [row[:] for row in p_list], dt, q)
+            _predict_kernel(s_arr, p_arr, math.cos(s_list[2]), math.sin(s_list[2]), dt, np.array(q))
+        elif op == 1:
+            row, z, r = int(rng.integers(5)), float(rng.normal(scale=4.0)), float(rng.uniform(1e-4, 1.0))
+            want_s, want_p = _update_ref(s_list, p_list, (row,), (z,), (r,))
+            _update_one_kernel(s_arr, p_arr, row, z, r)
+        else:
+            rows = (3, 4) if op == 2 else (2, 4)
+            z, r = rng.normal(scale=4.0, size=2).tolist(), rng.uniform(1e-4, 1.0, 2).tolist()
+            want_s, want_p = _update_ref(s_list, p_list, rows, z, r)
+            _update_two_kernel(s_arr, p_arr, rows[0], rows[1], z[0], z[1], r[0], r[1])
+        assert s_arr.tolist() == want_s, trial
+        assert p_arr.tolist() == want_p, trial

@@ -44,11 +44,14 @@ from dataclasses import dataclass
 from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
+from numba import njit
 
 X, Y, YAW, VX, VYAW = range(5)
 
 
+@njit(cache=True)
 def _wrap(angle: float) -> float:
+    """angle [rad] wrapped to [-pi, pi) (Python's float %, in Python and in the compiled kernels alike)."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
@@ -124,16 +127,7 @@ class FilteredOdometry:
         return (self.x_m, self.y_m, 0.0), self.orientation_xyzw
 
 
-def _tiny_diagonal_flat(indices: Sequence[int], tiny: float = 1e-9) -> List[float]:
-    """A flat row-major 6x6 zero matrix with ``tiny`` on the given diagonal entries."""
-    flat = [0.0] * 36
-    for i in indices:
-        flat[7 * i] = tiny
-    return flat
-
-
-_TWO_D_POSE_FLAT = _tiny_diagonal_flat((2, 3, 4))        # z, roll, pitch
-_TWO_D_TWIST_FLAT = _tiny_diagonal_flat((1, 2, 3, 4))    # vy, vz, roll and pitch rates
+_TWO_D_TINY_VARIANCE = 1e-9   # of the 3-D entries a planar filter does not observe (robot_localization's two_d_mode)
 
 
 def forward_acceleration(specific_force_m_s2: Sequence[float], orientation_xyzw: Optional[Sequence[float]],
@@ -142,40 +136,171 @@ def forward_acceleration(specific_force_m_s2: Sequence[float], orientation_xyzw:
     its attitude quaternion (body -> world, x y z w): a_x = f_x - g R[2][0] (R[2][0] = 2 (x z - w y)).
     No attitude = a level robot. Raises ValueError on non-finite or malformed input."""
     try:
-        f = [float(v) for v in specific_force_m_s2]
-        q = [0.0, 0.0, 0.0, 1.0] if orientation_xyzw is None else [float(v) for v in orientation_xyzw]
+        f = _floats(specific_force_m_s2)
+        q = [0.0, 0.0, 0.0, 1.0] if orientation_xyzw is None else _floats(orientation_xyzw)
     except (TypeError, ValueError):
         raise ValueError("accel_body_m_s2 / orientation_xyzw must be numbers") from None
-    if len(f) != 3 or len(q) != 4 or not all(math.isfinite(v) for v in f + q):
+    if len(f) != 3 or len(q) != 4 or not all(map(math.isfinite, f + q)):
         raise ValueError(f"accel_body_m_s2 must be 3 and orientation_xyzw 4 finite numbers, got {f!r}, {q!r}")
-    n = math.sqrt(sum(v * v for v in q))
+    qx, qy, qz, qw = q
+    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     if n < 1e-9:
         raise ValueError("orientation_xyzw is a zero quaternion")
-    x, y, z, w = (v / n for v in q)
+    x, y, z, w = qx / n, qy / n, qz / n, qw / n
     return f[0] - gravity_m_s2 * 2.0 * (x * z - w * y)
+
+
+def _floats(values) -> List[float]:
+    """values as a list of Python floats; a 1-D float64 array (the IMU's, at 50 Hz) by one tolist()."""
+    if isinstance(values, np.ndarray) and values.ndim == 1 and values.dtype == np.float64:
+        return values.tolist()
+    return [float(v) for v in values]
+
+
+# The filter's arithmetic, compiled. At 50 Hz on 5-vectors and 5x5 matrices the interpreter's cost per
+# float operation (~40 instructions per bytecode here, a boxed float per result) dominated the odometry
+# and IMU updates (~0.35 M instructions per predict + two updates + output as Python lists). Each kernel
+# below spells out the same operations, in the same order, as the former list code, so the results are
+# bit-identical (test_odometry_ekf.py replays a reference); numba without fastmath neither reorders nor
+# fuses floating-point operations.
+
+@njit(cache=True)
+def _predict_kernel(s, p, cos_yaw, sin_yaw, dt, q_diag):  # pragma: no cover
+    """Constant-velocity motion over dt [s] in place: s (5,), P' = F P F^T + Q dt with F the motion Jacobian.
+
+    cos_yaw / sin_yaw: of the yaw before the step (taken by the caller with Python's math, as before).
+    F = I except F[X,YAW], F[X,VX], F[Y,YAW], F[Y,VX], F[YAW,VYAW].
+    """
+    vx = s[VX]
+    f_x_yaw, f_x_vx = -vx * sin_yaw * dt, cos_yaw * dt
+    f_y_yaw, f_y_vx = vx * cos_yaw * dt, sin_yaw * dt
+    s[X] += vx * cos_yaw * dt
+    s[Y] += vx * sin_yaw * dt
+    s[YAW] = _wrap(s[YAW] + s[VYAW] * dt)
+    fp = np.empty((5, 5))
+    for j in range(5):               # F times column j of P
+        fp[X, j] = p[X, j] + f_x_yaw * p[YAW, j] + f_x_vx * p[VX, j]
+        fp[Y, j] = p[Y, j] + f_y_yaw * p[YAW, j] + f_y_vx * p[VX, j]
+        fp[YAW, j] = p[YAW, j] + dt * p[VYAW, j]
+        fp[VX, j] = p[VX, j]
+        fp[VYAW, j] = p[VYAW, j]
+    for i in range(5):               # row i of F P, times F^T
+        p[i, X] = fp[i, X] + f_x_yaw * fp[i, YAW] + f_x_vx * fp[i, VX]
+        p[i, Y] = fp[i, Y] + f_y_yaw * fp[i, YAW] + f_y_vx * fp[i, VX]
+        p[i, YAW] = fp[i, YAW] + dt * fp[i, VYAW]
+        p[i, VX] = fp[i, VX]
+        p[i, VYAW] = fp[i, VYAW]
+        p[i, i] += q_diag[i] * dt
+
+
+@njit(cache=True)
+def _update_one_kernel(s, p, row, z, r):  # pragma: no cover
+    """Kalman update in place with H picking state ``row``, measurement z, variance r (Joseph form)."""
+    innovation = z - s[row]
+    if row == YAW:
+        innovation = _wrap(innovation)
+    col0 = p[:, row].copy()                  # P H^T
+    hp0 = p[row, :].copy()                   # H P
+    k0 = np.empty(5)
+    for i in range(5):
+        k0[i] = col0[i] / (col0[row] + r)
+    for i in range(5):
+        s[i] += k0[i] * innovation
+    # Joseph form P' = (I - K H) P (I - K H)^T + K R K^T keeps P symmetric positive definite;
+    # with H P = row r0 of P: A = P - k0 p[r0], then P' = A - A[:, r0] k0^T + r k0 k0^T.
+    a = np.empty((5, 5))
+    for i in range(5):
+        for j in range(5):
+            a[i, j] = p[i, j] - k0[i] * hp0[j]
+    for i in range(5):
+        for j in range(5):
+            p[i, j] = a[i, j] - a[i, row] * k0[j] + k0[i] * r * k0[j]
+    s[YAW] = _wrap(s[YAW])
+
+
+@njit(cache=True)
+def _update_two_kernel(s, p, r0, r1, z0, z1, q0, q1):  # pragma: no cover
+    """Kalman update in place with H picking state rows r0 and r1, measurements z0, z1, R = diag(q0, q1)."""
+    innovation0 = z0 - s[r0]
+    innovation1 = z1 - s[r1]
+    if r0 == YAW:
+        innovation0 = _wrap(innovation0)
+    if r1 == YAW:
+        innovation1 = _wrap(innovation1)
+    col0 = p[:, r0].copy()                   # P H^T, two columns
+    col1 = p[:, r1].copy()
+    hp0 = p[r0, :].copy()                    # H P, two rows
+    hp1 = p[r1, :].copy()
+    a, b = col0[r0] + q0, col1[r0]           # S = H P H^T + R
+    c, d = col0[r1], col1[r1] + q1
+    det = a * d - b * c
+    ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det      # S^-1
+    k0 = np.empty(5)                         # K = P H^T S^-1, its two columns
+    k1 = np.empty(5)
+    for i in range(5):
+        k0[i] = col0[i] * ia + col1[i] * ic
+        k1[i] = col0[i] * ib + col1[i] * id_
+    for i in range(5):
+        s[i] += k0[i] * innovation0 + k1[i] * innovation1
+    am = np.empty((5, 5))
+    for i in range(5):
+        for j in range(5):
+            am[i, j] = p[i, j] - k0[i] * hp0[j] - k1[i] * hp1[j]
+    for i in range(5):
+        for j in range(5):
+            p[i, j] = (am[i, j] - am[i, r0] * k0[j] - am[i, r1] * k1[j] + k0[i] * q0 * k0[j]
+                       + k1[i] * q1 * k1[j])
+    s[YAW] = _wrap(s[YAW])
+
+
+@njit(cache=True)
+def _covariances_6x6(p, tiny):  # pragma: no cover
+    """/odometry/filtered's pose and twist covariances, 6x6 in (x, y, z, roll, pitch, yaw), from the 5x5 P.
+
+    Pose: x, y, yaw of P; twist: vx and vyaw of P (at vx and yaw rate). The entries a planar filter does
+    not observe get ``tiny`` on the diagonal (two_d_mode): z, roll, pitch; vy, vz, roll and pitch rates.
+    """
+    pose = np.zeros((6, 6))
+    twist = np.zeros((6, 6))
+    for i in (2, 3, 4):
+        pose[i, i] = tiny
+    for i in (1, 2, 3, 4):
+        twist[i, i] = tiny
+    pose_cells = (0, 1, 5)
+    pose_states = (X, Y, YAW)
+    for a in range(3):
+        for b in range(3):
+            pose[pose_cells[a], pose_cells[b]] = p[pose_states[a], pose_states[b]]
+    twist_cells = (0, 5)
+    twist_states = (VX, VYAW)
+    for a in range(2):
+        for b in range(2):
+            twist[twist_cells[a], twist_cells[b]] = p[twist_states[a], twist_states[b]]
+    return pose, twist
 
 
 class OdometryEkf:
     """5-state planar EKF: predict(dt), update_wheel_odometry, update_imu.
 
     The simulator runs it at 50 Hz on 5-vectors and 5x5 matrices, where
-    numpy spends more time dispatching than computing; the filter therefore
-    keeps its state and covariance as plain Python floats and writes out
-    the products, using the structure of the model (the Jacobian differs
-    from the identity in five entries; every measurement picks state
-    entries). ``state`` and ``covariance`` return numpy copies.
+    numpy spends more time dispatching than computing and the interpreter
+    more than both; the filter therefore keeps its state and covariance in
+    numpy arrays that compiled kernels update in place, writing out the
+    products with the structure of the model (the Jacobian differs from the
+    identity in five entries; every measurement picks state entries). The
+    checks of the inputs stay in Python. ``state`` and ``covariance``
+    return numpy copies.
     """
 
     def __init__(self, config: OdometryEkfConfig = OdometryEkfConfig()):
         self.config = config
-        self._q_diag = [float(v) for v in config.process_noise_diag]
+        self._q_diag = np.array([float(v) for v in config.process_noise_diag])
         self.rejections: List[str] = []
         self.reset()
 
     def reset(self, x_m: float = 0.0, y_m: float = 0.0, yaw_rad: float = 0.0) -> None:
-        self._s = [float(x_m), float(y_m), _wrap(float(yaw_rad)), 0.0, 0.0]
-        diag = self.config.initial_covariance_diag
-        self._p = [[float(diag[i]) if i == j else 0.0 for j in range(5)] for i in range(5)]
+        self._s = np.array([float(x_m), float(y_m), _wrap(float(yaw_rad)), 0.0, 0.0])
+        self._p = np.diag([float(v) for v in self.config.initial_covariance_diag])
         self._accel_x: Optional[float] = None      # latest IMU forward acceleration (gravity removed) [m/s^2]
         self._v_imu = 0.0                           # IMU-integrated forward speed [m/s]
         self._last_dt = 0.0
@@ -190,12 +315,12 @@ class OdometryEkf:
     @property
     def state(self) -> np.ndarray:
         """[x, y, yaw, vx, vyaw] (a copy)."""
-        return np.array(self._s)
+        return self._s.copy()
 
     @property
     def covariance(self) -> np.ndarray:
         """5x5 covariance of ``state`` (a copy)."""
-        return np.array(self._p)
+        return self._p.copy()
 
     def _reject(self, reason: str) -> str:
         self.rejections.append(reason)
@@ -218,72 +343,21 @@ class OdometryEkf:
             return self._reject(f"predict: dt_s is not a number ({dt_s!r})")
         if not math.isfinite(dt) or dt < 0 or dt > self.config.max_dt_s:
             return self._reject(f"predict: dt_s must be finite and in [0, {self.config.max_dt_s}] s, got {dt_s!r}")
-        s = self._s
-        c, si = math.cos(s[YAW]), math.sin(s[YAW])
-        # Jacobian F = I except F[X,YAW], F[X,VX], F[Y,YAW], F[Y,VX], F[YAW,VYAW]
-        f_x_yaw, f_x_vx = -s[VX] * si * dt, c * dt
-        f_y_yaw, f_y_vx = s[VX] * c * dt, si * dt
-        s[X] += s[VX] * c * dt
-        s[Y] += s[VX] * si * dt
-        s[YAW] = _wrap(s[YAW] + s[VYAW] * dt)
+        yaw = self._s.item(YAW)
+        _predict_kernel(self._s, self._p, math.cos(yaw), math.sin(yaw), dt, self._q_diag)
         if self._accel_x is not None:
             self._v_imu += self._accel_x * dt
         self._last_dt = dt
-
-        def mix(v):   # F applied to a 5-vector (a row or column of P)
-            return [v[X] + f_x_yaw * v[YAW] + f_x_vx * v[VX],
-                    v[Y] + f_y_yaw * v[YAW] + f_y_vx * v[VX],
-                    v[YAW] + dt * v[VYAW],
-                    v[VX], v[VYAW]]
-
-        # P' = F P F^T + Q dt: F on each column of P (as rows of P^T = P), then on each row
-        fp_t = [mix(col) for col in zip(*self._p)]          # (F P)^T, row j = column j of F P
-        fpf = [mix(row) for row in zip(*fp_t)]              # rows of F P, each times F^T
-        q = self._q_diag
-        for i in range(5):
-            fpf[i][i] += q[i] * dt
-        self._p = fpf
         return None
 
     # ------------------------------------------------------------- updates
     def _update(self, rows: Sequence[int], z: Sequence[float], r_diag: Sequence[float]) -> None:
         """Kalman update with H picking ``rows`` (one or two) of the state; R = diag(r_diag)."""
-        p, s = self._p, self._s
-        innovation = [z[i] - s[row] for i, row in enumerate(rows)]
-        for i, row in enumerate(rows):
-            if row == YAW:
-                innovation[i] = _wrap(innovation[i])
-        # S = H P H^T + R; K = P H^T S^-1, kept as its columns k0 (, k1)
-        r0 = rows[0]
-        col0 = [p[i][r0] for i in range(5)]                # P H^T, first column
         if len(rows) == 1:
-            k0 = [v / (col0[r0] + r_diag[0]) for v in col0]
-            for i in range(5):
-                s[i] += k0[i] * innovation[0]
-            # Joseph form P' = (I - K H) P (I - K H)^T + K R K^T keeps P symmetric positive definite;
-            # with H P = row r0 of P: A = P - k0 p[r0], then P' = A - A[:, r0] k0^T + r k0 k0^T.
-            hp0 = p[r0]
-            a_mat = [[pij - ki * hj for pij, hj in zip(pi, hp0)] for pi, ki in zip(p, k0)]
-            r = r_diag[0]
-            self._p = [[aij - ai[r0] * kj + ki * r * kj for aij, kj in zip(ai, k0)] for ai, ki in zip(a_mat, k0)]
+            _update_one_kernel(self._s, self._p, rows[0], float(z[0]), float(r_diag[0]))
         else:
-            r1 = rows[1]
-            col1 = [p[i][r1] for i in range(5)]
-            a, b = col0[r0] + r_diag[0], col1[r0]
-            c, d = col0[r1], col1[r1] + r_diag[1]
-            det = a * d - b * c
-            ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det      # S^-1
-            k0 = [x * ia + y * ic for x, y in zip(col0, col1)]
-            k1 = [x * ib + y * id_ for x, y in zip(col0, col1)]
-            for i in range(5):
-                s[i] += k0[i] * innovation[0] + k1[i] * innovation[1]
-            hp0, hp1 = p[r0], p[r1]
-            a_mat = [[pij - ki * h0 - li * h1 for pij, h0, h1 in zip(pi, hp0, hp1)]
-                     for pi, ki, li in zip(p, k0, k1)]
-            q0, q1 = r_diag
-            self._p = [[aij - ai[r0] * kj - ai[r1] * lj + ki * q0 * kj + li * q1 * lj
-                        for aij, kj, lj in zip(ai, k0, k1)] for ai, ki, li in zip(a_mat, k0, k1)]
-        s[YAW] = _wrap(s[YAW])
+            _update_two_kernel(self._s, self._p, rows[0], rows[1], float(z[0]), float(z[1]), float(r_diag[0]),
+                               float(r_diag[1]))
 
     @staticmethod
     def _variance(cov, name: str) -> Tuple[Optional[float], Optional[str]]:
@@ -376,18 +450,6 @@ class OdometryEkf:
     # -------------------------------------------------------------- output
     def output(self) -> FilteredOdometry:
         """Current estimate as /odometry/filtered contents."""
-        p, s = self._p, self._s
-        # flat row-major 6x6 lists, made into arrays in one flat pass (a nested list costs numpy
-        # a recursive shape discovery, ~2x the time at 50 Hz)
-        pose = _TWO_D_POSE_FLAT.copy()              # z, roll, pitch: tiny variance (unobserved in 2-D mode)
-        twist = _TWO_D_TWIST_FLAT.copy()            # vy, vz, roll and pitch rates: tiny
-        for a, sa in zip((0, 1, 5), (X, Y, YAW)):
-            row = p[sa]
-            for b, sb in zip((0, 1, 5), (X, Y, YAW)):
-                pose[6 * a + b] = row[sb]
-        for a, sa in zip((0, 5), (VX, VYAW)):
-            row = p[sa]
-            for b, sb in zip((0, 5), (VX, VYAW)):
-                twist[6 * a + b] = row[sb]
-        return FilteredOdometry(s[X], s[Y], s[YAW], s[VX], s[VYAW], np.array(pose).reshape(6, 6),
-                                np.array(twist).reshape(6, 6))
+        pose, twist = _covariances_6x6(self._p, _TWO_D_TINY_VARIANCE)
+        x, y, yaw, vx, vyaw = self._s.tolist()
+        return FilteredOdometry(x, y, yaw, vx, vyaw, pose, twist)

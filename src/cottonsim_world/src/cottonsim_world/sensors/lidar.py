@@ -150,6 +150,7 @@ class Vlp16Model:
             self._plants = scene.fast_plants
             self._range = np.empty(len(self._dirs))
             self._hit = np.empty(len(self._dirs), np.int32)
+            self._noise = np.empty(len(self._dirs))          # range noise of one scan [m]
             # compile or load the kernels now, not at the first scan (no noise drawn: the stream stays as it was)
             self._cast_into_buffers(np.eye(4))
             gather_returns(self._range, self._hit, np.zeros(0), 0.0, 1.0, self._dirs, self._ring, self._azimuth,
@@ -163,8 +164,14 @@ class Vlp16Model:
         """``scan`` with the numba caster: the returns packed by one compiled pass (same result)."""
         cfg = self.config
         self._cast_into_buffers(pose)
-        n = len(self._range)
-        noise = self._rng.normal(0.0, cfg.noise_std_m, n) if cfg.noise_std_m > 0.0 else np.zeros(0)
+        if cfg.noise_std_m > 0.0:
+            # Generator.normal(0, std, n) is 0 + std * standard_normal() per draw: the same stream and values
+            # (bar the sign of a zero), drawn into a reused buffer without normal()'s per-draw wrapper
+            noise = self._noise
+            self._rng.standard_normal(out=noise)
+            noise *= cfg.noise_std_m
+        else:
+            noise = np.zeros(0)
         pts, ring, intensity, az, sem, pid = gather_returns(
             self._range, self._hit, noise, float(cfg.min_range_m), float(cfg.max_range_m), self._dirs, self._ring,
             self._azimuth, self._plants.g_semantic, self._plants.g_plant, int(SemanticClass.GROUND),
