@@ -144,7 +144,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
     has_tree = tri.shape[0] > 0
     for item in prange(_WORK_ITEMS):
         stack = np.empty(_STACK, np.int32)   # pending children: references as in the record (>= 0 a wide node)
-        dxa = np.empty(PACKET, np.float32)
+        dxa = np.empty(PACKET, np.float32)   # unit directions in the world frame
         dya = np.empty(PACKET, np.float32)
         dza = np.empty(PACKET, np.float32)
         ixa = np.empty(PACKET, np.float32)   # reciprocal directions for the float32 slab tests
@@ -251,8 +251,8 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                             best[k] = t if nearer else best[k]
                             hit[k] = gid if nearer else hit[k]
                     for k in range(m):
-                        b = np.float64(best[k])
-                        limit[k] = _box_limit32(b if b < max_range else max_range)
+                        nearest_m = np.float64(best[k])
+                        limit[k] = _box_limit32(nearest_m if nearest_m < max_range else max_range)
                 # pending entries are not tested again: nearer hits since they were pushed may make them moot
             for k in range(m):
                 far_hit = np.float64(best[k]) > max_range
