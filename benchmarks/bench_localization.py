@@ -5,7 +5,7 @@ Also AMCL's worst case while re-localising after a kidnap: 2000 particles re-spr
 the heading), 60 beams of a 360 deg scan (5.7 m usable range), the free-space check of the beams on
 (localization/free_space_model.py), in front of the rows and inside a lane; wall and CPU (process) time.
 
-Run:  cd /work/main && source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_localization.py
+Run:  source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_localization.py
 Targets: AMCL <= 20 ms, SLAM <= 100 ms. Prints medians in ms (JIT-compiling first calls excluded).
 """
 import math

@@ -6,7 +6,7 @@ obstacle-layer ray tracing and marking of one cloud, inflation of the rolling
 5 x 5 m window, then MoveBase.step (plan hand-over + one DWA evaluation).
 Also prints the cost of the first global plan across the farm map.
 
-Run:  cd /work/main && source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_move_base.py
+Run:  source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_move_base.py
 Prints medians in ms (the first, JIT-compiling call is excluded).
 """
 import math

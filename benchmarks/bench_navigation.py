@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Speed of the navigation cores: navfn across the farm map, one DWA cycle, costmap updates.
 
-Run:  cd /work/main && source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_navigation.py
+Run:  source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_navigation.py
 Prints the median of several runs in ms, wall and (in brackets) CPU time of this process
 (the first, JIT-compiling call is excluded).
 """

@@ -51,7 +51,8 @@ from cottonsim_perception.nn.models import ModelConfig, build_model, count_param
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WEIGHTS = os.path.join(HERE, "..", "src", "cottonsim_perception", "weights")
-ORIGINAL = "/work/shared/datasets/cottonsim_original"
+# the paper's labelled images (Segmentation/, Detection/): --seg-images / --det-images or $COTTONSIM_PAPER_DATA
+ORIGINAL = os.environ.get("COTTONSIM_PAPER_DATA", "")
 
 
 def gflops(model: torch.nn.Module, height: int, width: int) -> float:

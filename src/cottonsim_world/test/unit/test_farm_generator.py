@@ -1,5 +1,6 @@
 """Farm generator: layout geometry, randomness, route, fit to the original."""
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -8,7 +9,9 @@ from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.geodesy import HectorGeodesy
 
-WAYPOINTS = "/work/shared/reference/original_gps_waypoints.txt"
+# the original CottonSim GPS route, committed with the navigation package
+WAYPOINTS = str(pathlib.Path(__file__).resolve().parents[3] / "cottonsim_navigation" / "config" / "waypoints"
+                / "original_gps_waypoints.txt")
 SMALL = dict(rows=3, plants_per_row=6, plant_detail="low", plant_variants=3)
 
 

@@ -1,5 +1,6 @@
 """hector_gazebo GPS geodesy and the GPS drift/noise model."""
 import math
+import pathlib
 import os
 
 import numpy as np
@@ -7,7 +8,9 @@ import pytest
 
 from cottonsim_world.geodesy import GpsNoiseConfig, GpsNoiseModel, HectorGeodesy
 
-WAYPOINTS = "/work/shared/reference/original_gps_waypoints.txt"
+# the original CottonSim GPS route, committed with the navigation package
+WAYPOINTS = str(pathlib.Path(__file__).resolve().parents[3] / "cottonsim_navigation" / "config" / "waypoints"
+                / "original_gps_waypoints.txt")
 
 
 def test_radii_match_the_originals_numbers():

@@ -1,11 +1,14 @@
 """Waypoint files and the follower state machine."""
 import math
+import pathlib
 
 import pytest
 
 from cottonsim_navigation.waypoints.files import (WaypointFileError, load_gps_waypoints, load_map_waypoints)
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult, LocalisationGate,
                                                      WaypointFollower)
+
+WAYPOINT_DIR = pathlib.Path(__file__).resolve().parents[3] / "config" / "waypoints"
 
 
 def write(tmp_path, name, text):
@@ -57,8 +60,8 @@ def test_map_csv_lines_yaml(tmp_path):
 
 
 def test_original_reference_files():
-    gps = load_gps_waypoints("/work/shared/reference/original_gps_waypoints.txt")
-    m = load_map_waypoints("/work/shared/reference/original_map_waypoints.csv")
+    gps = load_gps_waypoints(str(WAYPOINT_DIR / "original_gps_waypoints.txt"))
+    m = load_map_waypoints(str(WAYPOINT_DIR / "original_map_waypoints.csv"))
     assert len(gps) == 30 and len(m) == 30
     assert all(49.8 < w.lat < 50.0 for w in gps)
 
