@@ -14,9 +14,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
+for _pkg in ("cottonsim_navigation", "cottonsim_common"):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src" / _pkg / "src"))
+
+from cottonsim_common.config.yaml_files import load_yaml_file  # noqa: E402
 
 from cottonsim_navigation.core.geometry import Pose2D  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
@@ -119,8 +121,7 @@ def dwa_config_from_yaml(*names: str) -> DWAConfig:
     fields = {f.name for f in dataclasses.fields(DWAConfig)}
     values = {}
     for name in names:
-        with open(CONFIG_DIR / name) as fh:
-            section = (yaml.safe_load(fh) or {}).get("DWAPlannerROS", {}) or {}
+        section = load_yaml_file(CONFIG_DIR / name, default={}).get("DWAPlannerROS", {}) or {}
         values.update({k: v for k, v in section.items() if k in fields})
     return DWAConfig(**values)
 

@@ -27,12 +27,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-for pkg in ("cottonsim_navigation", "cottonsim_world"):
+for pkg in ("cottonsim_navigation", "cottonsim_world", "cottonsim_common"):
     sys.path.insert(0, str(ROOT / "src" / pkg / "src"))
 
+from cottonsim_common.config.yaml_files import load_yaml_file  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E402
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig  # noqa: E402
@@ -62,7 +62,7 @@ WRONG_PEAK_M = 0.5                             # further off than this: the set 
 def amcl_params():
     params = {}
     for name in ("amcl.yaml", "amcl_farm.yaml"):
-        params.update(yaml.safe_load((NAV / "config" / name).read_text()) or {})
+        params.update(load_yaml_file(NAV / "config" / name, default={}))
     return {"~" + k: v for k, v in params.items()}
 
 
@@ -72,7 +72,7 @@ def from_params(cls, params, prefix):
 
 
 def make_sim(seed):
-    settings = yaml.safe_load((NAV / "test/rostest/nav_ci.yaml").read_text())
+    settings = load_yaml_file(NAV / "test/rostest/nav_ci.yaml")
     settings["seed"] = seed
     urdf = ROOT / "src/cottonsim_description/urdf/cottonsim_robot.urdf"
     return Simulator(simulator_config_from_dict(settings), UrdfModel.from_file(urdf))

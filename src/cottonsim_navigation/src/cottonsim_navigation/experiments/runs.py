@@ -25,6 +25,8 @@ from typing import Callable, Dict, Mapping, Optional, Sequence
 
 import yaml
 
+from cottonsim_common.config.yaml_files import load_yaml_file
+
 from ..evaluation.experiment import summary_line
 from . import row_spacing as rs
 from .launcher import LaunchSpec, run_launch
@@ -91,8 +93,7 @@ def write_sim_config(base_path: str, overrides: Mapping, out_path: str) -> str:
     override fails here with the simulator's message (ValueError) instead of in a launched bridge."""
     from cottonsim_world.config_io import simulator_config_from_dict
 
-    with open(base_path, "r", encoding="utf-8") as fh:
-        base = yaml.safe_load(fh) or {}
+    base = load_yaml_file(base_path, default={})
     if not isinstance(base, Mapping):
         raise ValueError(f"{base_path}: simulator settings must be a YAML mapping")
     merged = deep_merge(base, overrides)
@@ -276,8 +277,7 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
         farm = FarmConfig.from_dict(farm_settings)
         sim_yaml = write_sim_config(base_sim, {"seed": config.seed, "farm": farm_settings},
                                     os.path.join(run_dir, "sim.yaml"))
-        with open(sim_yaml, "r", encoding="utf-8") as fh:
-            reference = (yaml.safe_load(fh) or {}).get("geodesy_reference", [49.9, 8.9, 0.0, 0.0])
+        reference = load_yaml_file(sim_yaml, default={}).get("geodesy_reference", [49.9, 8.9, 0.0, 0.0])
         geodesy = HectorGeodesy(*reference)
         route = os.path.join(run_dir, "route_gps.txt")
         with open(route, "w", encoding="utf-8") as fh:

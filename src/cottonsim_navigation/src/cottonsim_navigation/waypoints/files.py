@@ -21,7 +21,7 @@ import os
 from dataclasses import dataclass
 from typing import List, Optional, Sequence
 
-import yaml
+from cottonsim_common.config.yaml_files import DuplicateKeyError, YamlSyntaxError, load_yaml_text
 
 
 class WaypointFileError(ValueError):
@@ -87,11 +87,12 @@ def _is_yaml(path) -> bool:
 
 def _yaml_items(path, text) -> list:
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        line = getattr(getattr(exc, "problem_mark", None), "line", None)
-        raise WaypointFileError(path, f"invalid YAML: {getattr(exc, 'problem', exc)}",
-                                None if line is None else line + 1) from None
+        data = load_yaml_text(text, source=os.fspath(path))
+    except DuplicateKeyError as exc:
+        raise WaypointFileError(path, f"key {exc.key!r} is given twice (lines {exc.first_line} and "
+                                      f"{exc.second_line})", exc.second_line) from None
+    except YamlSyntaxError as exc:
+        raise WaypointFileError(path, f"invalid YAML: {exc.problem}", exc.line) from None
     if isinstance(data, dict) and "waypoints" in data:
         data = data["waypoints"]
     if data is None:

@@ -180,3 +180,10 @@ def test_localisation_gate_is_lost_only_after_having_been_localised():
     assert not g.lost and g.ever_localized          # localised again
     with pytest.raises(ValueError, match="localized"):
         g.report("yes")
+
+
+def test_a_yaml_waypoint_file_with_a_repeated_key_is_refused_with_its_line(tmp_path):
+    path = write(tmp_path, "w.yaml", "- {x: 1, y: 2, yaw: 0.5}\n- x: 3\n  y: 4\n  x: 5\n")
+    with pytest.raises(WaypointFileError, match=r"'x' is given twice \(lines 2 and 4\)") as err:
+        load_map_waypoints(path)
+    assert err.value.line == 4

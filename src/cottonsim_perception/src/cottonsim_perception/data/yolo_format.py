@@ -231,15 +231,12 @@ class DataYaml:
 
 def read_data_yaml(path: str) -> DataYaml:
     """Read a data.yaml; names may be a list or an {id: name} mapping."""
-    import yaml  # local: only needed here
+    from cottonsim_common.config.yaml_files import load_yaml_file
 
     try:
-        with open(path, "r", encoding="utf-8") as fh:
-            raw = yaml.safe_load(fh)
-    except OSError as exc:
-        raise LabelFormatError(f"{path}: cannot read data.yaml ({exc})") from None
-    except yaml.YAMLError as exc:
-        raise LabelFormatError(f"{path}: not valid YAML ({exc})") from None
+        raw = load_yaml_file(path)
+    except ValueError as exc:
+        raise LabelFormatError(f"data.yaml: {exc}") from None
     if not isinstance(raw, dict):
         raise LabelFormatError(f"{path}: expected a mapping at top level")
     names = raw.get("names", [])

@@ -284,15 +284,11 @@ def load_map_yaml(path: str):
     modes trinary (default) and scale (intermediate values 1..99).
     Raises ValueError naming the problem for a missing / malformed file.
     """
-    import yaml
+    from cottonsim_common.config.yaml_files import load_yaml_file
 
     if not os.path.isfile(path):
         raise ValueError(f"map YAML not found: {path}")
-    try:
-        with open(path) as fh:
-            meta = yaml.safe_load(fh)
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML: {exc}") from None
+    meta = load_yaml_file(path)
     if not isinstance(meta, dict):
         raise ValueError(f"{path}: expected a mapping with image, resolution, origin")
     for key in ("image", "resolution", "origin"):

@@ -1,0 +1,1 @@
+"""Shared by the simulator (cottonsim_world) and the robot-side stack (navigation, perception)."""
