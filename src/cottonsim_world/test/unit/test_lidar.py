@@ -193,9 +193,59 @@ def _numpy_laserscans(points, configs):
     return scans
 
 
-def test_compiled_cloud_filters_are_bit_identical_to_the_numpy_masks():
-    # the simulator's PassThrough and LaserScans run compiled; they must give what the numpy masks give, bit for
-    # bit, on clouds with points on the limits, bin edges, NaN and inf (float32 as the VLP-16 gives, and float64)
+def _assert_scans_agree_up_to_rounding(got, points, config, angle_tol_rad=1e-12, range_rtol=1e-15):
+    """``got`` (one LaserScan of ``points``) is the numpy reference's scan up to math-library rounding.
+
+    atan2 and hypot round differently on different CPUs (numpy dispatches
+    SIMD kernels by CPU feature, libm has FMA variants): a range may move by
+    an ulp, and a point whose angle, planar range or height lies within the
+    tolerance of a bin edge or a limit may land in the neighbouring bin or
+    drop out. Every other point must be where the reference puts it: each
+    bin's range lies between the nearest of its certain and possible points
+    and the nearest of its certain points.
+    """
+    pts = np.asarray(points).astype(np.float64)
+    x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
+    with np.errstate(invalid="ignore"):
+        r = np.hypot(x, y)
+        ang = np.arctan2(y, x)
+        finite = np.isfinite(r) & np.isfinite(ang) & np.isfinite(z)
+        in_z = (z >= config.min_height_m) & (z <= config.max_height_m)
+        scaled = (ang - config.angle_min_rad) / config.angle_increment_rad
+        near_edge = np.abs(scaled - np.round(scaled)) <= angle_tol_rad / config.angle_increment_rad
+        r_tol = range_rtol * np.abs(r) + 1e-300
+        near_range = (np.abs(r - config.range_min_m) <= r_tol) | (np.abs(r - config.range_max_m) <= r_tol)
+        near_angle_limit = ((np.abs(ang - config.angle_min_rad) <= angle_tol_rad)
+                            | (np.abs(ang - config.angle_max_rad) <= angle_tol_rad))
+        inside = (in_z & (r >= config.range_min_m) & (r <= config.range_max_m)
+                  & (ang >= config.angle_min_rad) & (ang <= config.angle_max_rad) & finite)
+    possible = finite & in_z & (inside | near_range | near_angle_limit)
+    uncertain = possible & (near_edge | near_range | near_angle_limit)
+    certain = inside & ~uncertain
+    empty = np.inf if config.use_inf else config.range_max_m + 1.0
+    last = config.bin_count - 1
+    nearest_certain = np.full(config.bin_count, empty)
+    bins = np.minimum(np.floor(scaled[certain]).astype(np.int64), last)
+    np.minimum.at(nearest_certain, bins, r[certain])
+    nearest_possible = nearest_certain.copy()
+    for k in np.flatnonzero(uncertain):
+        centre = int(np.floor(scaled[k]))
+        for b in (centre - 1, centre, centre + 1):
+            b = min(max(b, 0), last)
+            nearest_possible[b] = min(nearest_possible[b], r[k])
+    low = (nearest_possible * (1.0 - 4 * range_rtol)).astype(np.float32)
+    high = (nearest_certain * (1.0 + 4 * range_rtol)).astype(np.float32)
+    bad = np.flatnonzero((got < low) | (got > high))
+    assert bad.size == 0, (f"bins {bad[:10].tolist()}: got {got[bad[:10]].tolist()}, "
+                           f"allowed [{low[bad[:10]].tolist()}, {high[bad[:10]].tolist()}]")
+    return int(np.count_nonzero(uncertain))
+
+
+def test_compiled_cloud_filters_match_the_numpy_masks():
+    # the simulator's PassThrough and LaserScans run compiled. The PassThrough only compares, so it is the numpy
+    # mask bit for bit on every CPU. The LaserScans need atan2 and hypot, which round differently by CPU (numpy's
+    # AVX-512 arctan2 and libm's differ by an ulp): they are the numpy scans up to that rounding. Clouds with
+    # points on the limits, bin edges, NaN and inf; float32 as the VLP-16 gives, and float64
     rng = np.random.default_rng(11)
     n = 20000
     pts = np.concatenate([rng.uniform(-15.0, 15.0, (n, 2)), rng.uniform(-0.6, 0.7, (n, 1))], axis=1)
@@ -217,9 +267,15 @@ def test_compiled_cloud_filters_are_bit_identical_to_the_numpy_masks():
         odd_cloud = np.concatenate([cloud, at_odd_limits])
         np.testing.assert_array_equal(original_passthrough(odd_cloud, odd),
                                       odd_cloud[original_passthrough_mask(odd_cloud, odd)])
-        for got, want in zip(cloud_to_laserscans(cloud, configs), _numpy_laserscans(cloud, configs)):
+        for config, got, want in zip(configs, cloud_to_laserscans(cloud, configs), _numpy_laserscans(cloud, configs)):
             assert got.dtype == want.dtype and got.shape == want.shape
-            assert got.tobytes() == want.tobytes()
+            uncertain = _assert_scans_agree_up_to_rounding(got, cloud, config)
+            assert uncertain < 0.1 * len(cloud)                  # the check is about the other 90 % and more
+            # ... and it is strict: a scan one bin off fails it
+            with pytest.raises(AssertionError, match="bins"):
+                _assert_scans_agree_up_to_rounding(np.roll(got, 1), cloud, config)
+            # on this machine the two differ at most where rounding decides
+            assert np.count_nonzero(got != want) <= uncertain
     assert original_passthrough(np.zeros((0, 3), np.float32)).shape == (0, 3)
     np.testing.assert_array_equal(original_passthrough(np.array([[0, -1, 0], [0, 1, 0]])), [[0, -1, 0]])  # ints
 

@@ -18,8 +18,9 @@ nor those ROS packages:
 
 The simulator runs ``original_passthrough`` and ``cloud_to_laserscans`` on
 every VLP-16 revolution; both are one compiled pass over the cloud
-(``sensors.fast.cloud_kernels``, bit-identical to the numpy masks, ~10x
-fewer instructions). The other functions stay plain numpy.
+(``sensors.fast.cloud_kernels``, ~10x fewer instructions): the PassThrough
+is the numpy mask bit for bit, the LaserScans the numpy scans up to the
+rounding of atan2 / hypot (see cloud_kernels). The other functions stay plain numpy.
 """
 from __future__ import annotations
 

@@ -9,12 +9,23 @@ of every point, although only the points in a scan's height slice need
 them. Here each filter is one pass over the points, and a point's planar
 range and angle are computed only when a scan's height slice holds it.
 
-Results are bit-identical to the numpy expressions they replace: the same
-libm ``hypot`` / ``atan2`` on the same float64 values, the same
-comparisons (the PassThrough limits in the cloud's own dtype, as numpy 1.24
-compares a float32 array with a Python float), the same truncation of the
-bin index and the same nearest-range rule (``test_lidar.py`` checks both
-against the numpy reference).
+What is promised, on every x86-64 CPU:
+
+* the PassThrough is the numpy mask bit for bit: it only compares (the
+  limits in the cloud's own dtype, as numpy 1.24 compares a float32 array
+  with a Python float);
+* the LaserScans are the numpy scans up to the rounding of ``atan2`` and
+  ``hypot``: the same truncation of the bin index and the same
+  nearest-range rule, but the math library's last bit differs between CPUs
+  (numpy picks AVX-512 or AVX2 kernels by CPU, glibc has FMA variants; on
+  an AVX-512 machine numpy's ``arctan2`` differs from libm's ``atan2`` by
+  an ulp in about a third of the points). So a range may move by an ulp,
+  and a point within ~1e-12 rad of a bin edge or a limit may fall into the
+  neighbouring bin. On one machine a run is repeatable bit for bit.
+
+``test_lidar.py`` checks both against the numpy reference, and
+``tests/test_cpu_independence.py`` re-runs the kernel tests compiled for a
+baseline x86-64 CPU with numpy's AVX-512 kernels off.
 """
 from __future__ import annotations
 
