@@ -16,13 +16,13 @@ over threads: run with NUMBA_NUM_THREADS=1 for the work itself) and CPU ms per w
 --save writes every pose's ranges [m] and hit ids (noise-free ``Vlp16Model`` internals); --compare
 prints, per pose, whether a later tree misses the same rays, the largest range difference, the
 rays whose range moved by more than 1 mm, and how many hit classes and plant ids differ (a change
-that keeps every hit prints 0 m and 0, 0, 0; session 16's float32 triangle tests against the
-float64 ones: at most 5e-3 m, 1 ray over 1 mm per pose, 0 classes, 0 plant ids).
+that keeps every hit prints 0 m and 0, 0, 0; the float32 triangle tests against float64
+ones: at most 5e-3 m, 1 ray over 1 mm per pose, 0 classes, 0 plant ids).
 --evict-mb N streams through an N MB buffer before every timed cast and update: in the simulator
 a camera render (and the physics) run between two LiDAR casts and push the tree out of the caches,
 which a loop of back-to-back casts never does. 32 (the EPYC's L3) is a good value: the figures are
-then per cast from cold caches (session 15: +0.8 ms median in the lane, within the VM's drift;
-docs/benchmarks.md).
+then per cast from cold caches (+0.8 ms median in the lane on the EPYC, within the VM's drift;
+docs/benchmarks.md, "LiDAR (VLP-16)").
 --callgrind (under ``valgrind --tool=callgrind --instr-atstart=no``) instruments the casts only
 (one cast per pose): "Collected : N" is the instruction count of the 4 lane + 4 headland casts,
 and --callgrind-place restricts them to one place.

@@ -7,7 +7,7 @@ plants' leaves and branches, the truth is their collision volumes, so even a
 perfect map only covers part of each plant: three runs of this test gave IoU
 0.37-0.46 with precision >= 0.93, rotation 0.13, 0.13 and 1.1 deg (the SLAM's
 heading error over 10 m varies from run to run; a 0.05 m cell over a 10 m map
-already resolves only ~0.3 deg; with the IMU heading (session 2) one run gave IoU 0.47,
+already resolves only ~0.3 deg; with the IMU heading one run gave IoU 0.47,
 rotation 0.23 deg). A map that
 is built in a wrong pose (half a row spacing sideways) gives IoU < 0.25 and
 precision < 0.5 even with every plant mapped (unit test test_nav_map_quality), so IoU

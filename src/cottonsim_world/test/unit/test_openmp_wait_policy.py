@@ -2,7 +2,7 @@
 
 numba's parallel kernels run on GNU OpenMP threads, which by default spin
 after each kernel; beside another busy process on a 2-core machine that
-halved the simulator's speed (docs/benchmarks.md, "Session 16"). libgomp
+halved the simulator's speed (docs/benchmarks.md, "OpenMP wait policy"). libgomp
 reads OMP_WAIT_POLICY once, when numba first loads it, so the package that
 holds the kernels must set it on import. Each case runs in a fresh
 interpreter: this test process may have loaded OpenMP already.

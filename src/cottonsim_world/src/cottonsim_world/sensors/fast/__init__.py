@@ -22,8 +22,8 @@ OpenMP default is to spin after each kernel, waiting for the next. Beside
 other busy processes (the ROS nodes next to the bridge, a second job) a
 spinning thread holds a core that the simulator's main thread needs: with
 one core taken by another process, nav @ lane ran at real-time factor 3.2
-with the default and 8.9 with ``OMP_WAIT_POLICY=PASSIVE`` (session 16,
-docs/benchmarks.md). So this package asks for passive waiting unless the
+with the default and 8.9 with ``OMP_WAIT_POLICY=PASSIVE`` (docs/benchmarks.md,
+"OpenMP wait policy"). So this package asks for passive waiting unless the
 environment says otherwise; it must be set before numba starts its
 threads, i.e. before the first parallel kernel runs.
 """

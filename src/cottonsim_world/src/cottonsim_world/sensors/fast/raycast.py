@@ -27,7 +27,7 @@ that LLVM vectorises, so one AVX2 vector holds a packet's 8 rays:
   carries ~1e-7 of itself in rounding (1 um at 10 m, far below the 8 mm
   range noise and the float32 points published), and a ray within about
   that of a triangle's edge may hit the neighbouring triangle instead.
-  Against the float64 test of sessions 7-15: 2 of 115,200 rays of
+  Against a float64 triangle test: 2 of 115,200 rays of
   ``bench_lidar``'s 8 poses hit another triangle, ranges within 5 mm
   (those two) and 2e-4 m (the rest); the lane cast costs 12 % less.
 
