@@ -12,6 +12,8 @@ import subprocess
 
 import pytest
 
+from cottonsim_common.ros_network import ros_network_environment
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 TEST_FILES = sorted(ROOT.glob("src/*/test/rostest/*.test")) + sorted(ROOT.glob("tests/rostest/*.test"))
 TIMEOUT_S = 600
@@ -34,7 +36,11 @@ def test_rostest_files_are_discovered():
 def test_rostest(test_file, tmp_path):
     if shutil.which("rostest") is None or "ROS_PACKAGE_PATH" not in os.environ:
         pytest.fail("rostest needs the built workspace: source scripts/env.sh (scripts/test.sh does)")
-    env = dict(os.environ, ROS_HOME=str(tmp_path / "ros_home"), ROS_LOG_DIR=str(tmp_path / "log"))
+    try:
+        env, _ = ros_network_environment(os.environ)     # the loopback when this machine's name does not resolve
+    except ValueError as exc:
+        pytest.fail(str(exc))
+    env.update(ROS_HOME=str(tmp_path / "ros_home"), ROS_LOG_DIR=str(tmp_path / "log"))
     cmd = ["rostest", "--text", str(test_file)]
     try:
         proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)

@@ -23,6 +23,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, List, Mapping, Optional
 
+from cottonsim_common.ros_network import ros_network_environment
+
 _GOAL_RE = re.compile(r"goal (\d+)/(\d+)")
 _HOME_RE = re.compile(r"goal Home")
 _FINISHED_RE = re.compile(r"finished \(([^)]*)\)")
@@ -104,12 +106,15 @@ def run_launch(spec: LaunchSpec, show_progress: bool = True,
                on_line: Optional[Callable[[str], None]] = None) -> LaunchResult:
     """Run ``spec`` to its end (or its wall limit); returns how it ended."""
     port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI=f"http://localhost:{port}")
+    env, network_note = ros_network_environment(os.environ)      # ValueError: a ROS_HOSTNAME that does not resolve
+    env["ROS_MASTER_URI"] = f"http://localhost:{port}"
     os.makedirs(os.path.dirname(os.path.abspath(spec.log_path)), exist_ok=True)
     parser = ProgressParser(spec.label)
     started = time.monotonic()
     timed_out = False
     with open(spec.log_path, "w", encoding="utf-8") as log:
+        if network_note:
+            log.write(f"note: {network_note}\n")
         log.write("$ " + " ".join(spec.command(port)) + "\n")
         log.flush()
         proc = subprocess.Popen(spec.command(port), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
