@@ -1,6 +1,6 @@
 """Levels of detail of the numba camera, and the compiled cloud / LiDAR packing.
 
-What the far level promises (``fast.geometry.proxy_model_arrays``):
+What the far level promises (``fast.level_of_detail.proxy_model_arrays``):
 every part keeps its mean silhouette (convex parts: their area), semantic
 class and base colour with far fewer triangles; a camera draws it only where its error bound is at most
 ``lod_max_error_px`` pixels, so a far view keeps its plant and boll pixel counts and nearly all labels.
@@ -17,7 +17,7 @@ import pytest
 from cottonsim_world.farm.generator import FarmConfig, generate_farm
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel
-from cottonsim_world.sensors.fast.geometry import (_fan_decimations, _model_arrays, _pair_reversed_faces,
+from cottonsim_world.sensors.fast.level_of_detail import (_fan_decimations, _model_arrays, _pair_reversed_faces,
                                                     _point_mesh_distance, _surface_distance, part_levels,
                                                     proxy_model_arrays, simplified_model_arrays)
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model

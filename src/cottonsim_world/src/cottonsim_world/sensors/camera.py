@@ -60,12 +60,12 @@ class CameraConfig:
     the optical axis are not rendered (inf = only frustum culling);
     plant_id_image: also return a per-pixel plant id image; seed: noise.
     lod_max_error_px ('numba' only): each plant is drawn with the coarsest
-    level of detail of ``fast.geometry.InstancedPlants`` whose outline error
+    level of detail of ``fast.instanced_plants.InstancedPlants`` whose outline error
     bound, seen at the depth of the plant's nearest bounding-sphere point, is
     at most this many pixels [px]: the middle levels (leaves with fewer
     outline points, bolls and tubes as proxies where close enough; surface
     within 1 cm / 2.5 cm of the full model) or the far level
-    (``fast.geometry.proxy_model_arrays``: each leaf, boll and stem part
+    (``fast.level_of_detail.proxy_model_arrays``: each leaf, boll and stem part
     replaced by a few triangles of the same area, ~4.5x fewer triangles);
     0 = always full detail.
     """

@@ -7,7 +7,7 @@ separate from the ODE dynamics. ``SensorScene`` holds the farm and builds,
 each on first use (so that only the backends in use pay for them):
 
 * ``fast_plants`` / ``fast_bvh``: the flat arrays of the numba backends
-  (``sensors.fast.geometry``: instanced plant meshes for the rasteriser;
+  (``sensors.fast.instanced_plants``: instanced plant meshes for the rasteriser;
   ``sensors.fast.bvh``: a bounding volume hierarchy for the ray caster);
 * the pybullet structures below (the ray-cast world takes 4-6 s to build
   on the default farm).
@@ -319,10 +319,10 @@ class SensorScene:
 
     @property
     def fast_plants(self):
-        """``fast.geometry.InstancedPlants`` of the farm (numba camera; built on first use)."""
+        """``fast.instanced_plants.InstancedPlants`` of the farm (numba camera; built on first use)."""
         self._require_open()
         if self._fast_plants is None:
-            from cottonsim_world.sensors.fast.geometry import InstancedPlants
+            from cottonsim_world.sensors.fast.instanced_plants import InstancedPlants
             cfg = self.config
             self._fast_plants = InstancedPlants(self.farm.plants, cfg.sun_direction, cfg.ambient_coeff,
                                                 cfg.diffuse_coeff, cfg.light_rgb)
