@@ -5,10 +5,11 @@ true north (ENU: yaw 0 = east, pi/2 = north). A UTM map's axes follow the
 UTM *grid*, whose north is turned against true north by the meridian
 convergence gamma ~ (lon - central meridian) * sin(lat): 0.08 deg at the
 default farm (49.9 N, 8.9 E), 1.1 deg at Lubbock, Texas (33.4 N, 101 W,
-zone 14), up to ~3 deg at a zone's edge in the north. A map whose positions
-come from UTM but whose heading comes from the IMU is therefore tilted by
-gamma: the robot drives at gamma to every lane and swerves back after each
-GPS correction. robot_localization's navsat_transform subtracts gamma for
+zone 14), up to ~3 deg at a zone's edge far north (~6 deg in the widened
+Svalbard zones). A map whose positions come from UTM but whose heading
+comes from the IMU is therefore tilted by gamma: the robot drives at gamma
+to every lane and swerves back after each GPS correction.
+robot_localization's navsat_transform corrects its IMU heading by gamma for
 that reason. UTM distances are also off by the grid scale factor (0.9996 on
 the central meridian, up to 1.001 at a zone edge).
 
