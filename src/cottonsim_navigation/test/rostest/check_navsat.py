@@ -10,6 +10,7 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import NavSatFix
 
+from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.geodesy import HectorGeodesy
 from wall_wait import wait_until
 
@@ -72,7 +73,9 @@ class NavsatTest(unittest.TestCase):
             rospy.rostime.wallsleep(0.05)
         rospy.sleep(0.5)
         # the datum is the spawn (Home: world (-6, 1)), heading west = pi in ENU
-        x, y, _ = HectorGeodesy().geodetic_to_world(datum.latitude, datum.longitude, 0.0)
+        # the simulator's own GPS reference (its settings, its default when they set none)
+        reference = simulator_config_from_dict(rospy.get_param("/sim_bridge/sim", {}) or {}).geodesy_reference
+        x, y, _ = HectorGeodesy(*reference).geodetic_to_world(datum.latitude, datum.longitude, 0.0)
         self.datum_world = (x, y)
         self.assertAlmostEqual(x, -6.0, delta=0.05)
         self.assertAlmostEqual(y, 1.0, delta=0.05)

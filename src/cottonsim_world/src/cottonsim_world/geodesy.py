@@ -16,7 +16,8 @@ radii of curvature at the reference latitude:
 
 with h the reference heading. With h = 0 world x points north and world y
 west (the original's setting); with h = 90 deg x points east and y north
-(ENU). ``HectorGeodesy`` implements this mapping and its exact inverse,
+(ENU). Longitudes are wrapped into [-180, 180] deg (a farm on the
+antimeridian), differences back into (-180, 180] for the inverse. ``HectorGeodesy`` implements this mapping and its exact inverse,
 vectorised over numpy arrays.
 
 ``GpsNoiseModel`` reproduces the plugin's error model (a per-axis offset, a
@@ -101,8 +102,10 @@ class HectorGeodesy:
             x, y = float(x_m), float(y_m)
             north = self._cos_h * x + self._sin_h * y
             west = -self._sin_h * x + self._cos_h * y
-            return (self.reference_latitude_deg + math.degrees(north / self.radius_north_m),
-                    self.reference_longitude_deg - math.degrees(west / self.radius_east_m),
+            lon = self.reference_longitude_deg - math.degrees(west / self.radius_east_m)
+            if not -180.0 <= lon <= 180.0:
+                lon = (lon + 180.0) % 360.0 - 180.0
+            return (self.reference_latitude_deg + math.degrees(north / self.radius_north_m), lon,
                     self.reference_altitude_m + float(z_m))
         scalar = all(np.ndim(v) == 0 for v in (x_m, y_m, z_m))
         x = _finite_array("x_m", x_m)
@@ -112,6 +115,7 @@ class HectorGeodesy:
         west = -self._sin_h * x + self._cos_h * y
         lat = self.reference_latitude_deg + np.degrees(north / self.radius_north_m)
         lon = self.reference_longitude_deg - np.degrees(west / self.radius_east_m)
+        lon = np.where((lon < -180.0) | (lon > 180.0), (lon + 180.0) % 360.0 - 180.0, lon)
         alt = self.reference_altitude_m + z
         lat, lon, alt = np.broadcast_arrays(lat, lon, alt)
         return _out(lat, lon, alt, scalar=scalar)
@@ -125,7 +129,9 @@ class HectorGeodesy:
         if np.any(np.abs(lat) > 90.0):
             raise ValueError("latitude_deg must be within [-90, 90]")
         north = np.radians(lat - self.reference_latitude_deg) * self.radius_north_m
-        west = -np.radians(lon - self.reference_longitude_deg) * self.radius_east_m
+        dlon = lon - self.reference_longitude_deg
+        dlon = np.where(np.abs(dlon) > 180.0, dlon - 360.0 * np.round(dlon / 360.0), dlon)
+        west = -np.radians(dlon) * self.radius_east_m
         # invert the rotation [north; west] = [[c, s], [-s, c]] [x; y]
         x = self._cos_h * north - self._sin_h * west
         y = self._sin_h * north + self._cos_h * west

@@ -72,6 +72,21 @@ def test_original_waypoint_file_round_trips():
     assert np.all(x < 0) and np.all((y > 3) & (y < 28))
 
 
+@pytest.mark.parametrize("ref_lon", [179.9999, -179.9999])
+def test_longitudes_wrap_at_the_antimeridian(ref_lon):
+    """A farm on the antimeridian: fixes stay in [-180, 180] deg and map back to the same world points."""
+    g = HectorGeodesy(reference_latitude_deg=-17.0, reference_longitude_deg=ref_lon)
+    y = np.array([-40.0, -5.0, 0.0, 5.0, 40.0])                       # world y west
+    lat, lon, _ = g.world_to_geodetic(np.zeros(5), y)
+    assert np.all((lon >= -180.0) & (lon <= 180.0))
+    assert np.any(np.sign(lon) != np.sign(ref_lon))                     # some points lie across it
+    for i in range(5):
+        assert g.world_to_geodetic(0.0, float(y[i]), 0.0)[1] == lon[i]
+    x2, y2, _ = g.geodetic_to_world(lat, lon)
+    np.testing.assert_allclose(y2, y, atol=1e-7)
+    np.testing.assert_allclose(x2, 0.0, atol=1e-7)
+
+
 def test_bad_input_raises():
     with pytest.raises(ValueError, match="reference_latitude_deg"):
         HectorGeodesy(reference_latitude_deg=90.0)

@@ -8,9 +8,10 @@ Frames: everything here is in the simulator's *world* frame [m] (ground
 truth). The planned route is brought into it from its own frame:
 
 * GPS routes ("lat lon" files): the simulator's GPS convention
-  (``cottonsim_world.geodesy.HectorGeodesy``, reference 49.9 / 8.9,
-  heading 0) maps lat/lon straight to world x/y, so errors can be computed in
-  metres as well as in degrees (the paper's E for GPS routes).
+  (``cottonsim_world.geodesy.HectorGeodesy`` at the simulator's
+  geodesy_reference, default 49.9 / 8.9, heading 0) maps lat/lon straight to
+  world x/y, so errors can be computed in metres as well as in degrees (the
+  paper's E for GPS routes), independent of the robot's own map frame.
 * map routes: the map frame starts at Home (the spawn pose), so
   world = Home composed with the map x/y.
 

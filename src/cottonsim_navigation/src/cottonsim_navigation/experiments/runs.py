@@ -264,6 +264,7 @@ def run_row_spacing(ws: Workspace, config: rs.RowSpacingStudyConfig = rs.RowSpac
 
 def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_dir: str, real_time_factor: float,
                           wall_timeout_s: float, runner: Callable) -> Dict:
+    from cottonsim_world.config_io import simulator_config_from_dict
     from cottonsim_world.farm.config import FarmConfig
     from cottonsim_world.geodesy import HectorGeodesy
 
@@ -277,7 +278,8 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
         farm = FarmConfig.from_dict(farm_settings)
         sim_yaml = write_sim_config(base_sim, {"seed": config.seed, "farm": farm_settings},
                                     os.path.join(run_dir, "sim.yaml"))
-        reference = load_yaml_file(sim_yaml, default={}).get("geodesy_reference", [49.9, 8.9, 0.0, 0.0])
+        # the simulator's GPS reference for these settings (its own default when the file has none)
+        reference = simulator_config_from_dict(load_yaml_file(sim_yaml, default={})).geodesy_reference
         geodesy = HectorGeodesy(*reference)
         route = os.path.join(run_dir, "route_gps.txt")
         with open(route, "w", encoding="utf-8") as fh:

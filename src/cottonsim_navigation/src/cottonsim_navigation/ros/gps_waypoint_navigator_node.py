@@ -3,8 +3,8 @@
 Replaces the original's GPS node, which listened on the wrong topic, sent the
 robot's own position as goal and took the goal yaw from the y coordinate.
 Here each waypoint is converted into the map frame (ENU at the GPS datum,
-the frame the GPS localisation publishes map -> odom in) with the same UTM
-conversion as navsat_transform, and faces the next waypoint.
+the frame the GPS localisation publishes map -> odom in) with the same
+geodesy as navsat_transform, and faces the next waypoint.
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from typing import List, Optional
 import rospy
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 
-from cottonsim_navigation.geodesy.utm import NavsatConfig, NavsatTransform
+from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.ros.waypoint_navigator import NavigatorStartError, WaypointNavigatorBase, run_node
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError, load_gps_lanes, load_gps_waypoints
 from cottonsim_navigation.waypoints.goals import gps_goals_in_map, gps_lanes_in_map
@@ -34,8 +34,10 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
       /navsat/fix (sensor_msgs/NavSatFix, ~fix_topic): used only when ~datum_topic is "": the first
         good fix (status >= STATUS_FIX, finite) after TF map -> base_link exists pins lat/lon to the
         robot's map pose. NaN fixes are ignored.
-    The map frame is ENU (x east, y north) at the datum, as navsat_transform builds it; the waypoints
-    are converted with the same UTM core (geodesy.utm.NavsatTransform).
+    The map frame is ENU (x east, y true north) at the datum, as navsat_transform builds it; the
+    waypoints are converted with the same core (geodesy.navsat.NavsatTransform, the tangent plane at
+    the datum). A datum outside 80 S .. 84 N or a waypoint over 100 km from it ends the route with
+    the reason in ~state.
     Parameters (private)
       ~datum (list [lat deg, lon deg], unset): lat/lon of the map origin (0, 0); when set, neither
         topic is needed
@@ -112,7 +114,11 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
             return
         with self._fix_lock:
             if not self.navsat.has_datum:
-                self.navsat.set_datum(latlon[0], latlon[1], 0.0, 0.0, 0.0, 0.0)    # ENU map, origin at the datum
+                try:
+                    self.navsat.set_datum(latlon[0], latlon[1], 0.0, 0.0, 0.0, 0.0)    # ENU map, origin at the datum
+                except ValueError as exc:
+                    rospy.logerr_throttle(10.0, f"{self.NAME}: datum not usable: {exc}")
+                    return
                 rospy.loginfo("%s: datum lat %.9f lon %.9f = map (0, 0)", self.NAME, latlon[0], latlon[1])
 
     def localisation_ready(self) -> bool:
@@ -126,8 +132,12 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
         if fix is None:
             return False
         # the fix is where the robot is now: that pins lat/lon onto the (ENU) map
-        self.navsat.set_datum(fix[0], fix[1], imu_yaw_rad=pose.yaw_rad, robot_x_m=pose.x_m, robot_y_m=pose.y_m,
-                              robot_yaw_rad=pose.yaw_rad)
+        try:
+            self.navsat.set_datum(fix[0], fix[1], imu_yaw_rad=pose.yaw_rad, robot_x_m=pose.x_m, robot_y_m=pose.y_m,
+                                  robot_yaw_rad=pose.yaw_rad)
+        except ValueError as exc:
+            rospy.logerr_throttle(10.0, f"{self.NAME}: the GPS fix cannot be the datum: {exc}")
+            return False
         rospy.loginfo("%s: datum lat %.9f lon %.9f at map (%.3f, %.3f)", self.NAME, fix[0], fix[1], pose.x_m,
                       pose.y_m)
         return True

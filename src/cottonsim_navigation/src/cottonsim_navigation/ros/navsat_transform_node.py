@@ -1,8 +1,10 @@
 """navsat_transform: GPS fixes -> positions in the ENU map frame (robot_localization's node, planar).
 
-The geodesy is ``cottonsim_navigation.geodesy.utm.NavsatTransform`` (UTM in
-the datum's zone). The map frame is ENU with its origin at the datum: x east,
-y north, so the datum fix is (0, 0) and the map's heading needs no rotation.
+The geodesy is ``cottonsim_navigation.geodesy.navsat.NavsatTransform``: the
+map frame is the ENU tangent plane at the datum, x east, y *true* north, so
+the datum fix is (0, 0) and the IMU's heading (true north) is the map's
+heading as it is, at any datum (a UTM-grid map would be turned against it by
+the meridian convergence; the geodesy module says why and by how much).
 The IMU only tells the robot's ENU heading at the datum (published as the
 datum yaw) and is converted with TF base_link <- imu_link, because the
 simulated IMU is mounted rotated (paper Table 1: pitch -90, yaw 180 deg).
@@ -20,7 +22,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
 from cottonsim_navigation.core.geometry import Pose2D, compose
-from cottonsim_navigation.geodesy.utm import NavsatConfig, NavsatTransform
+from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.localization.gps_localization import enu_yaw, robot_yaw_from_imu
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 from cottonsim_world.ros.conversions import finite_or_none, yaw_from_quaternion_msg
@@ -89,7 +91,8 @@ class NavsatTransformNode:
       ~magnetic_declination_radians (float, 0): [rad]
       ~zero_altitude (bool, true): z = 0; else z = altitude - datum altitude [m]
       ~wait_for_datum (bool, false) / ~datum ([lat deg, lon deg, yaw rad]): fixed datum instead of
-          the first fix after the delay (yaw = the IMU heading there, like robot_localization's)
+          the first fix after the delay (yaw = the IMU heading there, like robot_localization's);
+          a datum must lie in 80 S .. 84 N (UTM's range, robot_localization's too)
       ~publish_filtered_gps (bool, false)
       ~map_frame (str, map), ~odom_frame (str, odom), ~base_link_frame (str, base_link)
       ~datum_yaw (float, output): set once the datum is taken: the robot's ENU heading there [rad, 0 = east]
@@ -151,7 +154,10 @@ class NavsatTransformNode:
             self._fix_is_new = True
             if (not self.transform.has_datum and self._imu_yaw is not None
                     and now_s - self._first_fix_s >= self.config.delay):
-                self._set_datum(msg.latitude, msg.longitude, msg.altitude, self._imu_yaw, msg.header.stamp)
+                try:
+                    self._set_datum(msg.latitude, msg.longitude, msg.altitude, self._imu_yaw, msg.header.stamp)
+                except ValueError as exc:
+                    rospy.logerr_throttle(5.0, f"navsat_transform: no datum taken at this fix: {exc}")
 
     def _on_odom(self, msg: Odometry):
         p, q = msg.pose.pose.position, msg.pose.pose.orientation

@@ -9,8 +9,8 @@ turned towards where it drives next and never spins in place in the middle of
 a straight pass; the last goal keeps the heading of the final leg.
 
 GPS waypoints become map-frame goals through a
-:class:`~cottonsim_navigation.geodesy.utm.NavsatTransform` (the same UTM
-conversion as the navsat/GPS localisation, so a goal and the robot's own
+:class:`~cottonsim_navigation.geodesy.navsat.NavsatTransform` (the same ENU
+map frame as the navsat/GPS localisation, so a goal and the robot's own
 GPS-based position share any projection error and it cancels).
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from cottonsim_navigation.geodesy.utm import NavsatTransform
+from cottonsim_navigation.geodesy.navsat import NavsatTransform
 from cottonsim_navigation.waypoints.files import GpsWaypoint, MapWaypoint
 
 GOAL_YAW_MODES = ("toward_next", "file")

@@ -1,9 +1,9 @@
-"""UTM and navsat transform checks with independently known values."""
+"""UTM checks with independently known values (the GPS map frame itself: test_nav_navsat.py)."""
 import math
 
 import pytest
 
-from cottonsim_navigation.geodesy.utm import (NavsatConfig, NavsatTransform, latlon_to_utm, utm_to_latlon,
+from cottonsim_navigation.geodesy.utm import (latlon_to_utm, utm_band, utm_meridian_convergence_rad, utm_to_latlon,
                                               utm_zone)
 
 
@@ -38,29 +38,30 @@ def test_round_trip(lat, lon):
     assert la == pytest.approx(lat, abs=1e-9) and lo == pytest.approx(lon, abs=1e-9)
 
 
-def test_navsat_datum_is_origin_and_axes():
-    # IMU heading 0 = north with yaw_offset pi/2 means the robot faces north; map x = forward = north
-    nt = NavsatTransform(NavsatConfig())
-    x, y, z = nt.fix_to_map(49.9, 8.9, 120.0, imu_yaw_rad=0.0)
-    assert (x, y, z) == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
-    dlat = 10.0 / 6371000.0 * 180 / math.pi            # ~10 m north
-    x, y, _ = nt.fix_to_map(49.9 + dlat, 8.9)
-    assert x == pytest.approx(10.0, rel=2e-3) and abs(y) < 0.05
-    dlon = dlat / math.cos(math.radians(49.9))          # ~10 m east -> map -y (right of the robot)
-    x, y, _ = nt.fix_to_map(49.9, 8.9 + dlon)
-    assert y == pytest.approx(-10.0, rel=5e-3) and abs(x) < 0.05
-    la, lo = nt.map_to_latlon(3.0, -4.0)
-    x, y, _ = nt.fix_to_map(la, lo)
-    assert (x, y) == pytest.approx((3.0, -4.0), abs=1e-6)
+def test_utm_limits_refused_clearly():
+    # UTM spans 80 S .. 84 N: the limits themselves are inside, anything beyond is refused by name
+    assert latlon_to_utm(84.0, 20.0)[3] == "X" and latlon_to_utm(-80.0, -70.0)[3] == "C"
+    assert utm_band(83.9999) == "X" and utm_zone(84.0, 20.0) == 34
+    for lat in (84.0001, -80.0001, 90.0, -90.0):
+        for call in (lambda: latlon_to_utm(lat, 10.0), lambda: utm_zone(lat, 10.0), lambda: utm_band(lat),
+                     lambda: utm_meridian_convergence_rad(lat, 10.0)):
+            with pytest.raises(ValueError, match="UTM is defined for latitudes -80 .. 84"):
+                call()
 
 
-def test_navsat_continuous_across_zone_edge():
-    nt = NavsatTransform(NavsatConfig(yaw_offset=0.0))       # ENU map
-    lat = 10.0
-    nt.set_datum(lat, 5.9999)
-    x1, _, _ = nt.fix_to_map(lat, 5.99995)
-    x2, _, _ = nt.fix_to_map(lat, 6.00005)                    # other zone, same datum zone
-    step = (0.0001 * math.pi / 180) * 6378137 * math.cos(math.radians(lat))
-    assert x2 - x1 == pytest.approx(step, rel=1e-2)
-    with pytest.raises(ValueError, match="datum"):
-        NavsatTransform().map_to_latlon(0, 0)
+def _grid_bearing_of_true_north_rad(lat, lon, zone=None):
+    """Bearing (clockwise from grid north) of a 1 m segment along the meridian, projected into UTM."""
+    dlat = 1.0 / 111_000.0
+    e0, n0, zone, _ = latlon_to_utm(lat - dlat / 2, lon, zone=zone, northern=lat >= 0)
+    e1, n1, _, _ = latlon_to_utm(lat + dlat / 2, lon, zone=zone, northern=lat >= 0)
+    return math.atan2(e1 - e0, n1 - n0)
+
+
+@pytest.mark.parametrize("lat,lon,zone,approx_deg", [
+    (49.9, 8.9, None, -0.077), (33.4, -101.0, None, -1.10), (-30.3, 149.8, None, -1.41),
+    (-33.9, 18.4, None, 1.45), (60.0, 4.0, None, -4.33), (78.0, 20.9, None, 5.77), (10.0, 6.002, 31, 0.521)])
+def test_meridian_convergence_matches_a_projected_true_north_segment(lat, lon, zone, approx_deg):
+    # PROJ's gamma, checked against UTM itself: true north lies at grid bearing -gamma
+    gamma = utm_meridian_convergence_rad(lat, lon, zone)
+    assert math.degrees(gamma) == pytest.approx(approx_deg, abs=0.01)
+    assert _grid_bearing_of_true_north_rad(lat, lon, zone) == pytest.approx(-gamma, abs=1e-6)

@@ -4,7 +4,7 @@ from typing import Optional, Tuple
 
 import pytest
 
-from cottonsim_navigation.geodesy.utm import NavsatConfig
+from cottonsim_navigation.geodesy.navsat import NavsatConfig
 from cottonsim_navigation.power.battery import BatteryConfig
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 

@@ -3,8 +3,9 @@ import math
 
 import numpy as np
 import pytest
+from pyproj import Geod
 
-from cottonsim_navigation.geodesy.utm import NavsatConfig, NavsatTransform, latlon_to_utm
+from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.waypoints.files import GpsWaypoint, MapWaypoint, load_gps_waypoints, load_map_waypoints
 from cottonsim_navigation.waypoints.goals import gps_goals_in_map, map_goals, route_headings
 
@@ -44,14 +45,15 @@ def test_gps_goals_are_enu_metres_from_the_datum():
     # about 11 m north, then about 7 m east of that (1e-4 deg lat ~ 11.1 m, 1e-4 deg lon ~ 7.2 m here)
     wps = [GpsWaypoint(lat0 + 1e-4, lon0), GpsWaypoint(lat0 + 1e-4, lon0 + 1e-4, "b")]
     goals = gps_goals_in_map(wps, nav)
-    e0, n0, zone, _ = latlon_to_utm(lat0, lon0)
+    geod = Geod(ellps="WGS84")           # independent: true distance and azimuth from the datum
     for w, g in zip(wps, goals):
-        e, n, _, _ = latlon_to_utm(w.lat, w.lon, zone=zone)
-        assert (g.x_m, g.y_m) == pytest.approx((e - e0, n - n0), abs=1e-6)
-    assert goals[0].y_m == pytest.approx(11.1, abs=0.1) and abs(goals[0].x_m) < 0.1
+        az, _, d = geod.inv(lon0, lat0, w.lon, w.lat)
+        assert (g.x_m, g.y_m) == pytest.approx((d * math.sin(math.radians(az)), d * math.cos(math.radians(az))),
+                                               abs=1e-4)
+    assert goals[0].y_m == pytest.approx(11.1, abs=0.1) and abs(goals[0].x_m) < 1e-6
     assert goals[1].x_m - goals[0].x_m == pytest.approx(7.2, abs=0.1)
-    # first goal faces the second (east, with UTM grid convergence of ~0.1 deg), last keeps that heading
-    assert goals[0].yaw_rad == pytest.approx(0.0, abs=0.01)
+    # first goal faces the second (true east: the map has no grid convergence), last keeps that heading
+    assert goals[0].yaw_rad == pytest.approx(0.0, abs=1e-5)
     assert goals[1].yaw_rad == pytest.approx(goals[0].yaw_rad)
     assert [g.label for g in goals] == ["1", "b"]
 
@@ -89,6 +91,25 @@ def test_shipped_route_files_read_and_match():
     # lane centres at x = -1.43 - 1.8 k
     lanes = np.round((-1.43 - x) / 1.8)
     assert np.allclose(x, -1.43 - 1.8 * lanes, atol=1e-3)
+
+
+def test_off_meridian_rostest_route_is_the_default_farm_route_at_its_reference():
+    """gps_route_lubbock.txt (gps_navigator_off_meridian.test) = the farm's first 6 route points
+    through the simulator's GPS at nav_ci_lubbock.yaml's reference, as generate_farm writes them."""
+    import yaml
+    from cottonsim_navigation.evaluation.experiment import sim_world_from_settings
+    from cottonsim_world.config_io import simulator_config_from_dict
+    from cottonsim_world.farm.export import route_in_frame
+    from cottonsim_world.farm.generator import generate_farm
+    rostest_dir = PKG / "test" / "rostest"
+    with open(rostest_dir / "nav_ci_lubbock.yaml", encoding="utf-8") as fh:
+        settings = yaml.safe_load(fh)
+    world = sim_world_from_settings(settings)
+    assert (world.geodesy.reference_latitude_deg, world.geodesy.reference_longitude_deg) == (33.4, -101.0)
+    wps = load_gps_waypoints(rostest_dir / "gps_route_lubbock.txt")
+    x, y, _ = world.geodesy.geodetic_to_world(np.array([w.lat for w in wps]), np.array([w.lon for w in wps]))
+    route = route_in_frame(generate_farm(simulator_config_from_dict(settings).farm))[:6, :2]
+    np.testing.assert_allclose(np.stack([x, y], axis=1), route, atol=1e-6)
 
 
 def test_pass_through_flags_mark_straight_on_waypoints_not_turns():
