@@ -31,7 +31,8 @@ from cottonsim_world.sensors.camera import CameraConfig, CameraModel  # noqa: E4
 from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, cloud_to_laserscan,  # noqa: E402
                                                    original_passthrough_mask)
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model  # noqa: E402
-from cottonsim_world.sensors.scene import SceneConfig, SensorScene, standin_farm  # noqa: E402
+from cottonsim_world.sensors.scene import SceneConfig, SensorScene  # noqa: E402
+from cottonsim_world.sensors.standin_plants import standin_farm  # noqa: E402
 
 
 def optical_pose(x, y, z, yaw, pitch_down=0.0):

@@ -7,7 +7,8 @@ import pytest
 
 from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel
-from cottonsim_world.sensors.scene import SceneConfig, SensorScene, standin_plant_model
+from cottonsim_world.sensors.scene import SceneConfig, SensorScene
+from cottonsim_world.sensors.standin_plants import standin_plant_model
 from world_camera_poses import optical_pose
 
 
@@ -21,7 +22,7 @@ def quad_model(half_width, height, rgba=(0.2, 0.6, 0.2, 1.0)):
 
 
 def sphere_model(centre, radius):
-    from cottonsim_world.sensors.scene import _sphere_mesh
+    from cottonsim_world.sensors.standin_plants import _sphere_mesh
     v, f = _sphere_mesh(radius, centre, rings=10, segments=16)
     mesh = TriangleMesh(v.astype(np.float32), f.astype(np.int32), (1.0, 1.0, 1.0, 1.0), SemanticClass.BOLL)
     return PlantModel({"boll": mesh}, [], np.array([centre]), np.array([radius]), centre[2] + radius, 2 * radius)

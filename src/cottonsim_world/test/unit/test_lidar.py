@@ -9,7 +9,8 @@ from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughC
                                                    cloud_to_laserscans, original_passthrough, original_passthrough_mask,
                                                    passthrough)
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
-from cottonsim_world.sensors.scene import SceneConfig, SensorScene, standin_plant_model
+from cottonsim_world.sensors.scene import SceneConfig, SensorScene
+from cottonsim_world.sensors.standin_plants import standin_plant_model
 
 
 def wall_farm(distance_m):

@@ -37,14 +37,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Dict, List, Mapping, Optional, Sequence, Set, Tuple
+from typing import TYPE_CHECKING, Dict, List, Optional, Sequence, Set, Tuple
 
 import cv2
 import numpy as np
 import pybullet as pb
 
-from cottonsim_world.farm.model import (Farm, Lane, Plant, PlantModel, Pose2D,
-                                        Primitive, SemanticClass, TriangleMesh)
+from cottonsim_world.farm.model import Farm, Plant, SemanticClass, TriangleMesh
+from cottonsim_world.transforms import quaternion_from_yaw
+
+if TYPE_CHECKING:                       # pragma: no cover
+    from cottonsim_world.sensors.render_client import RenderClient
 
 _COLLISION_SOURCES = ("meshes", "primitives")
 
@@ -125,10 +128,6 @@ def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
     return m
 
 
-def _yaw_quat(yaw: float) -> Tuple[float, float, float, float]:
-    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
-
-
 def _merge(meshes: Sequence[TriangleMesh]) -> Tuple[np.ndarray, np.ndarray]:
     """Concatenate meshes into one (vertices, faces) pair."""
     verts, faces, offset = [], [], 0
@@ -148,103 +147,6 @@ def _validate_model(plant: Plant) -> None:
             raise ValueError(f"plant {plant.plant_id} mesh {name!r}: vertices must be finite (N, 3)")
         if f.ndim != 2 or f.shape[1] != 3 or (f.size and (f.min() < 0 or f.max() >= len(v))):
             raise ValueError(f"plant {plant.plant_id} mesh {name!r}: faces must be (M, 3) indices < {len(v)}")
-
-
-class RenderClient:
-    """A pybullet DIRECT client holding only the plants one camera needs.
-
-    Each plant becomes one multibody with no visual on its base and one link
-    per material name known to the scene (same order for every plant; an
-    empty visual where a plant lacks that material). With the segmentation
-    flag OBJECT_AND_LINKINDEX a pixel value is ``body + ((link + 1) << 24)``,
-    so ``link_semantic_lut[value >> 24]`` gives the SemanticClass and
-    ``plant_of_body[value & 0xFFFFFF]`` the plant id.
-    """
-
-    def __init__(self, scene: "SensorScene", renderer: str = "tiny") -> None:
-        self.scene = scene
-        self.client = pb.connect(pb.DIRECT)
-        self.renderer_flag = pb.ER_TINY_RENDERER
-        self.renderer = "tiny"
-        if renderer == "egl":
-            self._try_egl()
-        self._visuals: Dict[int, List[int]] = {}        # id(plant model) -> visual id per material
-        self._bodies: Dict[int, int] = {}               # plant index -> body id
-        self.plant_of_body = np.full(1, -1, dtype=np.int32)
-
-    def _try_egl(self) -> None:
-        import pkgutil
-        import warnings
-        try:
-            loader = pkgutil.get_loader("eglRenderer")
-            if loader is None:
-                raise RuntimeError("pybullet's eglRenderer module is not installed")
-            plugin = pb.loadPlugin(loader.get_filename(), "_eglRendererPlugin", physicsClientId=self.client)
-            if plugin < 0:
-                raise RuntimeError("loadPlugin returned -1")
-        except Exception as exc:  # any failure: keep TinyRenderer
-            warnings.warn(f"EGL renderer unavailable ({exc}); falling back to TinyRenderer")
-            return
-        self.renderer_flag = pb.ER_BULLET_HARDWARE_OPENGL
-        self.renderer = "egl"
-
-    @property
-    def loaded_plants(self) -> Set[int]:
-        """Indices (into farm.plants) of the plants currently in this client."""
-        return set(self._bodies)
-
-    def _visual_ids(self, idx: int) -> List[int]:
-        plant = self.scene.farm.plants[idx]
-        key = id(plant.model)            # plants sharing a model variant share its visual shapes
-        if key not in self._visuals:
-            ids = []
-            for name in self.scene.material_names:
-                mesh = plant.model.meshes.get(name)
-                if mesh is None or len(mesh.faces) == 0:
-                    ids.append(-1)
-                    continue
-                ids.append(pb.createVisualShape(
-                    pb.GEOM_MESH, vertices=np.asarray(mesh.vertices, float).tolist(),
-                    indices=np.asarray(mesh.faces, np.int64).ravel().tolist(),
-                    rgbaColor=list(mesh.rgba), specularColor=[0.05, 0.05, 0.05],
-                    physicsClientId=self.client))
-            self._visuals[key] = ids
-        return self._visuals[key]
-
-    def sync(self, wanted: Set[int]) -> Tuple[int, int]:
-        """Add the plants in ``wanted`` that are missing, remove the others.
-
-        Returns (added, removed) counts.
-        """
-        current = set(self._bodies)
-        remove, add = current - wanted, wanted - current
-        for idx in remove:
-            pb.removeBody(self._bodies.pop(idx), physicsClientId=self.client)
-        for idx in sorted(add):
-            plant = self.scene.farm.plants[idx]
-            vis = self._visual_ids(idx)
-            n = len(vis)
-            body = pb.createMultiBody(
-                baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
-                basePosition=[plant.x_m, plant.y_m, 0.0], baseOrientation=_yaw_quat(plant.yaw_rad),
-                linkMasses=[0.0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=vis,
-                linkPositions=[[0.0, 0.0, 0.0]] * n, linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
-                linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n,
-                linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
-                linkParentIndices=[0] * n, linkJointTypes=[pb.JOINT_FIXED] * n,
-                linkJointAxis=[[0.0, 0.0, 1.0]] * n, physicsClientId=self.client)
-            self._bodies[idx] = body
-            if body >= len(self.plant_of_body):
-                grown = np.full(max(2 * len(self.plant_of_body), body + 1), -1, dtype=np.int32)
-                grown[:len(self.plant_of_body)] = self.plant_of_body
-                self.plant_of_body = grown
-            self.plant_of_body[body] = plant.plant_id
-        return len(add), len(remove)
-
-    def close(self) -> None:
-        if self.client is not None and pb.isConnected(self.client):
-            pb.disconnect(self.client)
-        self.client = None
 
 
 class SensorScene:
@@ -278,7 +180,7 @@ class SensorScene:
             lut[i + 1] = sem
         self.link_semantic_lut = lut
         self._bounding_spheres = self._plant_bounds()
-        self._render_clients: List[RenderClient] = []
+        self._render_clients: List["RenderClient"] = []
         self._build_soil_texture()
         # built on first use: only the backends in use pay for their structures
         self._ray_client: Optional[int] = None
@@ -400,9 +302,11 @@ class SensorScene:
         index = np.nonzero(keep)[0].astype(np.int64)
         return index, z[index] - rad[index]
 
-    def new_render_client(self, renderer: str = "tiny") -> RenderClient:
+    def new_render_client(self, renderer: str = "tiny") -> "RenderClient":
         """A fresh, empty render client (one per camera)."""
         self._require_open()
+        from cottonsim_world.sensors.render_client import RenderClient     # local: it refers back to the scene
+
         rc = RenderClient(self, renderer)
         self._render_clients.append(rc)
         return rc
@@ -413,7 +317,7 @@ class SensorScene:
         ground = pb.createMultiBody(0.0, plane, -1, [0.0, 0.0, 0.0], physicsClientId=cid)
         self._body_info[ground] = (SemanticClass.GROUND, -1)
         for plant in self.farm.plants:
-            pos, orn = [plant.x_m, plant.y_m, 0.0], _yaw_quat(plant.yaw_rad)
+            pos, orn = [plant.x_m, plant.y_m, 0.0], quaternion_from_yaw(plant.yaw_rad)
             for sem in (SemanticClass.PLANT, SemanticClass.BOLL):
                 shape = self._collision_shape(plant, sem)
                 if shape < 0:
@@ -559,93 +463,3 @@ class SensorScene:
 
 
 # ---------------------------------------------------------------- stand-ins
-def _cylinder_mesh(radius: float, z0: float, z1: float, segments: int = 12) -> Tuple[np.ndarray, np.ndarray]:
-    ang = np.linspace(0.0, 2 * math.pi, segments, endpoint=False)
-    ring = np.stack([radius * np.cos(ang), radius * np.sin(ang)], axis=1)
-    verts = np.concatenate([np.c_[ring, np.full(segments, z0)], np.c_[ring, np.full(segments, z1)],
-                            [[0.0, 0.0, z0], [0.0, 0.0, z1]]])
-    faces = []
-    for i in range(segments):
-        j = (i + 1) % segments
-        faces += [[i, j, segments + j], [i, segments + j, segments + i],
-                  [2 * segments, j, i], [2 * segments + 1, segments + i, segments + j]]
-    return verts, np.array(faces)
-
-
-def _sphere_mesh(radius: float, centre: Sequence[float], rings: int = 5, segments: int = 8
-                 ) -> Tuple[np.ndarray, np.ndarray]:
-    verts = [[0.0, 0.0, radius]]
-    for i in range(1, rings):
-        th = math.pi * i / rings
-        for j in range(segments):
-            ph = 2 * math.pi * j / segments
-            verts.append([radius * math.sin(th) * math.cos(ph), radius * math.sin(th) * math.sin(ph),
-                          radius * math.cos(th)])
-    verts.append([0.0, 0.0, -radius])
-    faces = []
-    for j in range(segments):
-        faces.append([0, 1 + j, 1 + (j + 1) % segments])
-    for i in range(rings - 2):
-        a, b = 1 + i * segments, 1 + (i + 1) * segments
-        for j in range(segments):
-            k = (j + 1) % segments
-            faces += [[a + j, b + j, b + k], [a + j, b + k, a + k]]
-    last, a = len(verts) - 1, 1 + (rings - 2) * segments
-    for j in range(segments):
-        faces.append([a + j, last, a + (j + 1) % segments])
-    return np.asarray(verts) + np.asarray(centre, float), np.array(faces)
-
-
-def standin_plant_model(seed: int = 0, height_m: float = 1.0, width_m: float = 0.7,
-                        bolls: int = 8) -> PlantModel:
-    """A simple plant for tests and benchmarks when farm.plant_model is absent.
-
-    A thin brown stem, a green cylindrical canopy from 0.25 m to the top and
-    white spheres (bolls) on the canopy surface.
-    """
-    rng = np.random.default_rng(seed)
-    sv, sf = _cylinder_mesh(0.015, 0.0, height_m, 6)
-    cv_, cf = _cylinder_mesh(width_m / 2, 0.25 * height_m, height_m, 12)
-    radii = np.full(bolls, 0.035)
-    ang = rng.uniform(0, 2 * math.pi, bolls)
-    zs = rng.uniform(0.35 * height_m, 0.95 * height_m, bolls)
-    centres = np.stack([(width_m / 2 + 0.01) * np.cos(ang), (width_m / 2 + 0.01) * np.sin(ang), zs], axis=1)
-    bv, bf = [], []
-    for c in centres:
-        v, f = _sphere_mesh(0.035, c)
-        bf.append(f + sum(len(x) for x in bv))
-        bv.append(v)
-    meshes = {
-        "stem": TriangleMesh(sv.astype(np.float32), sf.astype(np.int32), (0.42, 0.30, 0.18, 1.0), SemanticClass.PLANT),
-        "leaf": TriangleMesh(cv_.astype(np.float32), cf.astype(np.int32), (0.20, 0.50, 0.16, 1.0), SemanticClass.PLANT),
-    }
-    if bolls:
-        meshes["boll"] = TriangleMesh(np.concatenate(bv).astype(np.float32), np.concatenate(bf).astype(np.int32),
-                                      (0.96, 0.96, 0.94, 1.0), SemanticClass.BOLL)
-    collision = [Primitive("cylinder", (0.0, 0.0, 0.5 * height_m), (0.0, 0.0, 0.0, 1.0), (0.015, height_m), "stem"),
-                 Primitive("cylinder", (0.0, 0.0, 0.625 * height_m), (0.0, 0.0, 0.0, 1.0),
-                           (width_m / 2, 0.75 * height_m), "canopy")]
-    return PlantModel(meshes=meshes, collision=collision, boll_centres=centres, boll_radii=radii,
-                      height_m=height_m, width_m=width_m)
-
-
-def standin_farm(rows: int = 9, plants_per_row: int = 20, row_spacing_m: float = 1.8,
-                 plant_spacing_m: float = 0.7, first_row_x_m: float = -2.35, first_plant_y_m: float = 9.0,
-                 models: Optional[Mapping[int, PlantModel]] = None) -> Farm:
-    """A farm laid out like the default one (rows along +y, first row east-most).
-
-    Uses ``standin_plant_model`` (4 variants) unless ``models`` maps plant
-    ids to models. Lanes lie midway between rows and outside the outer rows.
-    """
-    variants = [standin_plant_model(seed=s) for s in range(4)]
-    plants = []
-    for r in range(rows):
-        for i in range(plants_per_row):
-            pid = r * plants_per_row + i
-            model = models[pid] if models is not None and pid in models else variants[pid % 4]
-            plants.append(Plant(pid, r, i, first_row_x_m - r * row_spacing_m, first_plant_y_m + i * plant_spacing_m,
-                                (pid * 1.3) % (2 * math.pi), model))
-    y_end = first_plant_y_m + (plants_per_row - 1) * plant_spacing_m
-    lanes = [Lane(k, first_row_x_m + row_spacing_m / 2 - k * row_spacing_m, first_plant_y_m, y_end)
-             for k in range(rows + 1)]
-    return Farm(config=None, plants=plants, lanes=lanes, spawn=Pose2D(-6.0, 1.0, math.pi / 2))
