@@ -273,7 +273,7 @@ def test_data_yaml_errors_name_the_problem(tmp_path, yaml_text, files, message):
         assert "no 'test' entry" in str(info.value)
 
 
-def test_join_polygons_rasterises_to_the_union_of_separate_regions():
+def test_join_polygons_rasterizes_to_the_union_of_separate_regions():
     rng = np.random.default_rng(3)
     h, w = 60, 80
     # Disjoint blobs (some with holes) traced into polygons by the label tracer.
