@@ -259,6 +259,7 @@ def test_data_yaml_falls_back_to_the_split_folders(tmp_path):
     ("val: 3\n", {}, "'val' must be a path or a list of paths"),
     ("path: [a]\nval: images\n", {}, "'path' must be a folder path"),
     ("val: images\n", {}, "split 'test' not found"),
+    ("val: images\nval: other\n", {}, "key 'val' is given twice, on lines 1 and 2"),
 ])
 def test_data_yaml_errors_name_the_problem(tmp_path, yaml_text, files, message):
     root = str(tmp_path)
