@@ -4,7 +4,7 @@
 Measures the whole per-frame work of the perception nodes:
 Predictor.predict (letterbox + network + post-processing + masks mapped back
 to 640x480) and, for the segmenter, the label image the row-centring node
-reads (localisation.label_image_from_detections), for the scene segmenter
+reads (localization.label_image_from_detections), for the scene segmenter
 and the boll detector at 1 and 2 torch threads. By default the weights the
 nodes run (src/cottonsim_perception/weights/: scene_segmenter.pt and
 boll_detector_sim.pt; --det-weights boll_detector.pt times the paper-domain
@@ -14,7 +14,7 @@ the instances a trained model really outputs; --random-weights measures an
 untrained network of the default (or given) configuration instead.
 
 By default the networks run as the nodes run them (Predictor's frozen
-channels-last TorchScript graph, ``nn.optimise``); --eager times the fused
+channels-last TorchScript graph, ``nn.optimize``); --eager times the fused
 eager model instead (the state before that optimisation), for comparison.
 
 Printed per case: median and 10th percentile wall ms per frame (the median is
@@ -46,7 +46,7 @@ import numpy as np
 import torch
 
 from cottonsim_perception.inference import Predictor
-from cottonsim_perception.localisation import label_image_from_detections
+from cottonsim_perception.localization import label_image_from_detections
 from cottonsim_perception.nn.models import ModelConfig, build_model, count_parameters, save_checkpoint
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -171,11 +171,11 @@ def main() -> int:
             if a.compare:
                 for threads in thread_counts:
                     if task == "seg" and a.seg_weights_b:
-                        preds = {os.path.basename(q): Predictor(q, threads=threads, optimise=True)
+                        preds = {os.path.basename(q): Predictor(q, threads=threads, optimize=True)
                                  for q in (path, a.seg_weights_b)}
                     else:
-                        preds = {"eager": Predictor(path, threads=threads, optimise=False),
-                                 "frozen": Predictor(path, threads=threads, optimise=True)}
+                        preds = {"eager": Predictor(path, threads=threads, optimize=False),
+                                 "frozen": Predictor(path, threads=threads, optimize=True)}
                     variants = {}
                     for name, p in preds.items():
                         if task == "seg":
@@ -187,16 +187,16 @@ def main() -> int:
                           f"{a.rounds} interleaved rounds: " + ", ".join(f"{k} {v:.1f}" for k, v in best.items()))
                 continue
             for threads in thread_counts:
-                p = Predictor(path, conf_threshold=0.25, threads=threads, optimise=not a.eager)
+                p = Predictor(path, conf_threshold=0.25, threads=threads, optimize=not a.eager)
                 cfg = p.config
                 if threads == thread_counts[0]:
                     print(f"\n{task}: {os.path.basename(path)}, input {cfg.input_width}x{cfg.input_height}, "
                           f"width {cfg.width_multiple}, params {count_parameters(p.model) / 1e6:.3f} M, "
                           f"{gflops(p.model, cfg.input_height, cfg.input_width):.2f} GFLOPs, "
-                          f"{'frozen TorchScript, channels-last' if p.optimised else 'eager'}; "
+                          f"{'frozen TorchScript, channels-last' if p.optimized else 'eager'}; "
                           f"frames: {source} ({len(frames)})")
                 x = [torch.rand(1, 3, cfg.input_height, cfg.input_width)]
-                if p.optimised:
+                if p.optimized:
                     x = [x[0].contiguous(memory_format=torch.channels_last)]
                 net = time_frames(p.network, x, a.frames)
                 if task == "seg":

@@ -4,8 +4,8 @@
 frame to the network input, runs the network on the CPU (or a given device)
 and returns :class:`~cottonsim_perception.types.Detections` in the frame's own
 pixels. For inference the BatchNorms are folded into the convolutions and,
-with ``optimise`` (the default), the network runs as a frozen channels-last
-TorchScript graph (``nn.optimise``; same outputs up to float rounding).
+with ``optimize`` (the default), the network runs as a frozen channels-last
+TorchScript graph (``nn.optimize``; same outputs up to float rounding).
 
 :func:`class_masks` merges the instance masks of a scene segmentation into one
 mask per class (what row centring needs: the ground and sky regions).
@@ -21,7 +21,7 @@ import torch
 from .nn.blocks import fuse_model
 from .nn.letterbox import LetterboxTransform, letterbox
 from .nn.models import load_model
-from .nn.optimise import freeze_for_inference
+from .nn.optimize import freeze_for_inference
 from .nn.postprocess import PostprocessConfig, postprocess
 from .types import Detections
 
@@ -44,8 +44,8 @@ class Predictor:
     weights_path: checkpoint written by ``train`` / ``save_checkpoint``;
     device: torch device string; conf_threshold: minimum class probability
     (0..1); iou_threshold: NMS IoU (0..1); threads: torch CPU threads (None
-    leaves torch's setting; note it is process-wide); optimise: run the
-    network as a frozen channels-last TorchScript graph (``nn.optimise``;
+    leaves torch's setting; note it is process-wide); optimize: run the
+    network as a frozen channels-last TorchScript graph (``nn.optimize``;
     False runs the fused eager model, e.g. to compare); mask_threshold: mask
     pixel probability threshold (0..1); None (default) = the value calibrated
     for these weights and stored in the checkpoint (``scripts/calibrate_mask_threshold``),
@@ -58,7 +58,7 @@ class Predictor:
     """
 
     def __init__(self, weights_path: str, device: str = "cpu", conf_threshold: float = 0.25,
-                 iou_threshold: float = 0.7, threads: Optional[int] = None, optimise: bool = True,
+                 iou_threshold: float = 0.7, threads: Optional[int] = None, optimize: bool = True,
                  mask_threshold: Optional[float] = None, flip_tta: bool = False):
         if threads is not None:
             if not isinstance(threads, int) or threads < 1:
@@ -78,11 +78,11 @@ class Predictor:
             raise ValueError(f"flip_tta is for detectors only; {weights_path} is a {self.config.task} network")
         self.flip_tta = bool(flip_tta)
         self._network = self.model
-        self.optimised = False
-        if optimise:
+        self.optimized = False
+        if optimize:
             try:
                 self._network = freeze_for_inference(self.model, self.config.input_height, self.config.input_width)
-                self.optimised = True
+                self.optimized = True
             except (RuntimeError, AttributeError) as exc:   # a torch without TorchScript: stay eager
                 warnings.warn(f"Predictor: frozen TorchScript unavailable ({exc}); running the eager model")
 
@@ -110,7 +110,7 @@ class Predictor:
         img, tf = letterbox(image_rgb, self.config.input_width, self.config.input_height)
         # (H, W, 3) uint8 viewed as (1, 3, H, W): already channels-last, no copy before the float cast
         x = torch.from_numpy(img).to(self.device).permute(2, 0, 1)[None]
-        if not self.optimised:
+        if not self.optimized:
             x = x.contiguous()      # the eager model keeps NCHW weights
         x = x.float().div_(255.0)
         with torch.inference_mode():

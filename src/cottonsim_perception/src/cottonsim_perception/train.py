@@ -21,7 +21,7 @@ import copy
 import math
 import os
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -194,14 +194,16 @@ def _datasets(cfg: TrainConfig, width: int, height: int, dataset_cls, log: Calla
     """
     from torch.utils.data import ConcatDataset
 
+    from .data.yolo_format import class_names_for
+
     trains, vals, names = [], [], None
     for k, root in enumerate((cfg.data_dir,) + cfg.extra_data_dirs):
         tr = dataset_cls(root, "train", cfg.task, (width, height), augment=True, seed=cfg.seed + 7919 * k,
                          class_names=names)
         if names is None:
             names = tuple(tr.class_names)
-        elif tuple(yf_class_names(root, cfg.task)) != names:
-            raise ValueError(f"{root}: class names {yf_class_names(root, cfg.task)} differ from "
+        elif tuple(class_names_for(root, cfg.task)) != names:
+            raise ValueError(f"{root}: class names {class_names_for(root, cfg.task)} differ from "
                              f"{cfg.data_dir}'s {names}")
         tr.augment_config = type(tr.augment_config)(rotation_deg=cfg.rotation_deg, mosaic_prob=cfg.mosaic_prob)
         if len(tr) == 0:
@@ -225,12 +227,6 @@ def _has_images(root: str, split: str) -> bool:
         return bool(list_pairs(root, split))
     except LabelFormatError:
         return False
-
-
-def yf_class_names(root: str, task: str):
-    from .data.yolo_format import class_names_for
-
-    return class_names_for(root, task)
 
 
 class _EpochConcat(torch.utils.data.ConcatDataset):
@@ -435,8 +431,3 @@ def train(cfg: TrainConfig, log: Callable[[str], None] = print) -> Dict[str, Any
             log(f"stopping: max_minutes {cfg.max_minutes} reached after epoch {epoch + 1}")
             break
     return meta
-
-
-def config_summary(cfg: TrainConfig) -> Dict[str, Any]:
-    """The run's parameters as a plain dict (for logs)."""
-    return asdict(cfg)

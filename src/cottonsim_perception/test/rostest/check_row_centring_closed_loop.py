@@ -6,7 +6,6 @@ row-centring node goes to /cmd_vel, repeated at 20 Hz (sim time) while the
 last estimate is younger than 0.5 s (the bridge stops the robot 0.25 s
 after the last command, so a silent row-centring node stops the robot).
 """
-import math
 import threading
 import unittest
 

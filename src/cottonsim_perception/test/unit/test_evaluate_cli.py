@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from cottonsim_perception import evaluate as ev
+from cottonsim_perception.evaluation import cli as ev
 from cottonsim_perception.data import yolo_format as yf
 from cottonsim_perception.types import Detections
 
@@ -20,18 +20,34 @@ SCENES = {
 }
 
 
-def _write_dataset(root, task):
+def _write_dataset(root, task, layout="split_folders"):
+    """SCENES as a YOLO dataset: Roboflow's split folders ({valid,test}/images), or a data.yaml
+    naming Ultralytics' folders (images/{val,test}), or image list files over one folder."""
+    lists = {}
     for split, scenes in SCENES.items():
         for level, objects in scenes.items():
             name = f"img{level}"
-            os.makedirs(os.path.join(root, split, "images"), exist_ok=True)
-            cv2.imwrite(os.path.join(root, split, "images", name + ".png"),
-                        np.full((H, W, 3), level, np.uint8))
+            folder = {"split_folders": os.path.join(split, "images"),
+                      "data_yaml": os.path.join("images", "val" if split == "valid" else split),
+                      "data_yaml_lists": os.path.join("images", "all")}[layout]
+            os.makedirs(os.path.join(root, folder), exist_ok=True)
+            image = os.path.join(root, folder, name + ".png")
+            cv2.imwrite(image, np.full((H, W, 3), level, np.uint8))
+            lists.setdefault(split, []).append(os.path.join(folder, name + ".png"))
             insts = []
             for cls, poly in objects:
                 p = np.array(poly, float) / [W, H]
                 insts.append(yf.LabelInstance(cls, yf.polygon_bbox_cxcywh(p), p))
-            yf.write_label_file(os.path.join(root, split, "labels", name + ".txt"), insts, task)
+            yf.write_label_file(yf.label_path_for(image), insts, task)
+    if layout == "data_yaml":
+        with open(os.path.join(root, "data.yaml"), "w") as fh:
+            fh.write("path: .\ntrain: images/train\nval: images/val\ntest: images/test\nnames: [plant, ground]\n")
+    elif layout == "data_yaml_lists":
+        for split, files in lists.items():
+            with open(os.path.join(root, f"{split}.txt"), "w") as fh:
+                fh.write("".join(f"./{f}\n" for f in files))
+        with open(os.path.join(root, "data.yaml"), "w") as fh:
+            fh.write("val: valid.txt\ntest: test.txt\nnames: {0: plant, 1: ground}\n")
 
 
 class StubPredictor:
@@ -56,9 +72,9 @@ class StubPredictor:
                           np.array([c for c, _ in objs], np.int64), masks)
 
 
-def _run(tmp_path, task, predictor, extra=()):
+def _run(tmp_path, task, predictor, extra=(), layout="split_folders"):
     data = str(tmp_path / "data")
-    _write_dataset(data, task)
+    _write_dataset(data, task, layout)
     weights = tmp_path / "w.pt"
     weights.write_bytes(b"stub")
     out = str(tmp_path / "out" / "r.json")
@@ -67,9 +83,10 @@ def _run(tmp_path, task, predictor, extra=()):
     return code, out
 
 
-@pytest.mark.parametrize("task", ["seg", "det"])
-def test_perfect_stub_gives_ultralytics_perfect_scores(tmp_path, capsys, task):
-    code, out = _run(tmp_path, task, StubPredictor(task))
+@pytest.mark.parametrize("task, layout", [("seg", "split_folders"), ("det", "split_folders"),
+                                          ("det", "data_yaml"), ("seg", "data_yaml_lists")])
+def test_perfect_stub_gives_ultralytics_perfect_scores(tmp_path, capsys, task, layout):
+    code, out = _run(tmp_path, task, StubPredictor(task), layout=layout)
     assert code == 0
     res = json.load(open(out))
     assert set(res["splits"]) == {"valid", "test", "valid+test"}

@@ -41,7 +41,7 @@ def dataset(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def base_T_optical():
-    return g._camera_transforms(g.DEFAULT_URDF_PATH)
+    return g.camera_transforms(g.DEFAULT_URDF_PATH)
 
 
 # ------------------------------------------------------------------ the files

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from cottonsim_perception.evaluate import evaluate_predictions
+from cottonsim_perception.evaluation.splits import evaluate_predictions
 from cottonsim_perception.evaluation import metrics as M
 from cottonsim_perception.types import Detections, GroundTruth
 

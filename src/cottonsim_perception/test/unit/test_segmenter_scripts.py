@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from cottonsim_perception.evaluate import evaluate_split
+from cottonsim_perception.evaluation.splits import evaluate_split
 from cottonsim_perception.inference import Predictor
 from cottonsim_perception.nn.models import load_model
 

@@ -1,5 +1,6 @@
 """Tests of the YOLO label / layout reader and the polygon <-> mask conversions."""
 import os
+import re
 
 import cv2
 import numpy as np
@@ -181,7 +182,99 @@ def test_layout_errors_are_clear(tmp_path):
         yf.read_data_yaml(str(bad))
 
 
-def test_join_polygons_rasterises_to_the_union_of_separate_regions():
+def _write_yaml(path, text):
+    os.makedirs(os.path.dirname(str(path)), exist_ok=True)
+    with open(str(path), "w") as fh:
+        fh.write(text)
+
+
+def _names(pairs, root):
+    return [os.path.relpath(p.image_path, root) for p in pairs]
+
+
+def test_standard_ultralytics_data_yaml_layout(tmp_path):
+    root = str(tmp_path / "ds")
+    for split, files in (("train", ["t1.jpg"]), ("val", ["v2.png", "v1.jpg"]), ("test", ["x1.jpg"])):
+        for f in files:
+            _touch(os.path.join(root, "images", split, f))
+    # the yaml names the split folders; the extra 'holdout' folder shows the yaml, not the folder name, decides
+    _touch(os.path.join(root, "images", "holdout", "h1.jpg"))
+    _write_yaml(os.path.join(root, "data.yaml"), "path: .\ntrain: images/train\nval: images/val\n"
+                "test: images/holdout\nnames:\n  0: cotton boll\n")
+    for split in ("val", "valid"):
+        pairs = yf.list_pairs(root, split)
+        assert _names(pairs, root) == ["images/val/v1.jpg", "images/val/v2.png"]
+        assert pairs[0].label_path == os.path.join(root, "labels", "val", "v1.txt")
+    assert _names(yf.list_pairs(root, "test"), root) == ["images/holdout/h1.jpg"]
+    assert _names(yf.list_pairs(root, "train"), root) == ["images/train/t1.jpg"]
+    assert yf.class_names_for(root, "det") == ("cotton boll",)
+
+
+def test_data_yaml_split_keys_take_lists_image_list_files_and_single_images(tmp_path):
+    root = str(tmp_path / "ds")
+    for f in ("a.jpg", "b.jpg", "c.jpg", "d.jpg"):
+        _touch(os.path.join(root, "pool", "images", f))      # one flat image folder, COCO style
+    _touch(os.path.join(root, "extra", "images", "e.jpg"))
+    _write_yaml(os.path.join(root, "lists", "val.txt"),
+                "./../pool/images/b.jpg\n\n../pool/images/a.jpg\n" + os.path.join(root, "pool", "images", "c.jpg")
+                + "\n../pool/images/a.jpg\n")
+    # path: the dataset root below the yaml's folder
+    _write_yaml(str(tmp_path / "data.yaml"), "path: ds\ntrain: [pool/images, extra/images]\nval: lists/val.txt\n"
+                "test: pool/images/d.jpg\nnames: [cotton boll]\n")
+    top = str(tmp_path)
+    assert _names(yf.list_pairs(top, "train"), root) == ["extra/images/e.jpg", "pool/images/a.jpg",
+                                                         "pool/images/b.jpg", "pool/images/c.jpg",
+                                                         "pool/images/d.jpg"]
+    val = yf.list_pairs(top, "valid")
+    assert _names(val, root) == ["pool/images/a.jpg", "pool/images/b.jpg", "pool/images/c.jpg"]   # a once
+    assert val[0].label_path == os.path.join(root, "pool", "labels", "a.txt")
+    assert _names(yf.list_pairs(top, "test"), root) == ["pool/images/d.jpg"]
+    # written back: the list stays a list
+    dy = yf.read_data_yaml(str(tmp_path / "data.yaml"))
+    assert dy.train == ("pool/images", "extra/images") and dy.val == "lists/val.txt"
+    yf.write_data_yaml(os.path.join(root, "copy.yaml"), dy)
+    assert yf.read_data_yaml(os.path.join(root, "copy.yaml")).train == dy.train
+
+
+def test_data_yaml_falls_back_to_the_split_folders(tmp_path):
+    # a Roboflow export's yaml ('../valid/images' from inside the dataset, as Ultralytics reads it)
+    root = str(tmp_path)
+    _touch(os.path.join(root, "valid", "images", "a.jpg"))
+    _write_yaml(os.path.join(root, "data.yaml"), "train: ../train/images\nval: ../valid/images\n"
+                "test: ../test/images\nnc: 1\nnames: ['cotton boll']\n")
+    pairs = yf.list_pairs(root, "val")
+    assert _names(pairs, root) == ["valid/images/a.jpg"]
+    assert pairs[0].label_path == os.path.join(root, "valid", "labels", "a.txt")
+    # a yaml pointing at a folder that is gone (a moved dataset): the split folders still count
+    _touch(os.path.join(root, "images", "test", "b.jpg"))
+    _write_yaml(os.path.join(root, "data.yaml"), "path: /nonexistent/dataset\nval: images/val\ntest: images/test\n")
+    assert _names(yf.list_pairs(root, "test"), root) == ["images/test/b.jpg"]
+    assert _names(yf.list_pairs(root, "valid"), root) == ["valid/images/a.jpg"]
+
+
+@pytest.mark.parametrize("yaml_text, files, message", [
+    ("val: val.txt\n", {"val.txt": "images/a.jpg\nimages/missing.jpg\n"}, "val.txt:2: image 'images/missing.jpg' does not exist"),
+    ("val: val.txt\n", {"val.txt": "images/a.jpg\nnotes.md\n"}, "val.txt:2: 'notes.md' is not an image"),
+    ("val: [images, gone]\n", {}, "'val' names"),
+    ("val: 3\n", {}, "'val' must be a path or a list of paths"),
+    ("path: [a]\nval: images\n", {}, "'path' must be a folder path"),
+    ("val: images\n", {}, "split 'test' not found"),
+    ("val: images\nval: other\n", {}, "key 'val' is given twice, on lines 1 and 2"),
+])
+def test_data_yaml_errors_name_the_problem(tmp_path, yaml_text, files, message):
+    root = str(tmp_path)
+    _touch(os.path.join(root, "images", "a.jpg"))
+    _write_yaml(os.path.join(root, "data.yaml"), yaml_text)
+    for name, text in files.items():
+        _write_yaml(os.path.join(root, name), text)
+    split = "test" if "test" in message else "val"
+    with pytest.raises(yf.LabelFormatError, match=re.escape(message)) as info:
+        yf.list_pairs(root, split)
+    if split == "test":
+        assert "no 'test' entry" in str(info.value)
+
+
+def test_join_polygons_rasterizes_to_the_union_of_separate_regions():
     rng = np.random.default_rng(3)
     h, w = 60, 80
     # Disjoint blobs (some with holes) traced into polygons by the label tracer.

@@ -37,7 +37,7 @@ import torch
 from torch.utils.data import Dataset
 
 from cottonsim_perception.data import yolo_format as yf
-from cottonsim_perception.nn.letterbox import PAD_VALUE, LetterboxTransform, letterbox
+from cottonsim_perception.nn.letterbox import PAD_VALUE, letterbox
 
 
 #: Class id that marks an ignore box inside the dataset's arrays (never in a target's classes).
@@ -184,14 +184,6 @@ class YoloDataset(Dataset):
 
     def __len__(self) -> int:
         return len(self.pairs)
-
-    def instance_counts(self) -> np.ndarray:
-        """Number of labelled instances per class over the split, (num_classes,)."""
-        counts = np.zeros(len(self.class_names), dtype=np.int64)
-        for labels in self.labels:
-            for inst in labels:
-                counts[inst.class_id] += 1
-        return counts
 
     def load_image(self, index: int) -> np.ndarray:
         """The original image of item ``index`` as uint8 RGB (H0, W0, 3)."""

@@ -64,7 +64,7 @@ is the mean of the class recalls (66.7, 100, 100). We follow Ultralytics:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence
+from typing import Dict
 
 import numpy as np
 

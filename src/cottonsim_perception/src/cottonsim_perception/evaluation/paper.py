@@ -4,7 +4,7 @@ Why: docs/perception.md compares the networks with the paper on the same
 definitions. The paper's Table 2 holds its *training* results (the metrics
 on its validation split during training), Table 3 its *testing* results; all
 values are percentages at IoU 0.5 (P, R, mAP50). Our numbers come from the
-JSON written by ``evaluate`` (see :mod:`cottonsim_perception.evaluate`).
+JSON written by ``evaluate`` (see :mod:`cottonsim_perception.evaluation.cli`).
 """
 from __future__ import annotations
 

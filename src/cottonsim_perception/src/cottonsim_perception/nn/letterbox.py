@@ -90,13 +90,6 @@ class LetterboxTransform:
         return np.array([[self.scale_x, 0.0, self.pad_left],
                          [0.0, self.scale_y, self.pad_top]], dtype=np.float64)
 
-    def boxes_to_input(self, boxes_xyxy: np.ndarray) -> np.ndarray:
-        """Map (N, 4) boxes from original to network-input pixels."""
-        b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4).copy()
-        b[:, [0, 2]] = b[:, [0, 2]] * self.scale_x + self.pad_left
-        b[:, [1, 3]] = b[:, [1, 3]] * self.scale_y + self.pad_top
-        return b
-
     def boxes_to_original(self, boxes_xyxy: np.ndarray) -> np.ndarray:
         """Map (N, 4) boxes from network-input to original pixels, clipped to the image."""
         b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4).copy()

@@ -31,7 +31,7 @@ background (objects the labelling rules leave out, e.g. far bolls).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Tuple
 
 import torch
 import torch.nn.functional as F

@@ -3,7 +3,7 @@
 Node ``boll_detection`` (executable nodes/boll_detection; one instance per
 side camera, ~camera). For each frame: 2-D boxes from the detector, then for
 each box the 3-D position (per-axis median of the depth-cloud points that
-project into the box, :func:`cottonsim_perception.localisation.localise_boxes`),
+project into the box, :func:`cottonsim_perception.localization.localize_boxes`),
 transformed into base_link with tf2, and whether any boll lies within the
 UR5e's reach (distance from ~arm_base_frame <= ~reach_m) so that a
 navigator can halt for picking.
@@ -56,7 +56,7 @@ from std_msgs.msg import Bool
 from cottonsim_world.ros import conversions as conv
 from cottonsim_perception.ros.predictor_loading import load_predictor
 
-from cottonsim_perception.localisation import (BOLL, BollLocalisationConfig, boxes_from_semantic, localise_boxes,
+from cottonsim_perception.localization import (BOLL, BollLocalizationConfig, boxes_from_semantic, localize_boxes,
                                                points_within_reach, transform_points)
 
 SOURCES = ("network", "ground_truth")
@@ -79,7 +79,7 @@ class BollDetectionNode:
         self.min_box_area_px = int(rospy.get_param("~min_box_area_px", 4))
         if self.min_box_area_px < 1:
             raise ValueError(f"~min_box_area_px must be >= 1, got {self.min_box_area_px}")
-        self.loc_config = BollLocalisationConfig(
+        self.loc_config = BollLocalizationConfig(
             min_points=int(rospy.get_param("~min_points", 3)),
             box_shrink_fraction=float(rospy.get_param("~box_shrink_fraction", 0.15)),
             max_depth_m=float(rospy.get_param("~max_depth_m", 4.0)),
@@ -190,7 +190,7 @@ class BollDetectionNode:
             return
         boxes, scores, rgb = out
         xyz = conv.cloud_to_xyz(cloud)
-        positions, valid = localise_boxes(boxes, xyz, info.K, self.loc_config)
+        positions, valid = localize_boxes(boxes, xyz, info.K, self.loc_config)
         stamp = frame.header.stamp
         in_base = self._apply(self._lookup(self.target_frame, stamp), positions)
         in_arm = self._apply(self._lookup(self.arm_base_frame, stamp), positions)

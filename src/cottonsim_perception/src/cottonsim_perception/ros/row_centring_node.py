@@ -34,7 +34,7 @@ from std_msgs.msg import Float64MultiArray, Int16, String
 
 from cottonsim_world.ros import conversions as conv
 
-from cottonsim_perception.localisation import GROUND, SKY, colourise_labels
+from cottonsim_perception.localization import GROUND, SKY, colorize_labels
 from cottonsim_perception.row_centring import RowCentringConfig, compute_row_centring, draw_row_centring
 
 INT16_MAX = 32767
@@ -82,7 +82,7 @@ class RowCentringNode:
         else:
             self.status_pub.publish(String(data=f"no_estimate: {result.reason}"))
         if self.overlay_pub.get_num_connections():
-            image = colourise_labels(labels)
+            image = colorize_labels(labels)
             overlay = draw_row_centring(image, result, ground, sky, self.config)
             self.overlay_pub.publish(conv.image_msg(np.ascontiguousarray(overlay), msg.header.stamp,
                                                     msg.header.frame_id))

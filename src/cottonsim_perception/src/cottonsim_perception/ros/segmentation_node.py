@@ -45,7 +45,7 @@ from std_msgs.msg import Float32
 from cottonsim_world.ros import conversions as conv
 from cottonsim_perception.ros.predictor_loading import load_predictor
 
-from cottonsim_perception.localisation import (BOLL, GROUND, PLANT, SKY, colourise_labels,
+from cottonsim_perception.localization import (BOLL, GROUND, PLANT, SKY, colorize_labels,
                                                label_image_from_detections)
 
 MASK_SOURCES = ("network", "ground_truth")
@@ -143,7 +143,7 @@ class SegmentationNode:
                     rgb = None
         if rgb is not None and rgb.shape[:2] != labels.shape:
             rgb = None
-        overlay = colourise_labels(labels, rgb, self.overlay_alpha) if rgb is not None else colourise_labels(labels)
+        overlay = colorize_labels(labels, rgb, self.overlay_alpha) if rgb is not None else colorize_labels(labels)
         self.overlay_pub.publish(conv.image_msg(overlay, stamp, frame))
 
 

@@ -1,6 +1,4 @@
 """Shapes of the building blocks and of both networks, and checkpoint files."""
-import os
-
 import pytest
 import torch
 

