@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping
 
+from cottonsim_world.faults.schedule import fault_schedule_from_list
 from cottonsim_world.sensors.camera import CameraConfig
 
 
@@ -50,13 +51,15 @@ def simulator_config_from_dict(mapping: Mapping[str, Any]):
 
     ``cameras`` is a mapping ``name -> {enabled: bool, <CameraConfig keys>}``;
     cameras not listed keep their defaults, cameras with ``enabled: false``
-    are left out of the simulation.
+    are left out of the simulation. ``faults`` is a list of sensor faults
+    (``cottonsim_world.faults.schedule``), each checked against its kind's keys.
     """
     from cottonsim_world.simulator import SimulatorConfig   # local: simulator imports this module's users
 
     base = SimulatorConfig()
     mapping = dict(mapping or {})
     cameras_map = mapping.pop("cameras", None)
+    faults = fault_schedule_from_list(mapping.pop("faults", None))
     config = apply_mapping(base, mapping)
     if cameras_map is not None:
         if not isinstance(cameras_map, Mapping):
@@ -74,4 +77,6 @@ def simulator_config_from_dict(mapping: Mapping[str, Any]):
                 if settings.pop("enabled", True):
                     cameras.append((name, apply_mapping(CameraConfig(), settings, f"cameras.{name}")))
         config = dataclasses.replace(config, cameras=tuple(cameras))
+    if faults.faults:
+        config = dataclasses.replace(config, faults=faults)
     return config

@@ -38,6 +38,13 @@ Sensor frames come from the URDF (``base_link -> <sensor frame>`` fixed
 transforms), so the robot description stays the single source of truth.
 Sensors can be switched off individually (``set_sensor_active``), which the
 bridge does for topics nobody subscribes to: rendering is the expensive part.
+
+Sensor faults (GPS outage / no fix / degraded fix / jump, camera blackout,
+LiDAR dropout; ``cottonsim_world.faults``) act on the readings ``step()``
+returns, by each reading's stamp: scheduled ones come from
+``SimulatorConfig.faults``, run-time ones from ``sim.faults.add(FaultSpec(...))``,
+``sim.faults.clear(sim.time_s)`` ends them all. Without faults the readings
+are untouched.
 """
 from __future__ import annotations
 
@@ -57,6 +64,7 @@ from cottonsim_world.estimation.odometry_ekf import FilteredOdometry, OdometryEk
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Farm, Pose2D
+from cottonsim_world.faults import GPS_STATUS_FIX, FaultInjector, FaultScheduleConfig
 from cottonsim_world.geodesy import GpsNoiseConfig, GpsNoiseModel, HectorGeodesy
 from cottonsim_world.physics.husky_params import DriveLimits, HuskyParams
 from cottonsim_world.physics.imu_model import ImuConfig, ImuMeasurement, ImuModel
@@ -111,6 +119,8 @@ class SimulatorConfig:
     pybullet renderers / LiDAR backend need <= 1). The
     readings are the same either way; only their return is later (at most
     one sensor period of sim time).
+    faults: scheduled sensor faults (``cottonsim_world.faults``; default none); a
+    camera_blackout must name a camera of ``cameras`` (or 'all').
     sensor_switch_interval_s: Python's GIL switch interval [s]
     (``sys.setswitchinterval``, Python's default 0.005) while pipelined,
     restored by ``close()``; 0 (default) = leave it. A sensor job coming
@@ -152,6 +162,7 @@ class SimulatorConfig:
     seed: int = 0
     sensor_workers: int = 0
     sensor_switch_interval_s: float = 0.0
+    faults: FaultScheduleConfig = FaultScheduleConfig()
 
     def __post_init__(self):
         if (not isinstance(self.sensor_workers, int) or isinstance(self.sensor_workers, bool)
@@ -184,6 +195,9 @@ class SimulatorConfig:
             raise ValueError("SimulatorConfig.arm_initial_positions_rad needs 6 joint angles [rad]")
         if not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"SimulatorConfig.seed must be an int >= 0, got {self.seed!r}")
+        if not isinstance(self.faults, FaultScheduleConfig):
+            raise ValueError(f"SimulatorConfig.faults must be a FaultScheduleConfig, got {type(self.faults).__name__}")
+        self.faults.check_cameras(names)
 
     def with_seed_applied(self) -> "SimulatorConfig":
         """A copy whose noise models carry seeds derived from ``seed``."""
@@ -196,7 +210,8 @@ class SimulatorConfig:
             imu=dataclasses.replace(self.imu, seed=int(seeds[1])),
             gps_noise=dataclasses.replace(self.gps_noise, seed=int(seeds[2])),
             lidar=dataclasses.replace(self.lidar, seed=int(seeds[3])),
-            cameras=cameras)
+            cameras=cameras,
+            faults=dataclasses.replace(self.faults, seed=int(seeds[6])))
 
 
 # ----------------------------------------------------------------------------- readings
@@ -241,7 +256,8 @@ class GpsReading:
     latitude_deg: float
     longitude_deg: float
     altitude_m: float
-    position_variance_m2: float
+    position_variance_m2: float       # per axis [m^2]; NaN when unknown (no fix)
+    status: int = GPS_STATUS_FIX      # NavSatStatus: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (faults change it)
 
 
 @dataclass
@@ -343,6 +359,8 @@ class Simulator:
         self.step_s = cfg.physics.step_s
 
         self.geodesy = HectorGeodesy(*cfg.geodesy_reference)
+        self.faults = FaultInjector(cfg.faults, [name for name, _ in cfg.cameras], self.geodesy.radius_north_m,
+                                    self.geodesy.radius_east_m)
         self.gps_noise = GpsNoiseModel(cfg.gps_noise)
         self._gps_variance_m2 = float(max(max(cfg.gps_noise.gaussian_noise_m), max(cfg.gps_noise.drift_m))) ** 2
         self.imu = ImuModel(cfg.imu)
@@ -506,7 +524,27 @@ class Simulator:
 
         Serial: the readings due at the new time. Pipelined: also the
         finished ones of earlier steps, and none after a pending one.
+        Sensor faults (``faults``) have changed or dropped readings already.
         """
+        readings = self._step()
+        if readings and not self.faults.idle:
+            return self._apply_faults(readings)
+        return readings
+
+    def _apply_faults(self, readings: List[object]) -> List[object]:
+        out = []
+        for r in readings:
+            if isinstance(r, GpsReading):
+                r = self.faults.gps(r)
+            elif isinstance(r, CameraReading):
+                r = self.faults.camera(r)
+            elif isinstance(r, LidarReading):
+                r = self.faults.lidar(r)
+            if r is not None:
+                out.append(r)
+        return out
+
+    def _step(self) -> List[object]:
         before = self.time_s
         t0 = time.perf_counter()
         self.physics.step()
@@ -613,7 +651,7 @@ class Simulator:
         while self._held:
             out.append(self._finish(self._held.popleft()))
         self._held_deadline_s = math.inf
-        return out
+        return out if self.faults.idle else self._apply_faults(out)
 
     def step_for(self, duration_s: float) -> List[object]:
         """Step for ``duration_s`` of sim time; the readings returned meanwhile, in order.

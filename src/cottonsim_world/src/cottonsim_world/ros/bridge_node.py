@@ -24,6 +24,8 @@ Publications
   /ground_truth/odom                       nav_msgs/Odometry        true pose, frame world - evaluation only
   /ground_truth/plant_contacts             cottonsim_msgs/PlantContacts  robot-plant contacts (crop damage)
   /sim/stats                               cottonsim_msgs/SimStats  achieved real-time factor, cost per sensor
+  /sim/faults/active                       cottonsim_msgs/SensorFaults  latched: the sensor faults active now,
+                                                                    republished whenever one starts or ends
 Subscriptions
   /cmd_vel                                 geometry_msgs/Twist      Husky velocity command (0.25 s time-out)
   /arm_controller/command                  trajectory_msgs/JointTrajectory  UR5e targets (last point's positions)
@@ -31,6 +33,11 @@ Services
   /sim/set_robot_pose                      cottonsim_msgs/SetRobotPose  teleport the robot (world frame, at rest)
                                            between two physics steps; wheel odometry / EKF do not see it (a
                                            kidnap for localisation tests). success false + message when refused
+  /sim/inject_fault                        cottonsim_msgs/InjectFault  start a sensor fault now (sim time) for
+                                           duration_s: kind, target (camera), parameters (YAML mapping of the
+                                           kind's keys, config/sim.yaml 'faults'); success false + message when
+                                           refused (unknown kind or key, bad value, camera not simulated)
+  /sim/clear_faults                        cottonsim_msgs/ClearFaults  end every fault, scheduled or injected
 TF
   odom -> base_link (from the EKF, ~publish_tf); the robot's own frames come from
   robot_state_publisher (URDF + /joint_states).
@@ -42,7 +49,11 @@ Parameters (private)
   ~stats_period_s (float, 1.0): sim-time period of /sim/stats [s]
   ~publish_tf (bool, true): publish odom -> base_link
   ~urdf_file (str): robot URDF (default: cottonsim_description/urdf/cottonsim_robot.urdf)
-  ~sim (dict): simulator settings, shaped as config/sim.yaml (farm, physics, cameras, lidar, ...)
+  ~sim (dict): simulator settings, shaped as config/sim.yaml (farm, physics, cameras, lidar, faults, ...)
+  ~faults (list, []): more scheduled sensor faults, entries as config/sim.yaml's 'faults' (kind, start_s,
+                      duration_s, the kind's keys); they apply together with ~sim/faults. Faulty fixes keep
+                      NavSatFix conventions: status NO_FIX (-1) with NaN position and covariance type
+                      UNKNOWN, degraded fixes the fix type's status and their true variance (DIAGONAL_KNOWN)
   ~seed (int, 0): seed of every random process
   ~sim/sensor_workers (int, 0): threads that render the cameras and scan the LiDAR beside the physics
                                (SimulatorConfig.sensor_workers, 0 = serial); the readings and their
@@ -52,18 +63,22 @@ Parameters (private)
 """
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 import pathlib
 import threading
 import time
-from typing import Dict, List
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 import rospkg
 import rospy
 import tf2_ros
-from cottonsim_msgs.msg import PlantContact, PlantContacts, SimStats
-from cottonsim_msgs.srv import SetRobotPose, SetRobotPoseResponse
+import yaml
+from cottonsim_msgs.msg import PlantContact, PlantContacts, SensorFault, SensorFaults, SimStats
+from cottonsim_msgs.srv import (ClearFaults, ClearFaultsResponse, InjectFault, InjectFaultResponse, SetRobotPose,
+                                SetRobotPoseResponse)
 from geometry_msgs.msg import Point, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -71,6 +86,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, NavSa
 from trajectory_msgs.msg import JointTrajectory
 
 from cottonsim_world.config_io import simulator_config_from_dict
+from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.ros import conversions as conv
 from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
@@ -111,11 +127,18 @@ class SimBridgeNode:
         urdf_file = rospy.get_param("~urdf_file", str(default_urdf))
         settings = dict(rospy.get_param("~sim", {}) or {})
         settings.setdefault("seed", int(rospy.get_param("~seed", 0)))
+        extra_faults = rospy.get_param("~faults", []) or []
+        if not isinstance(extra_faults, list):
+            raise ValueError(f"~faults must be a list of faults (config/sim.yaml 'faults'), got {extra_faults!r}")
+        if extra_faults:
+            settings["faults"] = list(settings.get("faults") or []) + extra_faults
         config = simulator_config_from_dict(settings)
         self.sim = Simulator(config, UrdfModel.from_file(urdf_file))
         rospy.loginfo("sim_bridge: farm of %d plants, %d cameras, lidar %s, physics step %.4f s, target RTF %s, "
                       "sensor workers %d", len(self.sim.farm.plants), len(self.sim.cameras), self.sim.lidar is not None,
                       self.sim.step_s, self.real_time_factor or "max", self.sim.config.sensor_workers)
+        for spec in self.sim.config.faults.faults:
+            rospy.loginfo("sim_bridge: scheduled fault: %s", spec.describe())
         self._make_publishers()
         self._cmd_lock = threading.Lock()
         self._pending_cmd = None
@@ -124,6 +147,10 @@ class SimBridgeNode:
         rospy.Subscriber("/arm_controller/command", JointTrajectory, self._on_arm_command, queue_size=2)
         self._pending_teleport = None       # [pose, threading.Event, refusal or None], done by the sim loop
         rospy.Service("/sim/set_robot_pose", SetRobotPose, self._on_set_robot_pose)
+        self._pending_faults: List[list] = []   # [FaultSpec or None (= clear), Event, answer], done by the sim loop
+        self._published_faults: Optional[Tuple] = None
+        rospy.Service("/sim/inject_fault", InjectFault, self._on_inject_fault)
+        rospy.Service("/sim/clear_faults", ClearFaults, self._on_clear_faults)
 
     # ------------------------------------------------------------------ setup
     def _make_publishers(self):
@@ -151,6 +178,7 @@ class SimBridgeNode:
         self.truth_pub = rospy.Publisher("/ground_truth/odom", Odometry, queue_size=10)
         self.contacts_pub = rospy.Publisher("/ground_truth/plant_contacts", PlantContacts, queue_size=10)
         self.stats_pub = rospy.Publisher("/sim/stats", SimStats, queue_size=2)
+        self.faults_pub = rospy.Publisher("/sim/faults/active", SensorFaults, queue_size=2, latch=True)
         self.tf_pub = tf2_ros.TransformBroadcaster()
 
     # ------------------------------------------------------------------ inputs
@@ -185,11 +213,68 @@ class SimBridgeNode:
         rospy.logwarn("sim_bridge: robot teleported to (%.2f, %.2f, yaw %.2f) in world", *job[0])
         return SetRobotPoseResponse(True, "robot at (%.3f, %.3f, yaw %.3f) in world" % job[0])
 
+    def _on_inject_fault(self, req):
+        """Validate the fault here; the simulation loop starts it at its sim time (waits for that)."""
+        try:
+            spec = fault_spec_from_request(req.kind, req.target, req.duration_s, req.parameters)
+        except ValueError as exc:
+            return InjectFaultResponse(False, str(exc))
+        answer = self._hand_to_loop(spec)
+        if answer is None:
+            return InjectFaultResponse(False, "the simulation loop did not take the fault within 10 s (wall)")
+        if isinstance(answer, str):
+            return InjectFaultResponse(False, answer)
+        rospy.logwarn("sim_bridge: fault injected: %s", answer.describe())
+        return InjectFaultResponse(True, answer.describe())
+
+    def _on_clear_faults(self, _req):
+        answer = self._hand_to_loop(None)
+        if answer is None:
+            return ClearFaultsResponse(0, "the simulation loop did not take the request within 10 s (wall)")
+        rospy.logwarn("sim_bridge: %d sensor fault(s) cleared", answer)
+        return ClearFaultsResponse(answer, f"{answer} fault(s) ended")
+
+    def _hand_to_loop(self, spec: Optional[FaultSpec]):
+        job = [spec, threading.Event(), None]
+        with self._cmd_lock:
+            self._pending_faults.append(job)
+        return job[2] if job[1].wait(10.0) else None
+
+    def _apply_fault_requests(self, jobs: List[list]):
+        now = self.sim.time_s
+        for job in jobs:
+            spec = job[0]
+            if spec is None:
+                job[2] = self.sim.faults.clear(now)
+            else:
+                try:
+                    spec = dataclasses.replace(spec, start_s=now)
+                    self.sim.faults.add(spec)
+                    job[2] = spec
+                except ValueError as exc:
+                    job[2] = str(exc)
+            job[1].set()
+
+    def _publish_faults(self, now_s: float):
+        """/sim/faults/active when the set of active faults differs from the last one published."""
+        active = self.sim.faults.active(now_s) if not self.sim.faults.idle else []
+        key = tuple((f.kind, f.target, f.start_s, f.end_s) for f in active)
+        if key == self._published_faults:
+            return
+        self._published_faults = key
+        msg = SensorFaults(active=[SensorFault(kind=f.kind, target=f.target, start_s=f.start_s, end_s=f.end_s,
+                                               parameters=json.dumps(f.parameters())) for f in active])
+        msg.header.stamp = conv.to_time(now_s)
+        self.faults_pub.publish(msg)
+
     def _apply_inputs(self):
         with self._cmd_lock:
             cmd, self._pending_cmd = self._pending_cmd, None
             arm, self._pending_arm = self._pending_arm, None
             teleport, self._pending_teleport = self._pending_teleport, None
+            fault_jobs, self._pending_faults = self._pending_faults, []
+        if fault_jobs:
+            self._apply_fault_requests(fault_jobs)
         if teleport is not None:
             try:
                 self.sim.teleport_robot(*teleport[0])
@@ -226,6 +311,7 @@ class SimBridgeNode:
         window = (wall0, sim0)
         clock_s = sim0
         self.clock_pub.publish(conv.clock_msg(clock_s))
+        self._publish_faults(clock_s)
         step = 0
         while not rospy.is_shutdown():
             now_wall = time.monotonic()
@@ -239,6 +325,8 @@ class SimBridgeNode:
             if (readings or step % clock_steps == 0) and delivered_s > clock_s:
                 clock_s = delivered_s
                 self.clock_pub.publish(conv.clock_msg(clock_s))
+                if not self.sim.faults.idle:
+                    self._publish_faults(clock_s)
             for reading in readings:
                 self._publish(reading)
             if step % stats_steps == 0:
@@ -279,7 +367,8 @@ class SimBridgeNode:
             self.imu_pub.publish(msg)
         elif isinstance(reading, GpsReading):
             self.gps_pub.publish(conv.navsatfix_msg(reading.latitude_deg, reading.longitude_deg, reading.altitude_m,
-                                                    reading.position_variance_m2, stamp, reading.frame_id))
+                                                    reading.position_variance_m2, stamp, reading.frame_id,
+                                                    reading.status))
         elif isinstance(reading, OdometryReading):
             self._publish_odometry(reading, stamp)
         elif isinstance(reading, JointStatesReading):
@@ -349,6 +438,31 @@ class SimBridgeNode:
                                              plant=e.plant_id % per_row, robot_part=e.part,
                                              position=Point(*e.point_m), depth=e.depth_m))
         self.contacts_pub.publish(msg)
+
+
+def fault_spec_from_request(kind: str, target: str, duration_s: float, parameters: str) -> FaultSpec:
+    """A FaultSpec (start_s 0, set by the caller) from /sim/inject_fault's fields; ValueError naming the problem."""
+    try:
+        params = yaml.safe_load(parameters) if parameters.strip() else {}
+    except yaml.YAMLError as exc:
+        raise ValueError(f"parameters must be a YAML mapping of the fault's keys: {exc}") from None
+    if params is None:
+        params = {}
+    if not isinstance(params, dict):
+        raise ValueError(f"parameters must be a YAML mapping of the fault's keys, got {parameters!r}")
+    for key in ("kind", "start_s", "duration_s"):
+        if key in params:
+            raise ValueError(f"parameters must not set '{key}' (the request's own field, or now for start_s)")
+    mapping = dict(params, kind=kind, start_s=0.0, duration_s=duration_s)
+    target = target.strip()
+    if kind == "camera_blackout":
+        if target and "camera" in params and params["camera"] != target:
+            raise ValueError(f"target {target!r} and parameters camera {params['camera']!r} disagree")
+        if target:
+            mapping["camera"] = target
+    elif target and target != {"lidar_dropout": "lidar"}.get(kind, "gps"):
+        raise ValueError(f"target {target!r} does not fit {kind} (leave it empty)")
+    return fault_from_mapping(mapping, f"fault {kind!r}")
 
 
 def _yaw_quaternion(yaw: float):

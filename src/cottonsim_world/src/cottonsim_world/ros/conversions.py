@@ -187,13 +187,21 @@ def imu_msg(orientation_xyzw, angular_velocity, linear_acceleration, orientation
 
 
 def navsatfix_msg(lat_deg: float, lon_deg: float, alt_m: float, position_var_m2: float,
-                  stamp: rospy.Time, frame_id: str) -> NavSatFix:
+                  stamp: rospy.Time, frame_id: str, status: int = NavSatStatus.STATUS_FIX) -> NavSatFix:
+    """NavSatFix with a diagonal known covariance of ``position_var_m2`` [m^2] per axis.
+
+    status: NavSatStatus value (-1 no fix, 0 fix, 1 SBAS, 2 GBAS). A variance that is not finite
+    (a fix without a position) gives COVARIANCE_TYPE_UNKNOWN and a zero covariance.
+    """
     msg = NavSatFix(header=header(stamp, frame_id), latitude=float(lat_deg), longitude=float(lon_deg),
                     altitude=float(alt_m))
-    msg.status.status = NavSatStatus.STATUS_FIX
+    msg.status.status = int(status)
     msg.status.service = NavSatStatus.SERVICE_GPS
-    msg.position_covariance = _diag3(position_var_m2)
-    msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+    if math.isfinite(position_var_m2):
+        msg.position_covariance = _diag3(position_var_m2)
+        msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+    else:
+        msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
     return msg
 
 
