@@ -112,7 +112,8 @@ def test_config_errors_name_the_key():
 def test_shipped_config_files_parse():
     import yaml
     root = pathlib.Path(__file__).resolve().parents[2]
-    for path in [root / "config" / "sim.yaml", root / "test" / "rostest" / "sim_ci.yaml"]:
+    for path in [root / "config" / "sim.yaml", root / "test" / "rostest" / "sim_ci.yaml",
+                 root / "test" / "rostest" / "sim_faults_ci.yaml"]:
         config = simulator_config_from_dict(yaml.safe_load(path.read_text()) or {})
         assert isinstance(config, SimulatorConfig), path
 
