@@ -32,6 +32,24 @@ the measurement's own stamp, a moving robot is not dragged back by latency.
 The first GPS position, once a heading is known, sets T outright; before
 that ``ready`` is False and no transform should be published.
 
+Degraded and lost fixes (a farm loses its RTK fix under trees and next to
+buildings):
+
+* a fix whose position variance exceeds ``max_fix_variance_m2`` is refused
+  (an SBAS or single-point fix is metres off: worse than the odometry);
+* an accepted fix noisier than ``reference_fix_variance_m2`` corrects with a
+  time constant scaled by variance / reference (a weight inversely
+  proportional to its variance, as a Kalman gain would be);
+* a fix farther from the estimate than ``jump_gate_m`` + 3 sigma of the fix is
+  refused as a jump (multipath), unless no fix has been used for
+  ``jump_gate_timeout_s``: then the estimate itself is suspect and the fix wins;
+* without a usable fix T is held, so map -> base_link follows the odometry
+  (wheels + IMU, the EKF's /odometry/filtered): dead reckoning. After
+  ``dead_reckoning_limit_s`` without one, :meth:`GpsLocalizer.state` says
+  ``gps_lost`` and ``localized`` is False until a fix is used again (the
+  navigator pauses meanwhile); the first fix after a gap corrects with the
+  weight of ``max_dt_s``.
+
 :func:`robot_yaw_from_imu` turns an IMU orientation given for a rotated
 sensor frame (imu_link) into the robot's (base_link's) yaw, as
 robot_localization does with the static transform base_link <- imu_link;
@@ -65,6 +83,20 @@ class GpsLocalizationConfig:
     transform_tolerance_s [s]: how far the published transform is
         post-dated, so that lookups at the newest odometry time succeed (amcl's
         transform_tolerance). Default 0.1.
+    reference_fix_variance_m2 [m^2]: fixes with a position variance up to this
+        use position_time_constant_s; noisier ones a time constant scaled by
+        variance / this. Default 0.0025 (5 cm, an RTK fix; the simulator's
+        fault-free fix is far below). A variance of 0 (unknown) counts as this.
+    max_fix_variance_m2 [m^2]: fixes with a larger variance are refused.
+        Default 0.25 (0.5 m): an RTK float fix (0.3 m) is used, SBAS (1 m) and
+        single-point (2.5 m) fixes are not.
+    jump_gate_m [m]: a fix farther than this + 3 sigma of the fix from the
+        estimate is refused as a jump. Default 1.0.
+    jump_gate_timeout_s [s]: when no fix has been used for this long, the
+        jump gate is open (the estimate may be the one that is off). Default 5.0.
+    dead_reckoning_limit_s [s]: after this long without a used fix the state is
+        gps_lost (not localised). Default 20.0.
+    status_frequency [Hz]: rate of the node's ~status. Default 5.
     """
 
     position_time_constant_s: float = 0.5
@@ -74,19 +106,33 @@ class GpsLocalizationConfig:
     max_dt_s: float = 1.0
     frequency: float = 30.0
     transform_tolerance_s: float = 0.1
+    reference_fix_variance_m2: float = 0.0025
+    max_fix_variance_m2: float = 0.25
+    jump_gate_m: float = 1.0
+    jump_gate_timeout_s: float = 5.0
+    dead_reckoning_limit_s: float = 20.0
+    status_frequency: float = 5.0
 
     def __post_init__(self) -> None:
         for name in ("position_time_constant_s", "yaw_time_constant_s", "yaw_offset",
-                     "magnetic_declination_radians", "max_dt_s", "frequency", "transform_tolerance_s"):
+                     "magnetic_declination_radians", "max_dt_s", "frequency", "transform_tolerance_s",
+                     "reference_fix_variance_m2", "max_fix_variance_m2", "jump_gate_m", "jump_gate_timeout_s",
+                     "dead_reckoning_limit_s", "status_frequency"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"{name} must be a finite number, got {value!r}")
         for name in ("position_time_constant_s", "yaw_time_constant_s", "transform_tolerance_s"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        for name in ("max_dt_s", "frequency"):
+        for name in ("max_dt_s", "frequency", "reference_fix_variance_m2", "max_fix_variance_m2", "jump_gate_m",
+                     "dead_reckoning_limit_s", "status_frequency"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.jump_gate_timeout_s < 0:
+            raise ValueError(f"jump_gate_timeout_s must be >= 0, got {self.jump_gate_timeout_s}")
+        if self.max_fix_variance_m2 < self.reference_fix_variance_m2:
+            raise ValueError(f"max_fix_variance_m2 ({self.max_fix_variance_m2}) must be >= reference_fix_variance_m2 "
+                             f"({self.reference_fix_variance_m2})")
 
 
 def _quat(q: Sequence[float], name: str) -> np.ndarray:
@@ -127,6 +173,18 @@ def enu_yaw(imu_robot_yaw_rad: float, yaw_offset_rad: float, magnetic_declinatio
     return float(normalize_angle(imu_robot_yaw_rad + yaw_offset_rad + magnetic_declination_rad))
 
 
+# GpsLocalizer.state values
+STATE_WAITING = "waiting"                  # no fix used yet
+STATE_GPS = "gps"                          # fixes in use
+STATE_DEAD_RECKONING = "dead_reckoning"    # no usable fix for a while, within the limit
+STATE_GPS_LOST = "gps_lost"                # no usable fix for longer than dead_reckoning_limit_s
+
+# GpsLocalizer.update_gps outcomes besides "used"
+REJECTED_VARIANCE = "variance"
+REJECTED_JUMP = "jump"
+REJECTED_NO_HEADING = "no_heading"        # the first fix waits for an IMU heading
+
+
 def _blend_weight(dt_s: float, time_constant_s: float, max_dt_s: float) -> float:
     if time_constant_s <= 0.0:
         return 1.0
@@ -152,6 +210,8 @@ class GpsLocalizer:
         self._last_heading_s: Optional[float] = None
         self.gps_updates = 0
         self.heading_updates = 0
+        self.rejected = {REJECTED_VARIANCE: 0, REJECTED_JUMP: 0}
+        self.last_rejection: Optional[str] = None     # why the latest refused fix was refused
 
     @property
     def ready(self) -> bool:
@@ -194,14 +254,46 @@ class GpsLocalizer:
         new_yaw = est.yaw_rad + a * float(normalize_angle(map_yaw_rad - est.yaw_rad))
         self._map_to_odom = compose(Pose2D(est.x_m, est.y_m, float(normalize_angle(new_yaw))), inverse(odom_pose))
 
-    def update_gps(self, stamp_s: float, odom_pose: Pose2D, x_m: float, y_m: float) -> bool:
-        """A GPS position of base_link in the map [m]. Returns True when it was used.
+    def seconds_since_fix(self, now_s: float) -> float:
+        """Sim time [s] since the newest fix used (inf before the first)."""
+        return math.inf if self._last_gps_s is None else max(0.0, now_s - self._last_gps_s)
 
-        The first fix is used only once a heading is known (else False).
+    def state(self, now_s: float) -> str:
+        """waiting | gps | dead_reckoning | gps_lost at sim time ``now_s`` (module docstring).
+
+        dead_reckoning starts when no fix has been used for more than max_dt_s (the
+        fixes' usual spacing is far below it).
         """
-        self._check(stamp_s, odom_pose, x_m=x_m, y_m=y_m)
+        if self._map_to_odom is None:
+            return STATE_WAITING
+        age = self.seconds_since_fix(now_s)
+        if age > self.config.dead_reckoning_limit_s:
+            return STATE_GPS_LOST
+        return STATE_DEAD_RECKONING if age > self.config.max_dt_s else STATE_GPS
+
+    def localized(self, now_s: float) -> bool:
+        """False only while gps_lost (before the first fix the filter is not ready, which is no loss)."""
+        return self.state(now_s) != STATE_GPS_LOST
+
+    def update_gps(self, stamp_s: float, odom_pose: Pose2D, x_m: float, y_m: float,
+                   variance_m2: float = 0.0) -> bool:
+        """A GPS position of base_link in the map [m] with its variance [m^2] (0 = unknown: nominal).
+
+        Returns True when it was used. The first fix is used only once a heading is
+        known (else False). A refused fix (variance above the gate, a jump) leaves the
+        estimate alone; ``last_rejection`` and ``rejected`` say why.
+        """
+        self._check(stamp_s, odom_pose, x_m=x_m, y_m=y_m, variance_m2=variance_m2)
+        if variance_m2 < 0.0:
+            raise ValueError(f"variance_m2 must be >= 0 (0 = unknown), got {variance_m2!r}")
+        self.last_rejection = None
+        if variance_m2 > self.config.max_fix_variance_m2:
+            self.rejected[REJECTED_VARIANCE] += 1
+            self.last_rejection = REJECTED_VARIANCE
+            return False
         if self._map_to_odom is None:
             if self._heading is None:
+                self.last_rejection = REJECTED_NO_HEADING
                 return False
             # the robot's map yaw now = heading measured + odometry turn since then
             yaw = self._heading + (odom_pose.yaw_rad - self._heading_odom_yaw)
@@ -210,10 +302,17 @@ class GpsLocalizer:
             self._last_gps_s = stamp_s
             self.gps_updates += 1
             return True
-        dt = max(0.0, stamp_s - self._last_gps_s) if self._last_gps_s is not None else 0.0
-        self._last_gps_s = max(stamp_s, self._last_gps_s if self._last_gps_s is not None else stamp_s)
-        a = _blend_weight(dt, self.config.position_time_constant_s, self.config.max_dt_s)
         est = compose(self._map_to_odom, odom_pose)
+        dt = max(0.0, stamp_s - self._last_gps_s) if self._last_gps_s is not None else 0.0
+        variance = max(variance_m2, self.config.reference_fix_variance_m2)
+        gate = self.config.jump_gate_m + 3.0 * math.sqrt(variance)
+        if math.hypot(x_m - est.x_m, y_m - est.y_m) > gate and dt < self.config.jump_gate_timeout_s:
+            self.rejected[REJECTED_JUMP] += 1
+            self.last_rejection = REJECTED_JUMP
+            return False
+        self._last_gps_s = max(stamp_s, self._last_gps_s if self._last_gps_s is not None else stamp_s)
+        time_constant = self.config.position_time_constant_s * (variance / self.config.reference_fix_variance_m2)
+        a = _blend_weight(dt, time_constant, self.config.max_dt_s)
         corrected = Pose2D(est.x_m + a * (x_m - est.x_m), est.y_m + a * (y_m - est.y_m), est.yaw_rad)
         self._map_to_odom = compose(corrected, inverse(odom_pose))
         self.gps_updates += 1

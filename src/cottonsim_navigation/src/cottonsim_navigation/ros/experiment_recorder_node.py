@@ -17,15 +17,19 @@ import time
 
 import numpy as np
 import rospy
-from cottonsim_msgs.msg import PlantContacts
+from cottonsim_msgs.msg import GpsLocalizationStatus, PlantContacts
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import String
 
 from cottonsim_navigation.evaluation.experiment import (MODES, TrajectoryLog, TrajectoryLogConfig,
                                                         planned_world_from_gps, planned_world_from_map,
                                                         sim_world_from_settings, summary_line, write_experiment)
+from cottonsim_navigation.evaluation.gps_outages import (GpsOutageConfig, estimates_in_world, fix_outages,
+                                                         gps_outage_report, paused_intervals, position_errors)
 from cottonsim_navigation.evaluation.localization_error import localization_errors, localization_summary
+from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.waypoints.files import WaypointFileError, load_gps_waypoints, load_map_waypoints
 from cottonsim_world.farm.model import Pose2D
 from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
@@ -47,6 +51,14 @@ class ExperimentRecorderNode:
       ~localization_topic (geometry_msgs/PoseWithCovarianceStamped, default '' = none; map runs: /amcl_pose):
         the robot's own pose estimate in the map (= Home) frame; the report gets its error against ground
         truth over the route (localization_error_mean_m / _max_m / _rmse_m, localization_samples)
+      ~fix_topic (sensor_msgs/NavSatFix, gps mode default /navsat/fix, '' = none): the receiver's fixes; gaps
+        between usable ones (status >= FIX, finite) longer than ~gps_outage_min_gap_s are the run's GPS
+        outages (report: gps_outages, gps_outage_total_s, gps_outage_max_s, gps_outage_max_position_error_m,
+        gps_outage_list, navigator_pauses, navigator_paused_s; evaluation.gps_outages)
+      ~gps_status_topic (cottonsim_msgs/GpsLocalizationStatus, default '' = none; GPS runs:
+        /gps_localization/status): the robot's map pose, brought into the world through ~datum_topic's datum
+        (sensor_msgs/NavSatFix, latched, default /navsat_transform/datum); its error against ground truth
+        during outages, and over the route (localization_error_* as above)
     Parameters (private)
       ~mode (str, "gps"): "gps" (waypoints are "lat lon") or "map" (x, y, yaw in the map = Home frame)
       ~waypoints_file (str, required): the planned route, the file the navigator drives
@@ -57,6 +69,7 @@ class ExperimentRecorderNode:
       ~record_period_s (float, 0.05): sim-time spacing of the kept poses [s]
       ~plot (bool, true): write trajectory.png
       ~shutdown_when_done (bool, true): end the node (and, as a required node, the launch) after writing
+      ~gps_outage_min_gap_s (float, 1.0): a gap between usable fixes longer than this [s] is an outage
     Files: report.json, trajectory.csv, trajectory.png (see evaluation.experiment). On shutdown before
     the navigator finished, the same files are written with "complete": false.
     """
@@ -114,6 +127,10 @@ class ExperimentRecorderNode:
         self._first_seen = None       # (sim s, wall s) of the first ground truth, fallback start
         self._navigator = {}
         self._estimates = []          # (t s, x m, y m) of the localisation estimates, map frame
+        self._states = []             # (sim s, navigator state name) in arrival order
+        self._fix_stamps = []         # stamps [s] of the usable GPS fixes
+        self._gps_estimates = []      # (t s, x m, y m) of gps_localization's map pose
+        self._datum = None            # (lat, lon) of the map origin (navsat_transform's datum)
         self._done = threading.Event()
         self._written = False
         rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth, queue_size=50)
@@ -122,6 +139,18 @@ class ExperimentRecorderNode:
         self.localization_topic = str(rospy.get_param("~localization_topic", ""))
         if self.localization_topic:
             rospy.Subscriber(self.localization_topic, PoseWithCovarianceStamped, self._on_estimate, queue_size=20)
+        self.fix_topic = str(rospy.get_param("~fix_topic", "/navsat/fix" if self.mode == "gps" else ""))
+        self.gps_status_topic = str(rospy.get_param("~gps_status_topic", ""))
+        try:
+            self.outage_config = GpsOutageConfig(float(rospy.get_param("~gps_outage_min_gap_s", 1.0)))
+        except ValueError as exc:
+            raise RecorderStartError(f"~gps_outage_min_gap_s: {exc}") from None
+        if self.fix_topic:
+            rospy.Subscriber(self.fix_topic, NavSatFix, self._on_fix, queue_size=50)
+        if self.gps_status_topic:
+            rospy.Subscriber(self.gps_status_topic, GpsLocalizationStatus, self._on_gps_status, queue_size=20)
+            rospy.Subscriber(str(rospy.get_param("~datum_topic", "/navsat_transform/datum")), NavSatFix,
+                             self._on_datum, queue_size=2)
         rospy.on_shutdown(self._on_shutdown)
         if self.plot:
             # import matplotlib now, in the background: at the end (possibly during a shutdown, when
@@ -148,6 +177,23 @@ class ExperimentRecorderNode:
             if self._start is not None and self._end is None:      # along the route only
                 self._estimates.append((msg.header.stamp.to_sec(), p.x, p.y))
 
+    def _on_fix(self, msg: NavSatFix):
+        if msg.status.status < NavSatStatus.STATUS_FIX or not (math.isfinite(msg.latitude)
+                                                              and math.isfinite(msg.longitude)):
+            return
+        with self._lock:
+            self._fix_stamps.append(msg.header.stamp.to_sec())
+
+    def _on_gps_status(self, msg: GpsLocalizationStatus):
+        with self._lock:
+            if self._start is not None and self._end is None and math.isfinite(msg.pose.x):
+                self._gps_estimates.append((msg.header.stamp.to_sec(), msg.pose.x, msg.pose.y))
+
+    def _on_datum(self, msg: NavSatFix):
+        if math.isfinite(msg.latitude) and math.isfinite(msg.longitude):
+            with self._lock:
+                self._datum = (msg.latitude, msg.longitude)
+
     def _on_contacts(self, msg: PlantContacts):
         with self._lock:
             if self._contacts_first is None:
@@ -164,6 +210,7 @@ class ExperimentRecorderNode:
         now = (rospy.get_time(), time.monotonic())
         with self._lock:
             self._navigator = state
+            self._states.append((now[0], name))
             if name in ("navigating", "returning_home") and self._start is None:
                 self._start = now
             if name == "finished" and self._end is None:
@@ -182,10 +229,14 @@ class ExperimentRecorderNode:
             contacts = 0 if self._contacts_first is None else self._contacts_last - self._contacts_first
             navigator = dict(self._navigator)
             estimates = list(self._estimates)
-        extra = None
+            states, fixes = list(self._states), list(self._fix_stamps)
+            gps_estimates, datum = list(self._gps_estimates), self._datum
+        extra = {}
         if self.localization_topic:
             extra = {"localization_topic": self.localization_topic,
                      **localization_summary(localization_errors(np.array(estimates).reshape(-1, 3), traj, self.home))}
+        if self.fix_topic:
+            extra.update(self._outage_keys(start[0], end[0], traj, states, fixes, gps_estimates, datum))
         report = write_experiment(
             self.out_dir, self.mode, self.planned_world, traj, max(0.0, end[0] - start[0]),
             max(0.0, end[1] - start[1]), contacts, lanes=self.world.lanes, plant_xy=self.world.plant_xy,
@@ -195,6 +246,24 @@ class ExperimentRecorderNode:
         rospy.loginfo("experiment_recorder: %s", summary_line(report))
         rospy.loginfo("experiment_recorder: wrote %s", self.out_dir)
         return report
+
+    def _outage_keys(self, start_s: float, end_s: float, traj, states, fixes, gps_estimates, datum) -> dict:
+        """The GPS outage keys of the report (and the GPS pose error over the route when it was recorded)."""
+        errors = None
+        keys = {}
+        if self.gps_status_topic:
+            if datum is None:
+                rospy.logwarn("experiment_recorder: no datum on the datum topic; the pose errors are left out")
+            else:
+                navsat = NavsatTransform(NavsatConfig(yaw_offset=0.0, magnetic_declination_radians=0.0))
+                navsat.set_datum(datum[0], datum[1], 0.0, 0.0, 0.0, 0.0)       # ENU map, origin at the datum
+                world = estimates_in_world(np.array(gps_estimates).reshape(-1, 3), navsat.map_to_latlon,
+                                           self.world.geodesy)
+                errors = position_errors(world, traj)
+                keys = {"localization_topic": self.gps_status_topic, **localization_summary(errors[:, 1])}
+        outages = fix_outages(fixes, start_s, end_s, self.outage_config)
+        keys.update(gps_outage_report(outages, errors, paused_intervals(states, end_s)))
+        return keys
 
     def _on_shutdown(self):
         if not self._written:

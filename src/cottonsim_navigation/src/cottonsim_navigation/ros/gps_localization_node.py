@@ -3,21 +3,29 @@
 Stands in for robot_localization's second (map-frame) EKF of the original GPS
 mode. The filter is ``cottonsim_navigation.localization.gps_localization.
 GpsLocalizer``; this node pairs each measurement with the odometry pose
-(TF odom -> base_link) at the measurement's own stamp and publishes the result.
+(TF odom -> base_link) at the measurement's own stamp and publishes the result,
+and says when the GPS is lost (``~localized``, ``~status``) so that the
+navigator can pause.
 """
 from __future__ import annotations
 
 import collections
+import math
 import threading
 from typing import Deque, Optional, Tuple
 
 import rospy
 import tf2_ros
+from cottonsim_msgs.msg import GpsLocalizationStatus
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
+from std_msgs.msg import Bool
 
 from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
-from cottonsim_navigation.localization.gps_localization import GpsLocalizationConfig, GpsLocalizer, enu_yaw
+from cottonsim_navigation.localization.gps_localization import (REJECTED_JUMP, REJECTED_VARIANCE,
+                                                                STATE_DEAD_RECKONING, STATE_GPS, STATE_GPS_LOST,
+                                                                STATE_WAITING, GpsLocalizationConfig, GpsLocalizer,
+                                                                enu_yaw)
 from cottonsim_navigation.ros.navsat_transform_node import ImuYawReader
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 from cottonsim_world.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
@@ -30,10 +38,17 @@ class GpsLocalizationNode:
     """Publishes TF map -> odom so that map -> base_link follows the GPS and the IMU heading.
 
     Subscriptions
-      /odometry/gps   nav_msgs/Odometry   GPS position of base_link in the map (navsat_transform)
+      /odometry/gps   nav_msgs/Odometry   GPS position of base_link in the map (navsat_transform, which drops
+                                          NO_FIX fixes) with its covariance: x/y variance gates and weights it
       /imu/data       sensor_msgs/Imu     absolute heading (IMU yaw + ~yaw_offset + declination = ENU)
     Publications
       ~pose           nav_msgs/Odometry   the robot's map pose after each GPS update (for logging)
+      ~localized      std_msgs/Bool       latched, on change: false while no usable fix for longer than
+                                          ~dead_reckoning_limit_s (gps_lost), true otherwise once the first fix
+                                          is used; the GPS navigator pauses on false (its ~localized_topic)
+      ~status         cottonsim_msgs/GpsLocalizationStatus  at ~status_frequency: state (waiting, gps,
+                                          dead_reckoning, gps_lost), time since the last fix used, the map pose
+                                          (latest odometry), fixes used / refused
     TF
       publishes ~map_frame -> ~odom_frame at ~frequency, post-dated by ~transform_tolerance_s,
       only after the first GPS position (nothing before);
@@ -47,8 +62,16 @@ class GpsLocalizationNode:
       ~magnetic_declination_radians (float, 0): [rad]
       ~max_dt_s (float, 1.0): longest gap used for a blending weight [s]
       ~transform_tolerance_s (float, 0.1): post-dating of the published transform [s]
+      ~reference_fix_variance_m2 (float, 0.0025): fixes up to this variance [m^2] use the time constant
+          as it is, noisier ones one scaled by variance / this
+      ~max_fix_variance_m2 (float, 0.25): fixes with a larger variance [m^2] are refused (degraded fix)
+      ~jump_gate_m (float, 1.0), ~jump_gate_timeout_s (float, 5.0): a fix farther than the gate + 3 sigma
+          from the estimate is refused (multipath), unless no fix was used for the time-out [s]
+      ~dead_reckoning_limit_s (float, 20.0): without a used fix for longer than this [s], gps_lost
+      ~status_frequency (float, 5.0): ~status rate [Hz]
       ~map_frame (map), ~odom_frame (odom), ~base_link_frame (base_link)
-    Messages with NaN are ignored with a warning.
+    Messages with NaN (or a negative variance) are ignored with a warning. Between fixes (an outage, refused
+    fixes) map -> odom is held, so map -> base_link follows the odometry (wheels + IMU): dead reckoning.
     """
 
     _IMU_MAX_WAIT_S = 0.2       # how long an IMU heading may wait for its odometry TF [s, sim time]
@@ -65,6 +88,12 @@ class GpsLocalizationNode:
         self.tf_pub = tf2_ros.TransformBroadcaster()
         self.imu = ImuYawReader(self.tf_buffer, self.base_frame, "gps_localization")
         self.pose_pub = rospy.Publisher("~pose", Odometry, queue_size=10)
+        self.localized_pub = rospy.Publisher("~localized", Bool, queue_size=2, latch=True)
+        self.status_pub = rospy.Publisher("~status", GpsLocalizationStatus, queue_size=5)
+        self._state: Optional[str] = None
+        self._localized: Optional[bool] = None
+        self._last_fix_s = 0.0          # when dead reckoning began: the last fix used before it [s]
+        self._last_status_s = -math.inf
         self._last_published: Optional[rospy.Time] = None
         self._imu_queue: Deque[Tuple[rospy.Time, float]] = collections.deque(maxlen=64)
         rospy.Subscriber("/odometry/gps", Odometry, self._on_gps, queue_size=20)
@@ -129,15 +158,27 @@ class GpsLocalizationNode:
             rospy.logwarn_throttle(5.0, f"gps_localization: /odometry/gps in frame '{msg.header.frame_id}', "
                                         f"expected '{self.map_frame}'; ignored")
             return
+        cov = msg.pose.covariance
+        variance = max(cov[0], cov[7])
+        if not (math.isfinite(variance) and variance >= 0.0):
+            rospy.logwarn_throttle(5.0, f"gps_localization: /odometry/gps with variance {variance} ignored")
+            return
         odom = self._odom_pose(msg.header.stamp)
         if odom is None:
             return
         with self._lock:
             first = not self.filter.ready
-            used = self.filter.update_gps(msg.header.stamp.to_sec(), odom, p.x, p.y)
+            used = self.filter.update_gps(msg.header.stamp.to_sec(), odom, p.x, p.y, variance)
             pose = self.filter.map_pose(odom)
+            why = self.filter.last_rejection
         if not used:
-            rospy.logwarn_throttle(5.0, "gps_localization: waiting for an IMU heading before the first fix")
+            if why == REJECTED_VARIANCE:
+                rospy.logwarn_throttle(5.0, f"gps_localization: degraded fix (variance {variance:.3g} m^2 > "
+                                            f"{self.config.max_fix_variance_m2} m^2) not used")
+            elif why == REJECTED_JUMP:
+                rospy.logwarn_throttle(5.0, "gps_localization: fix too far from the pose (a jump?) not used")
+            else:
+                rospy.logwarn_throttle(5.0, "gps_localization: waiting for an IMU heading before the first fix")
             return
         if first:
             rospy.loginfo("gps_localization: first fix, robot at map (%.3f, %.3f, %.3f rad)",
@@ -153,16 +194,67 @@ class GpsLocalizationNode:
         self.pose_pub.publish(out)
 
     def _on_timer(self, _event):
+        now = rospy.Time.now()
+        now_s = now.to_sec()
         with self._lock:
             t = self.filter.map_to_odom
+            state = self.filter.state(now_s)
+            localized = self.filter.localized(now_s)
+            since_fix = self.filter.seconds_since_fix(now_s)
+        self._follow_state(state, localized, since_fix, now_s)
+        if now_s - self._last_status_s >= 1.0 / self.config.status_frequency or now_s < self._last_status_s:
+            self._last_status_s = now_s
+            self._publish_status(state, localized, since_fix)
         if t is None:
             return
-        stamp = rospy.Time.now() + rospy.Duration(self.config.transform_tolerance_s)
+        stamp = now + rospy.Duration(self.config.transform_tolerance_s)
         if self._last_published is not None and stamp <= self._last_published:
             return                                            # sim time stood still: no duplicate stamp
         self._last_published = stamp
         self.tf_pub.sendTransform(transform_msg(self.map_frame, self.odom_frame, (t.x_m, t.y_m, 0.0),
                                                 yaw_to_quaternion(t.yaw_rad), stamp))
+
+
+    def _follow_state(self, state: str, localized: bool, since_fix_s: float, now_s: float):
+        """Log state changes; publish ~localized when it changes (latched)."""
+        if state != self._state:
+            previous, self._state = self._state, state
+            if state == STATE_DEAD_RECKONING:
+                self._last_fix_s = now_s - since_fix_s
+                rospy.logwarn("gps_localization: no usable GPS fix for %.1f s: dead reckoning on the odometry "
+                              "(limit %.1f s)", since_fix_s, self.config.dead_reckoning_limit_s)
+            elif state == STATE_GPS_LOST:
+                rospy.logwarn("gps_localization: GPS LOST: no usable fix for %.1f s (limit %.1f s); "
+                              "not localised until a fix is back", since_fix_s, self.config.dead_reckoning_limit_s)
+            elif state == STATE_GPS and previous in (STATE_DEAD_RECKONING, STATE_GPS_LOST):
+                rospy.loginfo("gps_localization: GPS fix back after %.1f s without one", now_s - self._last_fix_s)
+        if state != STATE_WAITING and localized != self._localized:
+            self._localized = localized
+            self.localized_pub.publish(Bool(data=localized))
+
+    def _publish_status(self, state: str, localized: bool, since_fix_s: float):
+        msg = GpsLocalizationStatus(state=state, localized=localized, seconds_since_fix=since_fix_s)
+        with self._lock:
+            msg.fixes_used = self.filter.gps_updates
+            msg.fixes_rejected_variance = self.filter.rejected[REJECTED_VARIANCE]
+            msg.fixes_rejected_jump = self.filter.rejected[REJECTED_JUMP]
+        msg.header.frame_id = self.map_frame
+        if self.filter.ready:
+            try:
+                tf = self.tf_buffer.lookup_transform(self.odom_frame, self.base_frame, rospy.Time(0))
+            except _TF_ERRORS:
+                tf = None
+            if tf is not None:
+                tr = tf.transform
+                odom = Pose2D(tr.translation.x, tr.translation.y, yaw_from_quaternion_msg(tr.rotation))
+                with self._lock:
+                    pose = self.filter.map_pose(odom)
+                msg.header.stamp = tf.header.stamp
+                msg.pose.x, msg.pose.y, msg.pose.theta = pose.x_m, pose.y_m, pose.yaw_rad
+        if msg.header.stamp.is_zero():
+            msg.header.stamp = rospy.Time.now()
+            msg.pose.x = msg.pose.y = msg.pose.theta = math.nan
+        self.status_pub.publish(msg)
 
 
 def main():

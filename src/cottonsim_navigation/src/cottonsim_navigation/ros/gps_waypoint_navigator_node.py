@@ -38,6 +38,10 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
     waypoints are converted with the same core (geodesy.navsat.NavsatTransform, the tangent plane at
     the datum). A datum outside 80 S .. 84 N or a waypoint over 100 km from it ends the route with
     the reason in ~state.
+    GPS lost: ~localized_topic defaults to /gps_localization/localized, false once gps_localization has had
+    no usable fix for longer than its ~dead_reckoning_limit_s (20 s); the route then pauses (the goal is
+    cancelled and held, the robot stops; ~state "paused", reason "GPS lost ...") and goes on with the same
+    goal when the fix is back. Shorter outages are driven through on the odometry.
     Parameters (private)
       ~datum (list [lat deg, lon deg], unset): lat/lon of the map origin (0, 0); when set, neither
         topic is needed
@@ -52,6 +56,9 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
     """
 
     NAME = "gps_waypoint_navigator"
+    DEFAULT_LOCALIZED_TOPIC = "/gps_localization/localized"
+    LOST_REASON = "GPS lost: no usable fix for longer than the dead-reckoning limit"
+    LOST_HINT = "it goes on once gps_localization has a usable fix again (/gps_localization/status)"
 
     def __init__(self):
         self.fix_topic = str(rospy.get_param("~fix_topic", "/navsat/fix"))

@@ -95,6 +95,9 @@ class WaypointNavigatorBase:
 
     NAME = "waypoint_navigator"
     DEFAULT_LOCALIZED_TOPIC = ""
+    LOST_REASON = "localisation lost"          # ~state's reason while paused for lost localisation
+    LOST_HINT = ("if it cannot re-localise by itself, give it the robot's pose (/initialpose, rviz "
+                 "'2D Pose Estimate')")
 
     # ------------------------------------------------------------------ hooks for subclasses
     def load_route(self, path: str) -> list:
@@ -385,10 +388,8 @@ class WaypointNavigatorBase:
         if self._paused_since is not None:
             waited_s = (rospy.Time.now() - self._paused_since).to_sec()
             if waited_s >= 30.0:
-                rospy.logwarn_throttle(30.0, "%s: still waiting for localisation (%.0f s, %s held); if it cannot "
-                                             "re-localise by itself, give it the robot's pose (/initialpose, "
-                                             "rviz '2D Pose Estimate')" % (self.NAME, waited_s,
-                                                                           self._describe_current()))
+                rospy.logwarn_throttle(30.0, "%s: still waiting for localisation (%.0f s, %s held); %s"
+                                       % (self.NAME, waited_s, self._describe_current(), self.LOST_HINT))
             return
         self._paused_since = rospy.Time.now()
         f = self.follower
@@ -397,9 +398,10 @@ class WaypointNavigatorBase:
             self._cancel_active()          # move_base stops the robot
             f.hold()
         goal = f.goals[f.index] if f.index < len(f.goals) else None
-        rospy.logwarn("%s: localisation lost (%s is false): %s %s, robot stopped; waiting to be localised again",
-                      self.NAME, self.localized_topic, self._describe_current(), "held" if held else "not sent yet")
-        self.publish_state("paused", reason="localisation lost", goal=goal)
+        rospy.logwarn("%s: %s (%s is false): %s %s, robot stopped; waiting to be localised again",
+                      self.NAME, self.LOST_REASON, self.localized_topic, self._describe_current(),
+                      "held" if held else "not sent yet")
+        self.publish_state("paused", reason=self.LOST_REASON, goal=goal)
 
 
 def run_node(node_class, name: str):

@@ -6,8 +6,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from cottonsim_navigation.core.geometry import Pose2D, compose, inverse, normalize_angle
-from cottonsim_navigation.localization.gps_localization import (GpsLocalizationConfig, GpsLocalizer, enu_yaw,
-                                                                robot_yaw_from_imu)
+from cottonsim_navigation.localization.gps_localization import (REJECTED_JUMP, REJECTED_VARIANCE,
+                                                                STATE_DEAD_RECKONING, STATE_GPS, STATE_GPS_LOST,
+                                                                STATE_WAITING, GpsLocalizationConfig, GpsLocalizer,
+                                                                enu_yaw, robot_yaw_from_imu)
 
 # the IMU mount of the URDF / paper Table 1: rpy (0, -90, 180) deg
 MOUNT = Rotation.from_euler("xyz", [0.0, -math.pi / 2, math.pi])
@@ -58,7 +60,8 @@ def test_first_fix_uses_odometry_turn_since_the_heading():
 
 
 def test_one_correction_moves_by_the_hand_computed_weight():
-    cfg = GpsLocalizationConfig(position_time_constant_s=0.5, yaw_time_constant_s=2.0)
+    # a wide jump gate: the 2.2 m correction is meant, not multipath
+    cfg = GpsLocalizationConfig(position_time_constant_s=0.5, yaw_time_constant_s=2.0, jump_gate_m=5.0)
     f = GpsLocalizer(cfg)
     odom = Pose2D(0.0, 0.0, 0.0)
     f.update_heading(0.0, odom, 0.0)
@@ -75,7 +78,8 @@ def test_one_correction_moves_by_the_hand_computed_weight():
 
 
 def test_zero_time_constants_follow_each_measurement():
-    f = GpsLocalizer(GpsLocalizationConfig(position_time_constant_s=0.0, yaw_time_constant_s=0.0))
+    # a wide jump gate: the 1.4 m step between the two fixes is meant, not multipath
+    f = GpsLocalizer(GpsLocalizationConfig(position_time_constant_s=0.0, yaw_time_constant_s=0.0, jump_gate_m=5.0))
     odom = Pose2D(2.0, 1.0, 0.5)
     f.update_heading(0.0, odom, -1.0)
     f.update_gps(0.0, odom, 10.0, 20.0)
@@ -126,6 +130,107 @@ def test_bad_inputs_and_config():
         f.update_gps(0.0, (0, 0, 0), 0.0, 0.0)
     for kwargs, named in (({"position_time_constant_s": -1.0}, "position_time_constant_s"),
                           ({"frequency": 0.0}, "frequency"), ({"yaw_offset": float("nan")}, "yaw_offset"),
-                          ({"max_dt_s": "1"}, "max_dt_s")):
+                          ({"max_dt_s": "1"}, "max_dt_s"), ({"max_fix_variance_m2": 0.0}, "max_fix_variance_m2"),
+                          ({"dead_reckoning_limit_s": -1.0}, "dead_reckoning_limit_s"),
+                          ({"jump_gate_timeout_s": -1.0}, "jump_gate_timeout_s"),
+                          ({"reference_fix_variance_m2": 1.0}, "max_fix_variance_m2")):
         with pytest.raises(ValueError, match=named):
             GpsLocalizationConfig(**kwargs)
+
+
+# ---------------------------------------------------------------------------- degraded and lost fixes
+def started(config=GpsLocalizationConfig()):
+    f = GpsLocalizer(config)
+    f.update_heading(0.0, Pose2D(0, 0, 0), 0.0)
+    assert f.update_gps(0.0, Pose2D(0, 0, 0), 0.0, 0.0)
+    return f
+
+
+def test_a_fix_above_the_variance_gate_is_refused_and_counted():
+    f = started()
+    assert f.update_gps(0.1, Pose2D(0, 0, 0), 0.4, 0.0, variance_m2=6.25) is False     # a single-point fix
+    assert f.last_rejection == REJECTED_VARIANCE and f.rejected[REJECTED_VARIANCE] == 1
+    assert f.map_pose(Pose2D(0, 0, 0)).x_m == 0.0
+    assert f.update_gps(0.2, Pose2D(0, 0, 0), 0.4, 0.0, variance_m2=0.25) is True      # at the gate: used
+    with pytest.raises(ValueError, match="variance_m2"):
+        f.update_gps(0.3, Pose2D(0, 0, 0), 0.4, 0.0, variance_m2=-1.0)
+    with pytest.raises(ValueError, match="variance_m2"):
+        f.update_gps(0.3, Pose2D(0, 0, 0), 0.4, 0.0, variance_m2=float("nan"))
+
+
+@pytest.mark.parametrize("variance, scale", [(0.0, 1.0), (1e-8, 1.0), (0.0025, 1.0), (0.09, 36.0)])
+def test_a_noisier_fix_corrects_with_a_proportionally_longer_time_constant(variance, scale):
+    f = started()
+    f.update_gps(0.1, Pose2D(0, 0, 0), 0.5, 0.0, variance_m2=variance)
+    expected = 0.5 * (1.0 - math.exp(-0.1 / (0.5 * scale)))
+    assert f.map_pose(Pose2D(0, 0, 0)).x_m == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_jump_is_refused_until_no_fix_was_used_for_the_gate_time_out():
+    f = started(GpsLocalizationConfig(jump_gate_timeout_s=5.0))
+    odom = Pose2D(0, 0, 0)
+    for k in range(1, 200):                                    # 3 m multipath jump for 5 s at 40 Hz
+        t = 0.025 * k
+        used = f.update_gps(t, odom, 3.0, 0.0)
+        assert used is False and f.last_rejection == REJECTED_JUMP, t
+    assert f.map_pose(odom).x_m == 0.0
+    assert f.state(4.9) == STATE_DEAD_RECKONING
+    # a good fix within the gate is used again at once
+    assert f.update_gps(4.95, odom, 0.2, 0.0) is True
+    # a jump that lasts beyond the time-out wins: the estimate may be the one that is off
+    for k in range(1, 201):
+        f.update_gps(4.95 + 0.025 * k, odom, 3.0, 0.0)
+    assert f.update_gps(10.0, odom, 3.0, 0.0) is True
+    assert f.map_pose(odom).x_m > 2.0
+
+
+def test_states_and_localized_through_an_outage():
+    f = GpsLocalizer(GpsLocalizationConfig(dead_reckoning_limit_s=20.0))
+    assert f.state(0.0) == STATE_WAITING and f.localized(0.0) and f.seconds_since_fix(0.0) == math.inf
+    f.update_heading(0.0, Pose2D(0, 0, 0), 0.0)
+    f.update_gps(1.0, Pose2D(0, 0, 0), 0.0, 0.0)
+    assert f.state(1.5) == STATE_GPS and f.localized(1.5)
+    assert f.state(3.0) == STATE_DEAD_RECKONING and f.localized(3.0)
+    assert f.seconds_since_fix(15.0) == pytest.approx(14.0)
+    assert f.state(21.0) == STATE_DEAD_RECKONING and f.state(21.1) == STATE_GPS_LOST and not f.localized(21.1)
+    # refused fixes do not count as fixes
+    f.update_gps(30.0, Pose2D(0, 0, 0), 0.0, 0.0, variance_m2=4.0)
+    assert f.state(30.0) == STATE_GPS_LOST
+    assert f.update_gps(40.0, Pose2D(0, 0, 0), 0.1, 0.0)
+    assert f.state(40.0) == STATE_GPS and f.localized(40.0)
+
+
+def test_a_15_s_outage_in_a_lane_is_bridged_by_the_odometry_and_the_fix_takes_over_after():
+    """Straight lane at 0.5 m/s with a 1 % odometry scale error: no GPS for 15 s; the map pose drifts only by
+    the odometry's error (7.5 m x 1 % = 7.5 cm), the gap exceeds no gate, and the first fixes after it pull
+    the pose back."""
+    f = GpsLocalizer()
+    dt, truth_x, odom_x = 0.025, 0.0, 0.0
+    f.update_heading(0.0, Pose2D(0, 0, 0), 0.0)
+    errors = {}
+    for k in range(2400):                                      # 60 s
+        t = k * dt
+        truth_x += 0.5 * dt
+        odom_x += 0.5 * dt * 1.01
+        odom = Pose2D(odom_x, 0.0, 0.0)
+        f.update_heading(t, odom, 0.0)
+        if not 20.0 <= t < 35.0:
+            f.update_gps(t, odom, truth_x, 0.0, variance_m2=1e-8)
+        errors[round(t, 3)] = abs(f.map_pose(odom).x_m - truth_x)
+        assert f.localized(t)
+        if 21.0 < t < 35.0:
+            assert f.state(t) == STATE_DEAD_RECKONING
+    assert errors[34.975] == pytest.approx(0.075, abs=0.01)
+    assert errors[37.0] < 0.01
+    assert f.rejected == {REJECTED_VARIANCE: 0, REJECTED_JUMP: 0}
+
+
+def test_the_shipped_config_file_lists_every_key_with_its_default():
+    import dataclasses
+    import pathlib
+    import yaml
+    path = pathlib.Path(__file__).resolve().parents[3] / "config" / "gps_localization.yaml"
+    values = yaml.safe_load(path.read_text())["gps_localization"]
+    fields = {f.name for f in dataclasses.fields(GpsLocalizationConfig)} - {"yaw_offset", "magnetic_declination_radians"}
+    assert set(values) == fields
+    assert GpsLocalizationConfig(**values) == GpsLocalizationConfig()
