@@ -228,9 +228,9 @@ def test_a_15_s_outage_in_a_lane_is_bridged_by_the_odometry_and_the_fix_takes_ov
 def test_the_shipped_config_file_lists_every_key_with_its_default():
     import dataclasses
     import pathlib
-    import yaml
+    from cottonsim_common.config.yaml_files import load_yaml_file
     path = pathlib.Path(__file__).resolve().parents[3] / "config" / "gps_localization.yaml"
-    values = yaml.safe_load(path.read_text())["gps_localization"]
+    values = load_yaml_file(path)["gps_localization"]
     fields = {f.name for f in dataclasses.fields(GpsLocalizationConfig)} - {"yaw_offset", "magnetic_declination_radians"}
     assert set(values) == fields
     assert GpsLocalizationConfig(**values) == GpsLocalizationConfig()

@@ -75,7 +75,7 @@ import numpy as np
 import rospkg
 import rospy
 import tf2_ros
-import yaml
+from cottonsim_common.config.yaml_files import load_yaml_text
 from cottonsim_msgs.msg import PlantContact, PlantContacts, SensorFault, SensorFaults, SimStats
 from cottonsim_msgs.srv import (ClearFaults, ClearFaultsResponse, InjectFault, InjectFaultResponse, SetRobotPose,
                                 SetRobotPoseResponse)
@@ -443,8 +443,8 @@ class SimBridgeNode:
 def fault_spec_from_request(kind: str, target: str, duration_s: float, parameters: str) -> FaultSpec:
     """A FaultSpec (start_s 0, set by the caller) from /sim/inject_fault's fields; ValueError naming the problem."""
     try:
-        params = yaml.safe_load(parameters) if parameters.strip() else {}
-    except yaml.YAMLError as exc:
+        params = load_yaml_text(parameters, source="parameters") if parameters.strip() else {}
+    except ValueError as exc:
         raise ValueError(f"parameters must be a YAML mapping of the fault's keys: {exc}") from None
     if params is None:
         params = {}
