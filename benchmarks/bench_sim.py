@@ -105,7 +105,7 @@ class JobBreakdown:
     def __init__(self):
         import cottonsim_world.simulator as simulator_module
         self._module = simulator_module
-        self._original = simulator_module._timed_job
+        self._original = simulator_module.timed_job
         self.sums = {}                   # job function name -> [jobs, wall, cpu, run queue] [s]
 
         def timed(after, produce, *args):
@@ -121,10 +121,10 @@ class JobBreakdown:
             entry[3] += q1 - q0
             return result
 
-        simulator_module._timed_job = timed
+        simulator_module.timed_job = timed
 
     def remove(self):
-        self._module._timed_job = self._original
+        self._module.timed_job = self._original
 
 
 def run(profile: str, seconds: float, clouds: bool, callgrind: bool = False, place: str = "headland",

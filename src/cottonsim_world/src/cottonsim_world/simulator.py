@@ -48,300 +48,38 @@ are untouched.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 import time
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
-from concurrent.futures import wait as futures_wait
-from dataclasses import dataclass, field
-from typing import Callable, Deque, Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Deque, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from cottonsim_world.estimation.odometry_ekf import FilteredOdometry, OdometryEkf, OdometryEkfConfig
-from cottonsim_world.farm.config import FarmConfig
+from cottonsim_world.estimation.odometry_ekf import OdometryEkf
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Farm, Pose2D
-from cottonsim_world.faults import GPS_STATUS_FIX, FaultInjector, FaultScheduleConfig
-from cottonsim_world.geodesy import GpsNoiseConfig, GpsNoiseModel, HectorGeodesy
-from cottonsim_world.physics.husky_params import DriveLimits, HuskyParams
-from cottonsim_world.physics.imu_model import ImuConfig, ImuMeasurement, ImuModel
-from cottonsim_world.physics.ode_world import ContactEvent, OdeWorld, PhysicsConfig, RobotState
-from cottonsim_world.physics.wheel_odometry import OdometryEstimate, WheelOdometry, WheelOdometryConfig
-from cottonsim_world.robot.ur5e import JOINT_NAMES as ARM_JOINTS, Ur5eArm
+from cottonsim_world.faults import FaultInjector
+from cottonsim_world.geodesy import GpsNoiseModel, HectorGeodesy
+from cottonsim_world.physics.imu_model import ImuMeasurement, ImuModel
+from cottonsim_world.physics.ode_world import OdeWorld
+from cottonsim_world.physics.physics_config import ContactEvent, RobotState
+from cottonsim_world.physics.wheel_odometry import WheelOdometry, WheelOdometryConfig
+from cottonsim_world.robot.ur5e import Ur5eArm
 from cottonsim_world.robot.urdf_model import UrdfModel
-from cottonsim_world.sensors.camera import CameraConfig, CameraFrame, CameraIntrinsics, CameraModel
-from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscans,
-                                                   original_passthrough)
-from cottonsim_world.sensors.lidar import LidarConfig, LidarScan, Vlp16Model
-from cottonsim_world.sensors.scene import SceneConfig, SensorScene
+from cottonsim_world.sensors.camera import CameraModel
+from cottonsim_world.sensors.cloud_filters import cloud_to_laserscans, original_passthrough
+from cottonsim_world.sensors.lidar import Vlp16Model
+from cottonsim_world.sensors.scene import SensorScene
 from cottonsim_world.transforms import matrix_to_quaternion, pose_matrix
-
-CAMERA_NAMES = ("realsense_p", "realsense_secondary", "realsense_tertiary")
-WHEEL_JOINTS = ("front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint",
-                "rear_right_wheel_joint")
-ARM_PREFIX = "ur5e_"
-ARM_JOINT_NAMES = tuple(ARM_PREFIX + name for name in ARM_JOINTS)
-ARM_PERIOD_S = 0.01          # the kinematic UR5e follower runs at 100 Hz
-MAX_SENSOR_WORKERS = 8      # upper bound of SimulatorConfig.sensor_workers
-LIDAR_FRAME = "velodyne"
-IMU_FRAME = "imu_link"
-BASE_FRAME = "base_link"
-
-
-def optical_frame(camera: str) -> str:
-    return f"{camera}_color_optical_frame"
-
-
-def _positive_rate(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ValueError(f"SimulatorConfig.{name} must be a rate > 0 [Hz], got {value!r}")
-
-
-@dataclass(frozen=True)
-class SimulatorConfig:
-    """Everything that defines a simulated run.
-
-    cameras: (namespace, CameraConfig) pairs; namespaces must have a
-    ``<ns>_color_optical_frame`` in the URDF. ``camera_enabled`` /
-    ``lidar_enabled`` remove a sensor entirely (not built, never rendered).
-    Rates are in sim-time Hz. ``seed`` seeds every random process (physics
-    solver order, IMU, GPS, LiDAR and camera noise); the sub-configs' own
-    seeds are replaced by values derived from it.
-
-    sensor_workers: worker threads [-] that render the cameras and scan the
-    LiDAR while the main thread steps the physics (the module docstring);
-    0 (default) = serial, everything inside ``step()``. 1 overlaps the
-    sensors with the physics; more than 1 also runs different sensors at
-    once (the sensor models must then not share mutable state, so the
-    pybullet renderers / LiDAR backend need <= 1). The
-    readings are the same either way; only their return is later (at most
-    one sensor period of sim time).
-    faults: scheduled sensor faults (``cottonsim_world.faults``; default none); a
-    camera_blackout must name a camera of ``cameras`` (or 'all').
-    sensor_switch_interval_s: Python's GIL switch interval [s]
-    (``sys.setswitchinterval``, Python's default 0.005) while pipelined,
-    restored by ``close()``; 0 (default) = leave it. A sensor job coming
-    out of a GIL-free kernel needs the GIL back and may wait up to this
-    long while the physics thread runs Python (the convoy effect). Measured
-    on the shared vm: no difference between 5 and 0.5 ms (the physics step
-    releases the GIL in its ctypes call every step; a job starts ~1.3 ms
-    after its submission either way), hence left as Python has it.
-    Unused when serial.
-    """
-
-    farm: FarmConfig = FarmConfig()
-    physics: PhysicsConfig = PhysicsConfig()
-    husky: HuskyParams = HuskyParams()
-    drive_limits: DriveLimits = DriveLimits()
-    scene: SceneConfig = SceneConfig()
-    cameras: Tuple[Tuple[str, CameraConfig], ...] = tuple((name, CameraConfig()) for name in CAMERA_NAMES)
-    lidar: LidarConfig = LidarConfig()
-    lidar_enabled: bool = True
-    laserscan: LaserScanConfig = LaserScanConfig()
-    # A full-circle scan from the same cloud, for SLAM and AMCL (the original's +/-45 deg
-    # forward sector leaves the particle filters ill-conditioned along crop rows). Its slice
-    # reaches 0.25 m below the sensor (still 0.13 m above the ground at the VLP-16's 0.38 m
-    # height): the original's 0.0-0.1 m slice holds only the +1 deg ring, which leaves it
-    # beyond 5.7 m; the -1 and -3 deg rings add plant returns out to ~14 m.
-    laserscan_360: LaserScanConfig = LaserScanConfig(min_height_m=-0.25, angle_min_rad=-math.pi,
-                                                     angle_max_rad=math.pi - 0.0087)
-    passthrough: PassThroughConfig = PassThroughConfig()
-    imu: ImuConfig = ImuConfig()
-    gps_noise: GpsNoiseConfig = GpsNoiseConfig()
-    gps_rate_hz: float = 40.0
-    geodesy_reference: Tuple[float, float, float, float] = (49.9, 8.9, 0.0, 0.0)  # lat, lon [deg], alt [m], heading [deg]
-    odometry_rate_hz: float = 50.0
-    ekf: OdometryEkfConfig = OdometryEkfConfig()
-    joint_states_rate_hz: float = 50.0
-    ground_truth_rate_hz: float = 50.0
-    contacts_rate_hz: float = 10.0
-    arm_initial_positions_rad: Tuple[float, ...] = (0.0, -2.2, 2.4, -1.77, -1.57, 0.0)   # stowed over the base
-    seed: int = 0
-    sensor_workers: int = 0
-    sensor_switch_interval_s: float = 0.0
-    faults: FaultScheduleConfig = FaultScheduleConfig()
-
-    def __post_init__(self):
-        if (not isinstance(self.sensor_workers, int) or isinstance(self.sensor_workers, bool)
-                or not 0 <= self.sensor_workers <= MAX_SENSOR_WORKERS):
-            raise ValueError(f"SimulatorConfig.sensor_workers must be an int in 0..{MAX_SENSOR_WORKERS} "
-                             f"(0 = serial), got {self.sensor_workers!r}")
-        v = self.sensor_switch_interval_s
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= 0.1):
-            raise ValueError(f"SimulatorConfig.sensor_switch_interval_s must be a number of seconds in "
-                             f"[0, 0.1] (0 = leave Python's), got {v!r}")
-        for name in ("gps_rate_hz", "odometry_rate_hz", "joint_states_rate_hz", "ground_truth_rate_hz",
-                     "contacts_rate_hz"):
-            _positive_rate(name, getattr(self, name))
-        names = [name for name, _ in self.cameras]
-        if len(set(names)) != len(names):
-            raise ValueError(f"SimulatorConfig.cameras has duplicate names: {names}")
-        for name, cam in self.cameras:
-            if not isinstance(cam, CameraConfig):
-                raise ValueError(f"SimulatorConfig.cameras['{name}'] must be a CameraConfig")
-        if self.sensor_workers > 1:
-            pybullet_users = [f"cameras['{name}'] (renderer {cam.renderer!r})" for name, cam in self.cameras
-                              if cam.renderer != "numba"]
-            if self.lidar_enabled and self.lidar.backend != "numba":
-                pybullet_users.append(f"lidar (backend {self.lidar.backend!r})")
-            if pybullet_users:
-                raise ValueError(f"SimulatorConfig.sensor_workers > 1 runs sensors at the same time, which the "
-                                 f"pybullet backends do not allow; use the numba ones or 1 worker: "
-                                 f"{', '.join(pybullet_users)}")
-        if len(self.arm_initial_positions_rad) != 6:
-            raise ValueError("SimulatorConfig.arm_initial_positions_rad needs 6 joint angles [rad]")
-        if not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"SimulatorConfig.seed must be an int >= 0, got {self.seed!r}")
-        if not isinstance(self.faults, FaultScheduleConfig):
-            raise ValueError(f"SimulatorConfig.faults must be a FaultScheduleConfig, got {type(self.faults).__name__}")
-        self.faults.check_cameras(names)
-
-    def with_seed_applied(self) -> "SimulatorConfig":
-        """A copy whose noise models carry seeds derived from ``seed``."""
-        seeds = np.random.SeedSequence(self.seed).generate_state(8)
-        cameras = tuple((name, dataclasses.replace(cam, seed=int(seeds[5]) + i))
-                        for i, (name, cam) in enumerate(self.cameras))
-        return dataclasses.replace(
-            self,
-            physics=dataclasses.replace(self.physics, seed=int(seeds[0])),
-            imu=dataclasses.replace(self.imu, seed=int(seeds[1])),
-            gps_noise=dataclasses.replace(self.gps_noise, seed=int(seeds[2])),
-            lidar=dataclasses.replace(self.lidar, seed=int(seeds[3])),
-            cameras=cameras,
-            faults=dataclasses.replace(self.faults, seed=int(seeds[6])))
-
-
-# ----------------------------------------------------------------------------- readings
-
-@dataclass
-class CameraReading:
-    stamp_s: float
-    camera: str
-    frame_id: str
-    frame: CameraFrame
-    intrinsics: CameraIntrinsics
-    cloud_xyz: Optional[np.ndarray] = None   # (N, 3) float32 in the optical frame, when wanted
-    cloud_rgb: Optional[np.ndarray] = None   # (N, 3) uint8
-    # the same cloud in PointCloud2's layout: (N, 4) float32 x, y, z, packed 0x00RRGGBB bits
-    # (CameraModel.point_cloud_xyzrgb); cloud_xyz is a view of it
-    cloud_xyzrgb: Optional[np.ndarray] = None
-
-
-@dataclass
-class LidarReading:
-    stamp_s: float
-    frame_id: str
-    scan: LidarScan
-    passthrough_points: np.ndarray           # (M, 3) float32, the paper's PassThrough filter
-    scan_ranges: np.ndarray                  # LaserScan ranges (inf = no return)
-    scan_config: LaserScanConfig
-    scan_360_ranges: np.ndarray              # the full-circle scan
-    scan_360_config: LaserScanConfig
-
-
-@dataclass
-class ImuReading:
-    stamp_s: float
-    frame_id: str
-    measurement: ImuMeasurement
-
-
-@dataclass
-class GpsReading:
-    stamp_s: float
-    frame_id: str
-    latitude_deg: float
-    longitude_deg: float
-    altitude_m: float
-    position_variance_m2: float       # per axis [m^2]; NaN when unknown (no fix)
-    status: int = GPS_STATUS_FIX      # NavSatStatus: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (faults change it)
-
-
-@dataclass
-class OdometryReading:
-    stamp_s: float
-    wheel: OdometryEstimate
-    filtered: FilteredOdometry
-
-
-@dataclass
-class JointStatesReading:
-    stamp_s: float
-    names: List[str]
-    positions: np.ndarray
-    velocities: np.ndarray
-
-
-@dataclass
-class GroundTruthReading:
-    stamp_s: float
-    state: RobotState
-
-
-@dataclass
-class ContactsReading:
-    stamp_s: float
-    events: List[ContactEvent]
-    total_contact_events: int
-    plants_touched: List[int]
-
-
-@dataclass
-class _Schedule:
-    """A periodic task in sim time: due when now >= next_s."""
-
-    name: str
-    period_s: float
-    next_s: float = 0.0
-    active: bool = True
-    wall_s: float = 0.0          # accumulated wall time of its updates [s]
-    cpu_s: float = 0.0           # accumulated process CPU time of its updates, all threads [s]
-    count: int = 0
-
-    def due(self, now_s: float) -> bool:
-        if now_s + 1e-9 < self.next_s:
-            return False
-        # Skip missed periods instead of bursting (a sensor fires once per step at most).
-        self.next_s += self.period_s * max(1, math.floor((now_s - self.next_s) / self.period_s + 1e-9) + 1)
-        return self.active
-
-
-class _HeldReading:
-    """A place in the reading stream that ``step()`` has not returned yet (pipelined mode).
-
-    Either a worker's job (``future``: (reading, wall [s], thread CPU [s]))
-    or a reading made in the main thread that waits behind one.
-    deadline_s: sim time [s] at which the physics waits for the job
-    (its sensor's next due time, at most its stamp + the sensor's period); before_s: sim time [s] of the step
-    before the stamp (every reading up to it precedes this one).
-    """
-
-    __slots__ = ("stamp_s", "before_s", "deadline_s", "schedule", "future", "reading")
-
-    def __init__(self, stamp_s: float, before_s: float, deadline_s: float, schedule: Optional[_Schedule],
-                 future: Optional[Future], reading: object):
-        self.stamp_s = stamp_s
-        self.before_s = before_s
-        self.deadline_s = deadline_s
-        self.schedule = schedule
-        self.future = future
-        self.reading = reading
-
-
-def _timed_job(after: Optional[Future], produce: Callable[..., object], *args) -> Tuple[object, float, float]:
-    """Run a sensor job on a worker: (reading, wall [s], CPU of this thread [s]).
-
-    ``after``: the same sensor's previous job, which must finish first (its model and noise
-    generator are not shared); with one worker the queue's order already ensures that.
-    """
-    if after is not None:
-        futures_wait((after,))
-    t0, c0 = time.perf_counter(), time.thread_time()
-    reading = produce(*args)
-    return reading, time.perf_counter() - t0, time.thread_time() - c0
+# the simulator's public names, importable from here as before the config and readings had modules of their own
+from cottonsim_world.simulator_config import (ARM_JOINT_NAMES, ARM_PERIOD_S, ARM_PREFIX, BASE_FRAME,  # noqa: F401
+                                              CAMERA_NAMES, IMU_FRAME, LIDAR_FRAME, MAX_SENSOR_WORKERS,
+                                              WHEEL_JOINTS, SimulatorConfig, optical_frame)
+from cottonsim_world.readings import (CameraReading, ContactsReading, GpsReading, GroundTruthReading,  # noqa: F401
+                                      ImuReading, JointStatesReading, LidarReading, OdometryReading)
+from cottonsim_world.sensor_schedule import HeldReading, Schedule, timed_job
 
 
 class Simulator:
@@ -389,17 +127,17 @@ class Simulator:
         self._imu_cov_cache: Dict[bytes, np.ndarray] = {}
         self._joint_names = list(WHEEL_JOINTS) + list(ARM_JOINT_NAMES)
 
-        self._schedules: Dict[str, _Schedule] = {}
+        self._schedules: Dict[str, Schedule] = {}
         for name, cam_cfg in cfg.cameras:
-            self._schedules[name] = _Schedule(name, 1.0 / cam_cfg.rate_hz)
+            self._schedules[name] = Schedule(name, 1.0 / cam_cfg.rate_hz)
         if cfg.lidar_enabled:
-            self._schedules["lidar"] = _Schedule("lidar", 1.0 / cfg.lidar.rate_hz)
-        self._schedules["imu"] = _Schedule("imu", 1.0 / cfg.imu.rate_hz)
-        self._schedules["gps"] = _Schedule("gps", 1.0 / cfg.gps_rate_hz)
-        self._schedules["odometry"] = _Schedule("odometry", 1.0 / cfg.odometry_rate_hz)
-        self._schedules["joint_states"] = _Schedule("joint_states", 1.0 / cfg.joint_states_rate_hz)
-        self._schedules["ground_truth"] = _Schedule("ground_truth", 1.0 / cfg.ground_truth_rate_hz)
-        self._schedules["contacts"] = _Schedule("contacts", 1.0 / cfg.contacts_rate_hz)
+            self._schedules["lidar"] = Schedule("lidar", 1.0 / cfg.lidar.rate_hz)
+        self._schedules["imu"] = Schedule("imu", 1.0 / cfg.imu.rate_hz)
+        self._schedules["gps"] = Schedule("gps", 1.0 / cfg.gps_rate_hz)
+        self._schedules["odometry"] = Schedule("odometry", 1.0 / cfg.odometry_rate_hz)
+        self._schedules["joint_states"] = Schedule("joint_states", 1.0 / cfg.joint_states_rate_hz)
+        self._schedules["ground_truth"] = Schedule("ground_truth", 1.0 / cfg.ground_truth_rate_hz)
+        self._schedules["contacts"] = Schedule("contacts", 1.0 / cfg.contacts_rate_hz)
         self._camera_cloud_wanted = {name: True for name, _ in cfg.cameras}
         # sensor name -> (now, state) -> (function, args) of its reading: the part a worker can run
         self._jobs: Dict[str, Callable] = {name: (lambda now, state, name=name: self._camera_job(name, now, state))
@@ -421,7 +159,7 @@ class Simulator:
             if cfg.sensor_switch_interval_s > 0.0:
                 self._saved_switch_interval_s = sys.getswitchinterval()
                 sys.setswitchinterval(cfg.sensor_switch_interval_s)
-        self._held: Deque[_HeldReading] = deque()
+        self._held: Deque[HeldReading] = deque()
         self._last_job: Dict[str, Future] = {}  # each pipelined sensor's latest job
         self._held_deadline_s = math.inf    # earliest deadline of a pending job in _held
         self._delivered_s = 0.0             # stamp of the last reading returned
@@ -583,9 +321,9 @@ class Simulator:
                     previous = self._last_job.get(sched.name)
                     if previous is not None and previous.done():
                         previous = None
-                    future = workers.submit(_timed_job, previous, produce, *args)
+                    future = workers.submit(timed_job, previous, produce, *args)
                     self._last_job[sched.name] = future
-                    held.append(_HeldReading(now, before, sched.next_s, sched, future, None))
+                    held.append(HeldReading(now, before, sched.next_s, sched, future, None))
                     self._held_deadline_s = min(self._held_deadline_s, sched.next_s)
                 else:
                     # pipelined: only this thread's CPU (the workers run meanwhile)
@@ -597,7 +335,7 @@ class Simulator:
                     sched.count += 1
                     if reading is not None:
                         if held:
-                            held.append(_HeldReading(now, before, math.inf, None, None, reading))
+                            held.append(HeldReading(now, before, math.inf, None, None, reading))
                         else:
                             readings.append(reading)
                             self._delivered_s = now
@@ -628,7 +366,7 @@ class Simulator:
         if len(out) > n_before:
             self._held_deadline_s = min((h.deadline_s for h in held if h.future is not None), default=math.inf)
 
-    def _finish(self, slot: _HeldReading) -> object:
+    def _finish(self, slot: HeldReading) -> object:
         """The reading of a held slot (waits for its job); books the job's cost to its sensor."""
         if slot.future is None:
             reading = slot.reading
