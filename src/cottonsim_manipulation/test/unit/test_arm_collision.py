@@ -73,6 +73,33 @@ def test_segment_box_distance_matches_brute_force():
                                 np.array([0.1, 0.1, 0.1])) == 0.0
 
 
+def test_bounding_tests_never_hide_a_contact(body):
+    """The broad phases give the same clearances as computing every pair exactly."""
+    model = ArmCollisionModel(body=body)
+    rng = np.random.default_rng(12)
+    q = rng.uniform(-math.pi, math.pi, (300, 6))
+    starts = rng.uniform(-0.9, 0.9, (40, 3))
+    ends = starts + rng.normal(0.0, 0.3, (40, 3))
+    obstacles = CapsuleSet(starts, ends, rng.uniform(0.0, 0.05, 40))
+    obstacle, body_c, _ = model.clearances(q, obstacles)
+    start, end = model.capsules(q)
+    grown = model.config.radii_m + model.config.padding_m
+    exact = segment_segment_distance(start[:, :, None], end[:, :, None], starts[None, None], ends[None, None])
+    exact = exact - grown[None, :, None] - obstacles.radius_m[None, None]
+    finite = np.isfinite(obstacle)
+    np.testing.assert_allclose(obstacle[finite], exact[finite], atol=1e-12)
+    assert np.all(exact[~finite] > 0.0)                      # only clear pairs were skipped
+    assert (exact < 0).sum() > 100                          # and the case has contacts to find
+    links = model.body_links
+    box_exact = segment_box_distance(start[:, links, None], end[:, links, None], body.centre_m[None, None],
+                                     body.rotation[None, None], body.half_extents_m[None, None])
+    box_exact = box_exact - grown[links][None, :, None]
+    finite = np.isfinite(body_c)
+    np.testing.assert_allclose(body_c[finite], box_exact[finite], atol=1e-6)
+    assert np.all(box_exact[~finite] > 0.0)
+    assert (box_exact < 0).sum() > 100
+
+
 def test_arm_capsules_sit_on_the_dh_frames():
     model = ArmCollisionModel()
     cfg = model.config

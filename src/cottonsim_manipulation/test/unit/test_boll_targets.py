@@ -120,6 +120,11 @@ def test_two_bolls_in_one_frame_never_merge():
     p = np.array([0.0, 0.0, 0.0])
     ids = fusion.update([BollDetection3D(p, 0.01), BollDetection3D(p + [0.01, 0, 0], 0.01)], 0.0)
     assert sorted(ids) == [0, 1]
+    # Both near the existing targets, and a third one near both: one detection per target.
+    ids = fusion.update([BollDetection3D(p + [0.002, 0, 0], 0.01), BollDetection3D(p + [0.008, 0, 0], 0.01),
+                         BollDetection3D(p + [0.005, 0, 0], 0.01)], 0.1)
+    assert ids[:2] == [0, 1] and ids[2] == 2
+    assert [t.observations for t in fusion.targets()] == [2, 2, 1]
 
 
 def test_bad_input():
