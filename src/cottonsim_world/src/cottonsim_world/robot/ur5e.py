@@ -1,4 +1,4 @@
-"""UR5e arm: forward kinematics (DH) and a joint-limit-respecting position follower.
+"""UR5e arm in the simulator: a joint-limit-respecting position follower.
 
 The CottonSim robot carries a UR5e that, as in the original, is only driven to
 poses (e.g. a stow pose) and reported on /joint_states. The simulator does not
@@ -7,109 +7,29 @@ towards their commanded target at no more than the joint's velocity limit and
 never leave its position limits, like a position-controlled trajectory
 follower with infinite acceleration.
 
-Forward kinematics uses the UR5e's standard Denavit-Hartenberg table
-(Universal Robots' published parameters; lengths in metres):
-
-    i   a_i       alpha_i   d_i
-    1   0         +pi/2     d1 = 0.1625
-    2   a2=-0.425  0        0
-    3   a3=-0.3922 0        0
-    4   0         +pi/2     d4 = 0.1333
-    5   0         -pi/2     d5 = 0.0997
-    6   0          0        d6 = 0.0996
-
-A_i = Rz(q_i) Tz(d_i) Tx(a_i) Rx(alpha_i); T_base_tool0 = A_1 ... A_6. The
-base frame is the UR controller's 'base' (ur5e_base in the URDF: ur5e_base_link
-turned by pi about z); tool0 has z out of the flange. The URDF chain
-ur5e_base -> ur5e_tool0 gives the same pose (checked by the unit tests).
+The kinematics (the UR5e's DH table, forward and inverse kinematics) live in
+cottonsim_common.kinematics.ur5e, shared with the robot-side arm code; the
+names below are re-exported from there. The URDF chain ur5e_base -> ur5e_tool0
+gives the same pose as forward_kinematics (checked by the unit tests).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from cottonsim_common.kinematics.ur5e import (  # noqa: F401  (re-exported API)
+    JOINT_NAMES,
+    NUM_JOINTS,
+    Ur5eKinematics,
+    dh_transform,
+    forward_kinematics,
+    joint_vector as _joint_vector,
+)
 from cottonsim_world.robot.urdf_model import JointLimits, UrdfModel
 
-JOINT_NAMES: Tuple[str, ...] = (
-    "shoulder_pan_joint",
-    "shoulder_lift_joint",
-    "elbow_joint",
-    "wrist_1_joint",
-    "wrist_2_joint",
-    "wrist_3_joint",
-)
-NUM_JOINTS = len(JOINT_NAMES)
-
-
-@dataclass(frozen=True)
-class Ur5eKinematics:
-    """UR5e DH lengths [m] (defaults: Universal Robots' published values)."""
-
-    d1_m: float = 0.1625
-    a2_m: float = -0.425
-    a3_m: float = -0.3922
-    d4_m: float = 0.1333
-    d5_m: float = 0.0997
-    d6_m: float = 0.0996
-
-    def __post_init__(self) -> None:
-        for name in ("d1_m", "a2_m", "a3_m", "d4_m", "d5_m", "d6_m"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"Ur5eKinematics.{name} must be a finite number, got {value!r}")
-            if abs(value) > 5.0:
-                raise ValueError(f"Ur5eKinematics.{name} = {value} m is not a plausible UR5e length")
-
-    def dh_table(self) -> Tuple[Tuple[float, float, float], ...]:
-        """Rows (a_i [m], alpha_i [rad], d_i [m]) for i = 1..6."""
-        half_pi = math.pi / 2.0
-        return (
-            (0.0, half_pi, self.d1_m),
-            (self.a2_m, 0.0, 0.0),
-            (self.a3_m, 0.0, 0.0),
-            (0.0, half_pi, self.d4_m),
-            (0.0, -half_pi, self.d5_m),
-            (0.0, 0.0, self.d6_m),
-        )
-
-
-def dh_transform(a_m: float, alpha_rad: float, d_m: float, theta_rad: float) -> np.ndarray:
-    """Standard DH step Rz(theta) Tz(d) Tx(a) Rx(alpha) as a 4x4 matrix."""
-    ct, st = math.cos(theta_rad), math.sin(theta_rad)
-    ca, sa = math.cos(alpha_rad), math.sin(alpha_rad)
-    return np.array(
-        [
-            [ct, -st * ca, st * sa, a_m * ct],
-            [st, ct * ca, -ct * sa, a_m * st],
-            [0.0, sa, ca, d_m],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    )
-
-
-def _joint_vector(values: Sequence[float], what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(values, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be {NUM_JOINTS} numbers, got {values!r}") from None
-    if arr.shape != (NUM_JOINTS,):
-        raise ValueError(f"{what} must have {NUM_JOINTS} values, got {arr.size}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what} contains NaN or infinity: {arr.tolist()}")
-    return arr
-
-
-def forward_kinematics(q_rad: Sequence[float], kinematics: Optional[Ur5eKinematics] = None) -> np.ndarray:
-    """4x4 pose of tool0 in the arm's base frame (ur5e_base) for joint angles q [rad]."""
-    q = _joint_vector(q_rad, "joint angles")
-    kin = kinematics or Ur5eKinematics()
-    out = np.eye(4)
-    for (a, alpha, d), theta in zip(kin.dh_table(), q):
-        out = out @ dh_transform(a, alpha, d, theta)
-    return out
+__all__ = ["JOINT_NAMES", "NUM_JOINTS", "Ur5eArm", "Ur5eKinematics", "dh_transform", "forward_kinematics"]
 
 
 class Ur5eArm:

@@ -1,0 +1,198 @@
+"""Fusion of 3-D boll detections over frames into boll targets (map frame, metres).
+
+Each frame's detections (a boll's centre as localised from the depth cloud,
+with a 1-sigma position uncertainty) are associated with the existing targets:
+
+* a pair is a candidate when the distance d between the detection and the
+  target is within the gate: ``gate_sigma`` combined standard deviations,
+  gate_sigma * sqrt(sigma_detection^2 + sigma_target^2), but at least
+  ``min_gate_m`` and at most ``max_gate_m``. Distinct bolls (4-6 cm wide) have
+  centres at least ~4 cm apart, so anything within 2.5 cm of a target is that
+  boll whatever the sigmas claim, and nothing beyond 5 cm is;
+* each detection goes to at most one target and each target takes at most one
+  detection per frame (two bolls seen in one frame never merge, however
+  close), the pairs chosen to minimise the sum of squared normalised
+  distances (an optimal assignment, so an early, noisy pair of close
+  targets does not swap its detections);
+* an associated detection updates its target's position by the inverse-variance
+  weighted running mean (sigma_target^2 = 1 / sum of 1 / sigma_detection^2);
+* a detection associated with no target starts a new one, unless it lies
+  within ``picked_radius_m`` of a picked boll (a picked boll is never added
+  again, even if a detection of its empty place comes in).
+
+Targets are never dropped when they leave the view. A target is 'tentative'
+until it has ``confirm_observations`` detections, then 'confirmed'; the
+harvest marks it 'picked', or after ``max_attempts`` failed picks 'abandoned'.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+TENTATIVE, CONFIRMED, PICKED, ABANDONED = "tentative", "confirmed", "picked", "abandoned"
+_NOT_GATED = 1e12
+
+
+@dataclass(frozen=True)
+class TargetFusionConfig:
+    """gate_sigma: association gate in combined standard deviations (3-D errors: 4 keeps
+        99.9 % of a boll's own detections, 3 only 97 %).
+    max_gate_m: largest detection-to-target distance ever associated [m].
+    min_sigma_m: floor on a detection's 1-sigma uncertainty [m].
+    confirm_observations: detections after which a target is confirmed.
+    picked_radius_m: detections this close to a picked boll are ignored [m].
+    max_attempts: failed picks after which a target is abandoned."""
+
+    gate_sigma: float = 5.0
+    min_gate_m: float = 0.025
+    max_gate_m: float = 0.05
+    min_sigma_m: float = 0.002
+    confirm_observations: int = 2
+    picked_radius_m: float = 0.03
+    max_attempts: int = 2
+
+    def __post_init__(self) -> None:
+        for name in ("gate_sigma", "min_gate_m", "max_gate_m", "min_sigma_m", "picked_radius_m"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0.0 < value < 10.0):
+                raise ValueError(f"TargetFusionConfig.{name} must be a number in (0, 10), got {value!r}")
+        if self.min_gate_m > self.max_gate_m:
+            raise ValueError(f"TargetFusionConfig.min_gate_m {self.min_gate_m} exceeds max_gate_m {self.max_gate_m}")
+        for name in ("confirm_observations", "max_attempts"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (1 <= value <= 1000):
+                raise ValueError(f"TargetFusionConfig.{name} must be an integer in [1, 1000], got {value!r}")
+
+
+@dataclass(frozen=True)
+class BollDetection3D:
+    """A boll's centre seen in one frame: position_m (3,) in the map frame, sigma_m its 1-sigma error [m]."""
+
+    position_m: np.ndarray
+    sigma_m: float
+
+    def __post_init__(self) -> None:
+        pos = np.asarray(self.position_m, dtype=float).reshape(-1)
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise ValueError(f"a boll detection's position must be 3 finite numbers [m], got {self.position_m!r}")
+        if isinstance(self.sigma_m, bool) or not isinstance(self.sigma_m, (int, float)) or \
+                not (math.isfinite(self.sigma_m) and self.sigma_m > 0.0):
+            raise ValueError(f"a boll detection's sigma_m must be a positive number [m], got {self.sigma_m!r}")
+        object.__setattr__(self, "position_m", pos)
+
+
+@dataclass
+class BollTarget:
+    """One boll as the robot knows it (map frame)."""
+
+    target_id: int
+    position_m: np.ndarray
+    sigma_m: float
+    observations: int
+    first_seen_s: float
+    last_seen_s: float
+    state: str = TENTATIVE
+    attempts: int = 0
+    _weight: float = field(default=0.0, repr=False)
+
+
+class TargetFusion:
+    """Keeps the boll targets of a run; see the module docstring for the rules."""
+
+    def __init__(self, config: Optional[TargetFusionConfig] = None):
+        self.config = config or TargetFusionConfig()
+        self._targets: Dict[int, BollTarget] = {}
+        self._next_id = 0
+
+    # ------------------------------------------------------------------ queries
+    def targets(self, states: Sequence[str] = (TENTATIVE, CONFIRMED, PICKED, ABANDONED)) -> List[BollTarget]:
+        """Targets in the given states, by id."""
+        return [t for t in self._targets.values() if t.state in states]
+
+    def open_targets(self) -> List[BollTarget]:
+        """Confirmed targets still to pick."""
+        return self.targets((CONFIRMED,))
+
+    def target(self, target_id: int) -> BollTarget:
+        if target_id not in self._targets:
+            raise KeyError(f"no boll target {target_id}")
+        return self._targets[target_id]
+
+    def __len__(self) -> int:
+        return len(self._targets)
+
+    # ------------------------------------------------------------------ updates
+    def update(self, detections: Sequence[BollDetection3D], stamp_s: float) -> List[int]:
+        """Fuse one frame's detections; returns the target id of each detection
+        (-1: ignored, near a picked boll)."""
+        if not (isinstance(stamp_s, (int, float)) and math.isfinite(stamp_s)):
+            raise ValueError(f"stamp_s must be a finite time [s], got {stamp_s!r}")
+        for d in detections:
+            if not isinstance(d, BollDetection3D):
+                raise ValueError(f"detections must be BollDetection3D, got {type(d).__name__}")
+        cfg = self.config
+        result = [-1] * len(detections)
+        if not detections:
+            return result
+        pos = np.array([d.position_m for d in detections])
+        sig = np.maximum(np.array([d.sigma_m for d in detections]), cfg.min_sigma_m)
+        active = [t for t in self._targets.values() if t.state != PICKED]
+        assigned = np.zeros(len(detections), dtype=bool)
+        if active:
+            tpos = np.array([t.position_m for t in active])
+            tsig = np.array([t.sigma_m for t in active])
+            dist = np.linalg.norm(pos[:, None, :] - tpos[None, :, :], axis=2)
+            combined = np.sqrt(sig[:, None] ** 2 + tsig[None, :] ** 2)
+            norm = dist / combined
+            gated = dist <= np.clip(cfg.gate_sigma * combined, cfg.min_gate_m, cfg.max_gate_m)
+            # Optimal assignment: least sum of squared normalised distances over gated pairs.
+            cost = np.where(gated, norm ** 2, _NOT_GATED)
+            for d, t in zip(*linear_sum_assignment(cost)):
+                if gated[d, t]:
+                    assigned[d] = True
+                    self._absorb(active[t], pos[d], sig[d], stamp_s)
+                    result[d] = active[t].target_id
+        picked = np.array([t.position_m for t in self._targets.values() if t.state == PICKED]).reshape(-1, 3)
+        for d in np.flatnonzero(~assigned):
+            if len(picked) and np.min(np.linalg.norm(picked - pos[d], axis=1)) <= cfg.picked_radius_m:
+                continue
+            result[d] = self._create(pos[d], sig[d], stamp_s)
+        return result
+
+    def mark_picked(self, target_id: int) -> None:
+        """The boll is in the bin: never pick it, nor add it, again."""
+        self.target(target_id).state = PICKED
+
+    def mark_failed(self, target_id: int) -> str:
+        """A pick of the target failed; returns its new state (abandoned after max_attempts)."""
+        target = self.target(target_id)
+        if target.state == PICKED:
+            raise ValueError(f"boll target {target_id} is already picked")
+        target.attempts += 1
+        if target.attempts >= self.config.max_attempts:
+            target.state = ABANDONED
+        return target.state
+
+    def _absorb(self, target: BollTarget, position: np.ndarray, sigma: float, stamp_s: float) -> None:
+        w = 1.0 / (sigma * sigma)
+        total = target._weight + w
+        target.position_m = (target.position_m * target._weight + position * w) / total
+        target._weight = total
+        target.sigma_m = 1.0 / math.sqrt(total)
+        target.observations += 1
+        target.last_seen_s = max(target.last_seen_s, stamp_s)
+        if target.state == TENTATIVE and target.observations >= self.config.confirm_observations:
+            target.state = CONFIRMED
+
+    def _create(self, position: np.ndarray, sigma: float, stamp_s: float) -> int:
+        target_id = self._next_id
+        self._next_id += 1
+        target = BollTarget(target_id, position.copy(), float(sigma), 1, stamp_s, stamp_s,
+                            CONFIRMED if self.config.confirm_observations <= 1 else TENTATIVE, 0,
+                            1.0 / (sigma * sigma))
+        self._targets[target_id] = target
+        return target_id

@@ -1,0 +1,1 @@
+"""UR5e motion planning cores: timed joint trajectories, capsule collision checks, boll approach plans."""

@@ -1,0 +1,321 @@
+"""Plan the arm to a boll: transit to a pre-grasp pose, a straight approach along the boll's outward
+direction, and a retreat, collision-free and with the least joint travel.
+
+Geometry (arm base frame, metres): the boll's centre p and its outward
+direction n (from the plant's stem towards the boll, about horizontal). The
+nozzle points into the boll: tool0's z axis is -n, and the nozzle tip (the
+flange + nozzle_length_m along z) moves on the line p + s n:
+
+    pre-grasp  s = standoff + pregrasp_distance_m
+    grasp      s = standoff                (standoff 0: tip at the boll centre)
+    retreat    s = standoff + retreat_distance_m
+
+The nozzle is round, so its rotation about its axis (the roll) is free: the
+planner tries ``roll_samples`` rolls, for each the (up to) 8 IK branches, and
+follows each branch along the approach line at ``approach_steps`` points
+(a branch that jumps by more than ``max_step_jump_rad`` between neighbouring
+points, or leaves the joint limits, is dropped). The survivors are sorted by
+joint travel (sum over joints of |dq| from the current joints through the
+whole pick) and checked for collisions in that order; the first that is free
+is the plan. Otherwise the result says why: 'unreachable' (no arm
+configuration puts the nozzle there), 'ik_failed' (configurations exist but
+none stays within the joint limits and on one branch along the approach),
+'collision' (every candidate hits a plant, the robot or itself).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+
+from cottonsim_common.kinematics.ur5e import (
+    BRANCHES,
+    IkConfig,
+    NUM_JOINTS,
+    inverse_kinematics_batch,
+    joint_vector,
+    link_frames,
+)
+from cottonsim_manipulation.planning.collision import ArmCollisionModel, CapsuleSet
+from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
+
+REASONS = ("ok", "unreachable", "ik_failed", "collision")
+
+
+@dataclass(frozen=True)
+class ApproachConfig:
+    """How a boll is approached.
+
+    pregrasp_distance_m: nozzle tip distance from the grasp point before the approach [m].
+    retreat_distance_m: how far the tip backs out along n after the grasp [m].
+    grasp_standoff_m: the tip stops this far short of the boll centre along n [m].
+    approach_steps: points on the approach (and retreat) line that IK follows (>= 2).
+    roll_samples: rotations of the nozzle about its axis tried, evenly over a turn.
+    max_step_jump_rad: largest joint change between neighbouring points of the
+        approach line; more means the branch flips (near a singularity) [rad].
+    max_line_deviation_m: the approach and retreat move in joint space straight
+        between their ends when the tip then stays this close to the line;
+        otherwise they pass (and stop) at every approach point [m].
+    collision_step_rad: joint step of the collision checks along paths [rad].
+    tilt_samples_rad: approach directions tried in turn: the outward direction
+        turned upwards by each angle (the nozzle then comes from above, which
+        reaches low bolls near the robot); the first that gives a plan wins [rad].
+        Keep them inside the capture cone (harvest.capture).
+    """
+
+    pregrasp_distance_m: float = 0.10
+    retreat_distance_m: float = 0.10
+    grasp_standoff_m: float = 0.0
+    approach_steps: int = 5
+    roll_samples: int = 12
+    max_step_jump_rad: float = 0.5
+    max_line_deviation_m: float = 0.005
+    collision_step_rad: float = 0.02
+    tilt_samples_rad: Tuple[float, ...] = (0.0, 0.35, 0.7)
+
+    def __post_init__(self) -> None:
+        for name in ("pregrasp_distance_m", "retreat_distance_m", "grasp_standoff_m", "max_step_jump_rad",
+                     "max_line_deviation_m", "collision_step_rad"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"ApproachConfig.{name} must be a finite number, got {value!r}")
+            if value < 0.0 or (value == 0.0 and name in ("max_step_jump_rad", "collision_step_rad")):
+                raise ValueError(f"ApproachConfig.{name} must be > 0, got {value!r}")
+        if self.pregrasp_distance_m > 0.5 or self.retreat_distance_m > 0.5 or self.grasp_standoff_m > 0.2:
+            raise ValueError("ApproachConfig distances must stay within the arm's scale "
+                             "(pre-grasp and retreat <= 0.5 m, standoff <= 0.2 m)")
+        tilts = self.tilt_samples_rad
+        if not isinstance(tilts, tuple) or not tilts or not all(
+                isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 <= t <= 0.5 * math.pi for t in tilts):
+            raise ValueError(f"ApproachConfig.tilt_samples_rad must be a non-empty tuple of angles in [0, pi/2], "
+                             f"got {tilts!r}")
+        for name, low in (("approach_steps", 2), ("roll_samples", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (low <= value <= 360):
+                raise ValueError(f"ApproachConfig.{name} must be an integer in [{low}, 360], got {value!r}")
+
+
+@dataclass(frozen=True)
+class ApproachPlan:
+    """A pick's motion: transit (current -> pre-grasp), approach (-> grasp), retreat.
+
+    approach_direction: the unit direction the nozzle moves in during the approach
+    (its axis; the outward direction reversed, tilted up by the tilt that worked).
+    """
+
+    q_pregrasp_rad: np.ndarray
+    q_grasp_rad: np.ndarray
+    q_retreat_rad: np.ndarray
+    transit: JointTrajectory
+    approach: JointTrajectory
+    retreat: JointTrajectory
+    roll_rad: float
+    branch: Tuple[int, int, int]
+    joint_travel_rad: float
+    approach_direction: np.ndarray
+
+    @property
+    def duration_s(self) -> float:
+        return self.transit.duration_s + self.approach.duration_s + self.retreat.duration_s
+
+
+@dataclass(frozen=True)
+class ApproachResult:
+    """reason: one of REASONS; detail says more (e.g. the contact); plan is set when ok."""
+
+    reason: str
+    detail: str = ""
+    plan: Optional[ApproachPlan] = None
+    candidates: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return self.reason == "ok"
+
+
+def _unit(v: np.ndarray, what: str) -> np.ndarray:
+    arr = np.asarray(v, dtype=float).reshape(-1)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what} must be 3 finite numbers, got {v!r}")
+    norm = float(np.linalg.norm(arr))
+    if norm < 1e-9:
+        raise ValueError(f"{what} must not be zero")
+    return arr / norm
+
+
+def tool_rotations(axis_z: np.ndarray, rolls_rad: np.ndarray) -> np.ndarray:
+    """Rotations (R, 3, 3) with z = axis_z, turned about it by each roll [rad]."""
+    z = _unit(axis_z, "tool axis")
+    ref = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x0 = np.cross(ref, z)
+    x0 /= np.linalg.norm(x0)
+    y0 = np.cross(z, x0)
+    c, s = np.cos(rolls_rad)[:, None], np.sin(rolls_rad)[:, None]
+    x = c * x0 + s * y0
+    y = np.cross(z, x)
+    return np.stack([x, y, np.broadcast_to(z, x.shape)], axis=-1)
+
+
+def _unwrap_chain(chain: np.ndarray) -> np.ndarray:
+    """Make each joint continuous along axis 0 (whole turns removed between neighbours)."""
+    out = chain.copy()
+    for s in range(1, len(out)):
+        out[s] = out[s - 1] + np.mod(out[s] - out[s - 1] + math.pi, 2 * math.pi) - math.pi
+    return out
+
+
+def plan_approach(
+    boll_m,
+    outward,
+    q_current_rad,
+    model: ArmCollisionModel,
+    obstacles: Optional[CapsuleSet] = None,
+    config: ApproachConfig = ApproachConfig(),
+    trajectory_config: TrajectoryConfig = TrajectoryConfig(),
+    ik_config: Optional[IkConfig] = None,
+) -> ApproachResult:
+    """Plan a pick of the boll at boll_m (arm base frame) approached against `outward`.
+
+    ValueError on malformed input (NaN, wrong shapes, a zero direction, joints
+    outside their limits); every planning failure is a result with a reason.
+    """
+    p = np.asarray(boll_m, dtype=float).reshape(-1)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"boll position must be 3 finite numbers [m], got {boll_m!r}")
+    n = _unit(outward, "outward direction")
+    q0 = joint_vector(q_current_rad, "current joints")
+    ik_cfg = ik_config or IkConfig(lower_limits_rad=trajectory_config.lower_limits_rad,
+                                   upper_limits_rad=trajectory_config.upper_limits_rad)
+    lower, upper = np.asarray(ik_cfg.lower_limits_rad), np.asarray(ik_cfg.upper_limits_rad)
+    if np.any(q0 < lower - 1e-9) or np.any(q0 > upper + 1e-9):
+        raise ValueError(f"current joints {q0.tolist()} are outside the joint limits")
+    results = []
+    for tilt in config.tilt_samples_rad:
+        direction = tilted_up(n, tilt)
+        result = _plan_direction(p, direction, q0, model, obstacles, config, trajectory_config, ik_cfg)
+        if result.ok:
+            return result
+        results.append(result)
+    # None worked: the most telling reason (collision > ik_failed > unreachable), of the least tilt.
+    for reason in ("collision", "ik_failed", "unreachable"):
+        for tilt, result in zip(config.tilt_samples_rad, results):
+            if result.reason == reason:
+                return ApproachResult(reason, f"tilt {tilt:.2f} rad: {result.detail}", None, result.candidates)
+    raise AssertionError("unreachable code: every result has a reason")
+
+
+def tilted_up(direction: np.ndarray, tilt_rad: float) -> np.ndarray:
+    """The direction turned by tilt_rad upwards (towards +z) in its vertical plane, unit length.
+
+    A vertical direction has no vertical plane of its own and is returned as it is."""
+    d = _unit(direction, "direction")
+    horizontal = np.array([d[0], d[1], 0.0])
+    h = np.linalg.norm(horizontal)
+    if tilt_rad == 0.0 or h < 1e-9:
+        return d
+    elevation = math.atan2(d[2], h) + tilt_rad
+    elevation = min(elevation, 0.5 * math.pi)
+    return np.array([*(math.cos(elevation) * horizontal[:2] / h), math.sin(elevation)])
+
+
+def _plan_direction(p, n, q0, model, obstacles, cfg, trajectory_config, ik_cfg) -> ApproachResult:
+    """plan_approach for one approach direction n (unit)."""
+    lower, upper = np.asarray(ik_cfg.lower_limits_rad), np.asarray(ik_cfg.upper_limits_rad)
+    nozzle = model.config.nozzle_length_m
+    steps = cfg.approach_steps
+    rolls = np.arange(cfg.roll_samples) * (2.0 * math.pi / cfg.roll_samples)
+    rot = tool_rotations(-n, rolls)                                             # (R, 3, 3)
+
+    # Tip offsets along n: approach line (pre-grasp -> grasp), then the retreat line (grasp -> out).
+    approach_s = cfg.grasp_standoff_m + cfg.pregrasp_distance_m * np.linspace(1.0, 0.0, steps)
+    retreat_s = cfg.grasp_standoff_m + cfg.retreat_distance_m * np.linspace(0.0, 1.0, steps)[1:]
+    line_s = np.concatenate([approach_s, retreat_s])                            # (S,)
+    tips = p + line_s[:, None] * n                                              # (S, 3)
+    flange = tips[None, :, :] + nozzle * n                                      # tool z = -n: flange behind the tip
+    n_rolls, n_pts = len(rolls), len(line_s)
+    poses = np.zeros((n_rolls, n_pts, 4, 4))
+    poses[..., :3, :3] = rot[:, None]
+    poses[..., :3, 3] = np.broadcast_to(flange, (n_rolls, n_pts, 3))
+    poses[..., 3, 3] = 1.0
+    q, _ = inverse_kinematics_batch(poses.reshape(-1, 4, 4), q0, model.kinematics, ik_cfg)
+    q = q.reshape(n_rolls, n_pts, 8, NUM_JOINTS)
+
+    # Which poses have any configuration at all (joint limits aside)?
+    unlimited = IkConfig(lower_limits_rad=(-1e3,) * NUM_JOINTS, upper_limits_rad=(1e3,) * NUM_JOINTS)
+    exists, _ = inverse_kinematics_batch(poses[:, [0, steps - 1]].reshape(-1, 4, 4), q0, model.kinematics, unlimited)
+    if not np.all(np.isfinite(exists), axis=-1).reshape(n_rolls, 2, 8).any(axis=2).all(axis=1).any():
+        return ApproachResult("unreachable", "no arm configuration puts the nozzle at the pre-grasp and grasp "
+                                             f"poses for any of {n_rolls} rolls (boll at {np.round(p, 3).tolist()})")
+
+    candidates = []
+    for r in range(n_rolls):
+        for b in range(8):
+            chain = q[r, :, b]                                                  # (S, 6)
+            if not np.all(np.isfinite(chain)):
+                continue
+            chain = _unwrap_chain(chain)                                        # pre-grasp .. grasp .. retreat
+            if np.any(chain < lower - 1e-9) or np.any(chain > upper + 1e-9):
+                continue
+            if np.abs(np.diff(chain, axis=0)).max() > cfg.max_step_jump_rad:
+                continue
+            travel = np.abs(chain[0] - q0).sum() + np.abs(np.diff(chain, axis=0)).sum()
+            candidates.append((travel, r, b, chain))
+    if not candidates:
+        return ApproachResult("ik_failed", "the nozzle's poses have arm configurations, but none stays inside "
+                                           "the joint limits and on one IK branch along the approach and retreat")
+    candidates.sort(key=lambda c: c[0])
+    total = len(candidates)
+
+    # The stops themselves (pre-grasp, grasp, retreat end) of every candidate in one go.
+    stops = np.array([c[3][[0, steps - 1, -1]] for c in candidates]).reshape(-1, NUM_JOINTS)
+    stop_hit = model.in_collision(stops, obstacles).reshape(total, 3).any(axis=1)
+    first_contact: Optional[str] = None
+    if stop_hit[0]:
+        hit = model.contacts(candidates[0][3][[0, steps - 1, -1]], obstacles, first_only=True)[0]
+        first_contact = f"at its {('pre-grasp', 'grasp', 'retreat')[hit.sample]} pose {hit.link} hits {hit.kind} " \
+                        f"{hit.other} ({hit.clearance_m * 1000:.1f} mm)"
+    candidates = [c for c, hit in zip(candidates, stop_hit) if not hit]
+    for checked, (travel, r, b, chain) in enumerate(candidates, 1):
+        approach_wp = _line_waypoints(chain[:steps], tips[:steps], nozzle, cfg.max_line_deviation_m, model)
+        retreat_wp = _line_waypoints(chain[steps - 1:], tips[steps - 1:], nozzle, cfg.max_line_deviation_m, model)
+        contact = None
+        for path in (np.stack([q0, chain[0]]), approach_wp, retreat_wp):
+            contact = model.first_collision(path, obstacles, cfg.collision_step_rad)
+            if contact is not None:
+                break
+        if contact is not None:
+            first_contact = first_contact or f"on its path {contact}"
+            continue
+        plan = ApproachPlan(
+            q_pregrasp_rad=chain[0].copy(),
+            q_grasp_rad=chain[steps - 1].copy(),
+            q_retreat_rad=chain[-1].copy(),
+            transit=plan_trajectory(np.stack([q0, chain[0]]), trajectory_config),
+            approach=plan_trajectory(approach_wp, trajectory_config),
+            retreat=plan_trajectory(retreat_wp, trajectory_config),
+            roll_rad=float(rolls[r]),
+            branch=BRANCHES[b],
+            joint_travel_rad=float(travel),
+            approach_direction=-n,
+        )
+        return ApproachResult("ok", f"candidate {checked + int(stop_hit.sum())} of {total} is free", plan, total)
+    return ApproachResult("collision", f"all {total} candidates collide; the least-travel one {first_contact}",
+                          None, total)
+
+
+def _line_waypoints(chain: np.ndarray, tips: np.ndarray, nozzle_m: float, tolerance_m: float,
+                    model: ArmCollisionModel) -> np.ndarray:
+    """The chain's two ends when the straight joint-space move keeps the tip within tolerance
+    of the Cartesian line at the chain's intermediate points; else the whole chain."""
+    if len(chain) <= 2:
+        return chain
+    frac = np.linspace(0.0, 1.0, len(chain))[1:-1, None]
+    mid = chain[0] + frac * (chain[-1] - chain[0])
+    frames = link_frames(mid, model.kinematics)[:, 6]
+    tip = frames[:, :3, 3] + nozzle_m * frames[:, :3, 2]
+    if np.linalg.norm(tip - tips[1:-1], axis=1).max() <= tolerance_m:
+        return chain[[0, -1]]
+    return chain
+
