@@ -5,7 +5,15 @@
 #   2. a venv at .venv from /usr/bin/python3 with --system-site-packages
 #   3. the pinned pip packages of requirements.txt
 #   4. catkin_make of the workspace (devel/ and build/)
+#   bash scripts/setup.sh               # all four steps
+#   bash scripts/setup.sh --deps-only   # steps 1-3 (the Docker image caches them in their own layer)
 set -euo pipefail
+deps_only=0
+case "${1:-}" in
+  "") ;;
+  --deps-only) deps_only=1 ;;
+  *) echo "[setup] unknown argument '$1' (the only option is --deps-only)" >&2; exit 2 ;;
+esac
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
@@ -59,6 +67,11 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "$want" > "$stamp"
 else
   echo "[setup] pip: requirements up to date"
+fi
+
+if [ "$deps_only" = 1 ]; then
+  echo "[setup] done: dependencies only (--deps-only), no catkin_make"
+  exit 0
 fi
 
 echo "[setup] catkin_make"
