@@ -16,7 +16,7 @@ from std_msgs.msg import String  # noqa: E402
 
 from cottonsim_world.geodesy import HectorGeodesy  # noqa: E402
 
-SCRIPT = pathlib.Path(__file__).resolve().parents[3] / "scripts" / "evaluate_bag"
+SCRIPT = pathlib.Path(__file__).resolve().parents[2] / "scripts" / "evaluate_bag"
 
 
 def load_script():

@@ -1,0 +1,92 @@
+"""Reproduce the paper's experiments, one command each: ``rosrun cottonsim_experiments reproduce EXPERIMENT``.
+
+  reproduce gps-route   [--seeds 0 1 2] [--real-time-factor 0] [--no-bag]   GPS route, report + plot + bag per seed
+  reproduce map-route   [--seeds 0 1 2] ...                                  map-based route (AMCL on the SLAM map)
+  reproduce row-spacing [--spacings 1.0 1.1 ... 1.9] [--seeds 0]            the paper's Fig. 3a study
+  reproduce perception  [--synthetic-images 120]                           Tables 2 and 3 (evaluate command)
+  reproduce results-doc [--doc docs/results.md]                            the results page from the results folder
+  reproduce screenshots [--bringups sim gps_navigation ...]                 headless rviz screenshots of the bringups
+  reproduce all         [--seeds 0 1 2]                                    everything above, then results-doc
+
+Results go to --results DIR (default: $COTTONSIM_RESULTS, else results/ in the current directory);
+the results page to --doc (default DIR/results.md), the screenshots to --screenshot-dir (default
+DIR/rviz). From the repository root, `--doc docs/results.md --screenshot-dir docs/rviz` refreshes the
+committed pages.
+
+Each bringup runs on its own ROS master port (a roscore of yours is not touched); its console goes
+to <run>/launch.log and a progress line shows the waypoint being driven. Ctrl-C stops the current
+bringup cleanly (the recorder writes what it has) and ends the command.
+"""
+import argparse
+import os
+import sys
+
+from . import row_spacing as rs
+from .packages import RESULTS_ENV, default_results_dir
+from .results_doc import render_results
+from .runs import Workspace, run_perception, run_route, run_row_spacing
+from .screenshots import BRINGUPS, take_screenshots
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("experiment", choices=("gps-route", "map-route", "row-spacing", "perception", "results-doc",
+                                           "screenshots", "all"))
+    ap.add_argument("--results", default=None,
+                    help=f"results root (default: ${RESULTS_ENV}, else results/ in the current directory)")
+    ap.add_argument("--doc", default=None, help="results page to write (default: RESULTS/results.md)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=None,
+                    help="seeds: the GPS route seeds farm + simulator, the map route the simulator only (the map is of "
+                         "the farm in sim_navigation.yaml); route runs default 0 1 2, the row-spacing study 0")
+    ap.add_argument("--real-time-factor", type=float, default=0.0, help="0 = as fast as possible")
+    ap.add_argument("--no-bag", action="store_true", help="route runs: do not record bags")
+    ap.add_argument("--spacings", type=float, nargs="+", default=list(rs.PAPER_SPACINGS_M), help="row spacings [m]")
+    ap.add_argument("--plants-per-row", type=int, default=rs.RowSpacingStudyConfig.plants_per_row,
+                    help="row-spacing study: plants per row (fewer = a shorter lane, for quick checks)")
+    ap.add_argument("--goal-timeout", type=float, default=rs.RowSpacingStudyConfig.goal_timeout_s,
+                    help="row-spacing study: sim seconds per waypoint before it counts as failed")
+    ap.add_argument("--waypoints", default=None,
+                    help="route runs: another route file than the paper's route (e.g. a short route for checks)")
+    ap.add_argument("--original-data", default=os.environ.get("COTTONSIM_PAPER_DATA"),
+                    help="the paper's labelled images (a folder with Segmentation/ and Detection/); default: "
+                         "$COTTONSIM_PAPER_DATA")
+    ap.add_argument("--synthetic-images", type=int, default=120,
+                    help="held-out synthetic test frames per task (0: skip the synthetic tables)")
+    ap.add_argument("--bringups", nargs="+", default=None,
+                    help="screenshots: which bringups (default all: " + " ".join(BRINGUPS) + ")")
+    ap.add_argument("--screenshot-dir", default=None, help="where the screenshots go (default: RESULTS/rviz)")
+    a = ap.parse_args(argv)
+    results = os.path.abspath(a.results) if a.results else default_results_dir()
+    doc = os.path.abspath(a.doc) if a.doc else os.path.join(results, "results.md")
+    try:
+        ws = Workspace(results=results)
+        if a.experiment in ("gps-route", "all"):
+            run_route(ws, "gps_route", a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag, waypoints=a.waypoints)
+        if a.experiment in ("map-route", "all"):
+            run_route(ws, "map_route", a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag, waypoints=a.waypoints)
+        if a.experiment in ("row-spacing", "all"):
+            run_row_spacing(ws, rs.RowSpacingStudyConfig(spacings_m=tuple(a.spacings),
+                                                         plants_per_row=a.plants_per_row,
+                                                         goal_timeout_s=a.goal_timeout),
+                            a.real_time_factor, seeds=a.seeds or [0])
+        if a.experiment in ("perception", "all"):
+            if not a.original_data:
+                raise ValueError("perception needs the paper's labelled images: give --original-data DIR "
+                                 "(or set COTTONSIM_PAPER_DATA) with Segmentation/ and Detection/ inside")
+            if not os.path.isdir(a.original_data):
+                raise ValueError(f"--original-data {a.original_data!r} is not a folder")
+            run_perception(ws, a.original_data, synthetic_images=a.synthetic_images)
+        if a.experiment == "screenshots":
+            shots = take_screenshots(a.bringups or list(BRINGUPS), a.screenshot_dir or os.path.join(results, "rviz"))
+            if not all(r.ok for r in shots):
+                return 1
+        if a.experiment in ("results-doc", "all"):
+            render_results(ws.results, doc)
+            print(f"wrote {doc}")
+    except ValueError as exc:
+        print(f"reproduce: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("\nreproduce: interrupted; finished runs are kept under " + results, file=sys.stderr)
+        return 130
+    return 0
