@@ -1,4 +1,4 @@
-"""scripts/evaluate_bag on a small synthetic bag: the offline report matches hand-computed numbers."""
+"""rosrun cottonsim_experiments evaluate_bag on a small synthetic bag: the offline report matches hand-computed numbers."""
 import importlib.machinery
 import importlib.util
 import json

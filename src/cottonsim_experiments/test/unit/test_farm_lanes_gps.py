@@ -1,4 +1,4 @@
-"""scripts/farm_lanes_gps: writes the farm's lane centre lines; bad settings exit 2 with one line."""
+"""rosrun cottonsim_experiments farm_lanes_gps: writes the farm's lane centre lines; bad settings exit 2 with one line."""
 import importlib.machinery
 import importlib.util
 import pathlib
