@@ -4,7 +4,7 @@ The robot never sees ground truth; this node does, only to score the run
 the way the paper does (Eq. 4-7: E per waypoint, AE, RMSE, CR) plus plant
 contacts (crop damage), in-row cross-track error and durations. The work is
 done by the ROS-free :mod:`cottonsim_experiments.recording.experiment`; the
-offline evaluator (scripts/evaluate_bag) calls the same code on a bag.
+offline evaluator (ros/bag_evaluation.py, `rosrun cottonsim_experiments evaluate_bag`) calls the same code on a bag.
 """
 from __future__ import annotations
 
