@@ -2,7 +2,7 @@
 # Entry point of the CottonSim image: one `docker run` per job.
 #   (no argument) | main      the main job (scripts/main.sh: the paper's GPS route)
 #   test                      every test (scripts/test.sh)
-#   reproduce <experiment>    an experiment of the paper (rosrun cottonsim_navigation reproduce --help)
+#   reproduce <experiment>    an experiment of the paper (rosrun cottonsim_experiments reproduce --help)
 #   anything else             run as a command inside the workspace environment
 set -euo pipefail
 cd /cottonsim
@@ -16,7 +16,7 @@ case "$job" in
   reproduce)
     # shellcheck disable=SC1091
     source scripts/env.sh
-    exec python src/cottonsim_navigation/scripts/reproduce "${args[@]}" ;;
+    exec rosrun cottonsim_experiments reproduce "${args[@]}" ;;
   *)
     # shellcheck disable=SC1091
     source scripts/env.sh

@@ -9,18 +9,14 @@ spacing), paced at real time so a busy 2-core machine cannot starve the
 controllers.
 """
 import json
-import os
-import pathlib
 import subprocess
-import sys
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-REPRODUCE = ROOT / "src" / "cottonsim_navigation" / "scripts" / "reproduce"
+REPRODUCE = ["rosrun", "cottonsim_experiments", "reproduce"]
 
 
 def test_row_spacing_study_reduced(tmp_path):
     results = tmp_path / "results"
-    cmd = [sys.executable, str(REPRODUCE), "row-spacing", "--spacings", "1.0", "1.8", "--plants-per-row", "6",
+    cmd = [*REPRODUCE, "row-spacing", "--spacings", "1.0", "1.8", "--plants-per-row", "6",
            "--goal-timeout", "60", "--real-time-factor", "1", "--results", str(results)]
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-3000:]
@@ -34,7 +30,7 @@ def test_row_spacing_study_reduced(tmp_path):
     assert summary["smallest_traversable_spacing_m"] == 1.8
 
     doc = tmp_path / "results.md"
-    proc = subprocess.run([sys.executable, str(REPRODUCE), "results-doc", "--results", str(results), "--doc", str(doc)],
+    proc = subprocess.run([*REPRODUCE, "results-doc", "--results", str(results), "--doc", str(doc)],
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout
     text = doc.read_text()

@@ -16,8 +16,9 @@ import rospy
 import rostest
 from nav_msgs.msg import Odometry
 
-from cottonsim_navigation.evaluation.experiment import sim_world_from_settings
 from cottonsim_navigation.waypoints.files import load_gps_waypoints
+from cottonsim_world.config_io import simulator_config_from_dict
+from cottonsim_world.geodesy import HectorGeodesy
 from navigator_watch import NavigatorWatch
 
 
@@ -35,7 +36,8 @@ class GpsNavigatorTest(NavigatorWatch):
         report_file = rospy.get_param("~report_file")
         self.forget_old_report(report_file)
         wps = load_gps_waypoints(path)
-        geodesy = sim_world_from_settings(rospy.get_param("/sim_bridge/sim", {}) or {}).geodesy
+        settings = rospy.get_param("/sim_bridge/sim", {}) or {}
+        geodesy = HectorGeodesy(*simulator_config_from_dict(dict(settings)).geodesy_reference)
         s = self.wait_until_finished(420)
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (len(wps), 0, 0), f"summary {s}")
         # straight-on waypoints are driven through (counted among the succeeded)

@@ -8,7 +8,7 @@ scan (360 deg, 60 beams, 5.7 m usable range, as /scan_360), each after roughenin
 the free-space check on.
 Prints per scenario how many seeds end within 0.15 m of the truth, and the median error.
 
-Run:  source scripts/env.sh && python benchmarks/kidnap_relocalization.py [seeds] [re-spread particles]
+Run:  rosrun cottonsim_experiments kidnap_relocalization.py [seeds] [re-spread particles]
 The map is the generator's ground truth (solid plant discs): the simulated scan sees no gaps between the
 stems, so this is the optimistic case for the laser model; the rostest amcl_kidnap.test is the real one.
 """
@@ -16,17 +16,14 @@ import dataclasses
 import math
 import statistics
 import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
-
-from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
-from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E402
-from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField  # noqa: E402
-from cottonsim_navigation.localization.quality import LocalizationQualityConfig, respread_after_kidnap  # noqa: E402
-from cottonsim_navigation.localization.sensor_models import simulate_scan  # noqa: E402
+from cottonsim_navigation.core.grid import GridSpec
+from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
+from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField
+from cottonsim_navigation.localization.quality import LocalizationQualityConfig, respread_after_kidnap
+from cottonsim_navigation.localization.sensor_models import simulate_scan
 
 
 def farm_map():

@@ -16,9 +16,10 @@ import subprocess
 import tempfile
 import time
 from dataclasses import dataclass
-from typing import Dict, List, Mapping, Sequence, Tuple
+from typing import Callable, Dict, List, Mapping, Sequence, Tuple
 
 from .launcher import free_port, stop_process_group
+from .packages import package_path
 
 # name -> (launches [(package, launch file, args)], rviz config (package, path), seconds to wait [wall])
 BRINGUPS: Dict[str, Tuple[Tuple[Tuple[str, str, Mapping[str, object]], ...], Tuple[str, str], float]] = {
@@ -48,14 +49,10 @@ class ScreenshotResult:
     detail: str = ""
 
 
-def _package_dir(root: str, package: str) -> str:
-    return os.path.join(root, "src", package)
-
-
-def resolve_find(root: str, value: object) -> str:
-    """A launch argument with every ``$(find pkg)`` replaced by the package's folder in the workspace
+def resolve_find(value: object, find: Callable[[str], str] = package_path) -> str:
+    """A launch argument with every ``$(find pkg)`` replaced by ``find(pkg)``, the package's folder
     (arguments go to roslaunch as a list, no shell expands them)."""
-    return re.sub(r"\$\(find ([A-Za-z0-9_]+)\)", lambda m: _package_dir(root, m.group(1)), str(value))
+    return re.sub(r"\$\(find ([A-Za-z0-9_]+)\)", lambda m: find(m.group(1)), str(value))
 
 
 def image_is_blank(path: str, min_std: float = 4.0) -> bool:
@@ -65,7 +62,7 @@ def image_is_blank(path: str, min_std: float = 4.0) -> bool:
     return img is None or float(img.std()) < min_std
 
 
-def take_screenshots(root: str, names: Sequence[str], out_dir: str, size: str = "1280x800",
+def take_screenshots(names: Sequence[str], out_dir: str, size: str = "1280x800",
                      wait_scale: float = 1.0) -> List[ScreenshotResult]:
     """Screenshot each named bringup into ``out_dir``; returns one result per bringup."""
     unknown = [n for n in names if n not in BRINGUPS]
@@ -82,14 +79,14 @@ def take_screenshots(root: str, names: Sequence[str], out_dir: str, size: str = 
     try:
         time.sleep(2.0)
         for name in names:
-            results.append(_one(root, name, out_dir, display, wait_scale))
+            results.append(_one(name, out_dir, display, wait_scale))
             print(f"screenshot {name}: {'ok' if results[-1].ok else 'FAILED'} {results[-1].detail}", flush=True)
     finally:
         stop_process_group(xvfb)
     return results
 
 
-def _one(root: str, name: str, out_dir: str, display: str, wait_scale: float) -> ScreenshotResult:
+def _one(name: str, out_dir: str, display: str, wait_scale: float) -> ScreenshotResult:
     launches, (rviz_pkg, rviz_rel), wait_s = BRINGUPS[name]
     port = free_port()
     env = dict(os.environ, DISPLAY=display, ROS_MASTER_URI=f"http://localhost:{port}")
@@ -100,7 +97,7 @@ def _one(root: str, name: str, out_dir: str, display: str, wait_scale: float) ->
         try:
             for k, (pkg, launch_file, args) in enumerate(launches):
                 cmd = ["roslaunch", "-p", str(port)] + ([] if k == 0 else ["--wait"]) + [pkg, launch_file] + \
-                      [f"{a}:={resolve_find(root, v)}" for a, v in args.items()]
+                      [f"{a}:={resolve_find(v)}" for a, v in args.items()]
                 procs.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT,
                                               start_new_session=True))
                 time.sleep(3.0)
@@ -110,7 +107,7 @@ def _one(root: str, name: str, out_dir: str, display: str, wait_scale: float) ->
                                stderr=subprocess.DEVNULL, timeout=180.0, check=False)
             except subprocess.TimeoutExpired:
                 log.write("[screenshots] no /clock after 180 s; starting rviz anyway\n")
-            rviz_cfg = os.path.join(_package_dir(root, rviz_pkg), rviz_rel)
+            rviz_cfg = os.path.join(package_path(rviz_pkg), rviz_rel)
             procs.append(subprocess.Popen(["rviz", "-d", rviz_cfg], env=env, stdout=log, stderr=subprocess.STDOUT,
                                           start_new_session=True))
             time.sleep(wait_s * wait_scale)

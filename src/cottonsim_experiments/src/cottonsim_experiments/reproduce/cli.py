@@ -1,13 +1,17 @@
-#!/usr/bin/env python3
-"""Reproduce the paper's experiments, one command each, results under results/ and docs/results.md.
+"""Reproduce the paper's experiments, one command each: ``rosrun cottonsim_experiments reproduce EXPERIMENT``.
 
   reproduce gps-route   [--seeds 0 1 2] [--real-time-factor 0] [--no-bag]   GPS route, report + plot + bag per seed
   reproduce map-route   [--seeds 0 1 2] ...                                  map-based route (AMCL on the SLAM map)
   reproduce row-spacing [--spacings 1.0 1.1 ... 1.9] [--seeds 0]            the paper's Fig. 3a study
   reproduce perception  [--synthetic-images 120]                           Tables 2 and 3 (evaluate command)
-  reproduce results-doc                                                    docs/results.md from results/
-  reproduce screenshots [--bringups sim gps_navigation ...]                 headless rviz screenshots -> docs/rviz/
+  reproduce results-doc [--doc docs/results.md]                            the results page from the results folder
+  reproduce screenshots [--bringups sim gps_navigation ...]                 headless rviz screenshots of the bringups
   reproduce all         [--seeds 0 1 2]                                    everything above, then results-doc
+
+Results go to --results DIR (default: $COTTONSIM_RESULTS, else results/ in the current directory);
+the results page to --doc (default DIR/results.md), the screenshots to --screenshot-dir (default
+DIR/rviz). From the repository root, `--doc docs/results.md --screenshot-dir docs/rviz` refreshes the
+committed pages.
 
 Each bringup runs on its own ROS master port (a roscore of yours is not touched); its console goes
 to <run>/launch.log and a progress line shows the waypoint being driven. Ctrl-C stops the current
@@ -15,23 +19,22 @@ bringup cleanly (the recorder writes what it has) and ends the command.
 """
 import argparse
 import os
-import pathlib
 import sys
 
-from cottonsim_navigation.experiments import row_spacing as rs
-from cottonsim_navigation.experiments.results_doc import render_results
-from cottonsim_navigation.experiments.screenshots import BRINGUPS, take_screenshots
-from cottonsim_navigation.experiments.runs import Workspace, run_perception, run_route, run_row_spacing
-
-ROOT = pathlib.Path(__file__).resolve().parents[3]
+from . import row_spacing as rs
+from .packages import RESULTS_ENV, default_results_dir
+from .results_doc import render_results
+from .runs import Workspace, run_perception, run_route, run_row_spacing
+from .screenshots import BRINGUPS, take_screenshots
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("experiment", choices=("gps-route", "map-route", "row-spacing", "perception", "results-doc",
                                            "screenshots", "all"))
-    ap.add_argument("--results", default=str(ROOT / "results"), help="results root (default <repo>/results)")
-    ap.add_argument("--doc", default=str(ROOT / "docs" / "results.md"), help="results page to write")
+    ap.add_argument("--results", default=None,
+                    help=f"results root (default: ${RESULTS_ENV}, else results/ in the current directory)")
+    ap.add_argument("--doc", default=None, help="results page to write (default: RESULTS/results.md)")
     ap.add_argument("--seeds", type=int, nargs="+", default=None,
                     help="seeds: the GPS route seeds farm + simulator, the map route the simulator only (the map is of "
                          "the farm in sim_navigation.yaml); route runs default 0 1 2, the row-spacing study 0")
@@ -51,10 +54,12 @@ def main(argv=None) -> int:
                     help="held-out synthetic test frames per task (0: skip the synthetic tables)")
     ap.add_argument("--bringups", nargs="+", default=None,
                     help="screenshots: which bringups (default all: " + " ".join(BRINGUPS) + ")")
-    ap.add_argument("--screenshot-dir", default=str(ROOT / "docs" / "rviz"), help="where the screenshots go")
+    ap.add_argument("--screenshot-dir", default=None, help="where the screenshots go (default: RESULTS/rviz)")
     a = ap.parse_args(argv)
-    ws = Workspace(root=str(ROOT), results=os.path.abspath(a.results))
+    results = os.path.abspath(a.results) if a.results else default_results_dir()
+    doc = os.path.abspath(a.doc) if a.doc else os.path.join(results, "results.md")
     try:
+        ws = Workspace(results=results)
         if a.experiment in ("gps-route", "all"):
             run_route(ws, "gps_route", a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag, waypoints=a.waypoints)
         if a.experiment in ("map-route", "all"):
@@ -72,20 +77,16 @@ def main(argv=None) -> int:
                 raise ValueError(f"--original-data {a.original_data!r} is not a folder")
             run_perception(ws, a.original_data, synthetic_images=a.synthetic_images)
         if a.experiment == "screenshots":
-            results = take_screenshots(str(ROOT), a.bringups or list(BRINGUPS), a.screenshot_dir)
-            if not all(r.ok for r in results):
+            shots = take_screenshots(a.bringups or list(BRINGUPS), a.screenshot_dir or os.path.join(results, "rviz"))
+            if not all(r.ok for r in shots):
                 return 1
         if a.experiment in ("results-doc", "all"):
-            render_results(ws.results, a.doc)
-            print(f"wrote {a.doc}")
+            render_results(ws.results, doc)
+            print(f"wrote {doc}")
     except ValueError as exc:
         print(f"reproduce: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("\nreproduce: interrupted; finished runs are kept under " + ws.results, file=sys.stderr)
+        print("\nreproduce: interrupted; finished runs are kept under " + results, file=sys.stderr)
         return 130
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

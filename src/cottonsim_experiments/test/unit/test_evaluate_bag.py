@@ -1,9 +1,7 @@
-"""scripts/evaluate_bag on a small synthetic bag: the offline report matches hand-computed numbers."""
-import importlib.machinery
-import importlib.util
+"""rosrun cottonsim_experiments evaluate_bag on a small synthetic bag: the offline report matches hand-computed numbers."""
 import json
 import math
-import pathlib
+import subprocess
 
 import pytest
 
@@ -14,17 +12,8 @@ from nav_msgs.msg import Odometry  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
+from cottonsim_experiments.ros import bag_evaluation  # noqa: E402
 from cottonsim_world.geodesy import HectorGeodesy  # noqa: E402
-
-SCRIPT = pathlib.Path(__file__).resolve().parents[3] / "scripts" / "evaluate_bag"
-
-
-def load_script():
-    loader = importlib.machinery.SourceFileLoader("evaluate_bag", str(SCRIPT))
-    spec = importlib.util.spec_from_loader("evaluate_bag", loader)
-    mod = importlib.util.module_from_spec(spec)
-    loader.exec_module(mod)
-    return mod
 
 
 def make_bag(path, offset_m):
@@ -59,8 +48,7 @@ def test_offline_report(tmp_path):
             lat, lon, _ = g.world_to_geodetic(x, y, 0.0)
             fh.write(f"{lat:.14f} {lon:.14f}\n")
     make_bag(tmp_path / "run.bag", 0.05)
-    mod = load_script()
-    assert mod.main([str(tmp_path / "run.bag"), "--waypoints", str(route), "--out", str(tmp_path / "out"),
+    assert bag_evaluation.main([str(tmp_path / "run.bag"), "--waypoints", str(route), "--out", str(tmp_path / "out"),
                      "--no-plot"]) == 0
     r = json.loads((tmp_path / "out" / "report.json").read_text())
     assert r["complete"] is True and r["waypoints"] == 3 and r["cr_percent"] == 100.0
@@ -73,11 +61,19 @@ def test_offline_report(tmp_path):
 
 
 def test_bad_inputs_exit_2(tmp_path, capsys):
-    mod = load_script()
     route = tmp_path / "route.txt"
     route.write_text("49.9 abc\n")
-    assert mod.main([str(tmp_path / "none.bag"), "--waypoints", str(route)]) == 2
+    assert bag_evaluation.main([str(tmp_path / "none.bag"), "--waypoints", str(route)]) == 2
     assert "route.txt:1" in capsys.readouterr().err
     route.write_text("49.9 8.9\n")
-    assert mod.main([str(tmp_path / "none.bag"), "--waypoints", str(route)]) == 2
+    assert bag_evaluation.main([str(tmp_path / "none.bag"), "--waypoints", str(route)]) == 2
     assert "bag not found" in capsys.readouterr().err
+
+
+def test_the_command_reports_a_missing_bag_in_one_line(tmp_path):
+    route = tmp_path / "route.txt"
+    route.write_text("49.9 8.9\n")
+    proc = subprocess.run(["rosrun", "cottonsim_experiments", "evaluate_bag", str(tmp_path / "none.bag"),
+                           "--waypoints", str(route)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].startswith("evaluate_bag: bag not found")

@@ -5,7 +5,9 @@
 * :mod:`.seeds`: mean and spread of report figures over several seeds;
 * :mod:`.launcher`: runs one roslaunch bringup in a subprocess on its own
   master port, shows its progress and stops it cleanly;
-* :mod:`.results_doc`: renders docs/results.md from the results folders.
-
-The command-line front end is ``rosrun cottonsim_navigation reproduce``.
+* :mod:`.runs`: the route runs, the row-spacing study and the perception tables;
+* :mod:`.results_doc`: renders the results page from the results folders;
+* :mod:`.screenshots`: headless rviz screenshots of the bringups;
+* :mod:`.packages`: where the other packages' files and commands are (rospkg, rosrun);
+* :mod:`.cli`: the command line, ``rosrun cottonsim_experiments reproduce``.
 """

@@ -3,8 +3,8 @@
 The robot never sees ground truth; this node does, only to score the run
 the way the paper does (Eq. 4-7: E per waypoint, AE, RMSE, CR) plus plant
 contacts (crop damage), in-row cross-track error and durations. The work is
-done by the ROS-free :mod:`cottonsim_navigation.evaluation.experiment`; the
-offline evaluator (scripts/evaluate_bag) calls the same code on a bag.
+done by the ROS-free :mod:`cottonsim_experiments.recording.experiment`; the
+offline evaluator (ros/bag_evaluation.py, `rosrun cottonsim_experiments evaluate_bag`) calls the same code on a bag.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import String
 
-from cottonsim_navigation.evaluation.experiment import (MODES, TrajectoryLog, TrajectoryLogConfig,
+from cottonsim_experiments.recording.experiment import (MODES, TrajectoryLog, TrajectoryLogConfig,
                                                         planned_world_from_gps, planned_world_from_map,
                                                         sim_world_from_settings, summary_line, write_experiment)
 from cottonsim_navigation.evaluation.gps_outages import (GpsOutageConfig, estimates_in_world, fix_outages,

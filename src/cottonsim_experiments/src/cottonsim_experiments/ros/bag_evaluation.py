@@ -1,5 +1,4 @@
-#!/usr/bin/env python3
-"""Offline evaluator: the experiment report of a waypoint run from a recorded bag.
+"""Offline evaluator: the experiment report of a waypoint run from a recorded bag (``rosrun cottonsim_experiments evaluate_bag``).
 
 Reads /ground_truth/odom, /ground_truth/plant_contacts, /clock, and when present
 the navigator's state (start = first "navigating", end = "finished") and
@@ -7,7 +6,7 @@ the navigator's state (start = first "navigating", end = "finished") and
 the experiment_recorder node (report.json, trajectory.csv, trajectory.png).
 
 Example (a bag from `roslaunch cottonsim_navigation gps_navigation.launch record_bag:=true`):
-  evaluate_bag results/gps_run/run.bag --waypoints $(rospack find cottonsim_navigation)/config/waypoints/route_gps.txt \
+  rosrun cottonsim_experiments evaluate_bag results/gps_run/run.bag --waypoints $(rospack find cottonsim_navigation)/config/waypoints/route_gps.txt \
       --out results/gps_run_offline
 Map routes: --mode map (waypoints in the Home frame). A non-default farm: --sim-config FILE (sim.yaml shape).
 Problems (missing bag or topic, bad waypoint file) print one line and exit with status 2.
@@ -41,7 +40,7 @@ def main(argv=None):
 
     import numpy as np
     from cottonsim_common.config.yaml_files import load_yaml_file
-    from cottonsim_navigation.evaluation.experiment import (TrajectoryLog, TrajectoryLogConfig,
+    from cottonsim_experiments.recording.experiment import (TrajectoryLog, TrajectoryLogConfig,
                                                             planned_world_from_gps, planned_world_from_map,
                                                             sim_world_from_settings, summary_line,
                                                             write_experiment)
@@ -145,7 +144,3 @@ def main(argv=None):
     print(summary_line(report))
     print(f"wrote {out}")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -13,7 +13,7 @@ Prints, per seed, the error along / across the heading at that moment, and how o
 would report as localised is more than 0.25 m off (the rostest's CR radius) or more than 0.5 m (the set
 settled on a wrong peak of the likelihood, e.g. further along the lane).
 
-Run:  source scripts/env.sh && python benchmarks/kidnap_relocalization_sim.py [seeds] [key=value ...]
+Run:  rosrun cottonsim_experiments kidnap_relocalization_sim.py [seeds] [key=value ...]
           [--traces=FILE]
       key=value: LocalizationQualityConfig fields to override (e.g. relocalize_particles=2000);
       --traces: go on with re-localising updates after "localised" and write every update's error as JSON.
@@ -28,11 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-for pkg in ("cottonsim_navigation", "cottonsim_world", "cottonsim_common"):
-    sys.path.insert(0, str(ROOT / "src" / pkg / "src"))
-
 from cottonsim_common.config.yaml_files import load_yaml_file  # noqa: E402
+from cottonsim_experiments.reproduce.packages import package_path  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E402
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig  # noqa: E402
@@ -48,7 +45,7 @@ from cottonsim_world.farm.generator import generate_farm  # noqa: E402
 from cottonsim_world.robot.urdf_model import UrdfModel  # noqa: E402
 from cottonsim_world.simulator import LidarReading, Simulator  # noqa: E402
 
-NAV = ROOT / "src/cottonsim_navigation"
+NAV = Path(package_path("cottonsim_navigation"))
 LANDING_WORLD = (-1.43, 7.0, math.pi / 2)      # lane 1's entry, 1.95 m before the first stems (y 8.95)
 KIDNAP_M = 3.0                                 # AMCL's estimate is this far behind (the robot was carried forward)
 NAVIGATOR_STOPS_AFTER_S = 0.6                 # sim time from the landing to the navigator's stop
@@ -74,7 +71,7 @@ def from_params(cls, params, prefix):
 def make_sim(seed):
     settings = load_yaml_file(NAV / "test/rostest/nav_ci.yaml")
     settings["seed"] = seed
-    urdf = ROOT / "src/cottonsim_description/urdf/cottonsim_robot.urdf"
+    urdf = Path(package_path("cottonsim_description")) / "urdf/cottonsim_robot.urdf"
     return Simulator(simulator_config_from_dict(settings), UrdfModel.from_file(urdf))
 
 

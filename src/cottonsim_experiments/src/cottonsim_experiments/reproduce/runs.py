@@ -18,7 +18,6 @@ import dataclasses
 import json
 import os
 import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from typing import Callable, Dict, Mapping, Optional, Sequence
@@ -27,26 +26,32 @@ import yaml
 
 from cottonsim_common.config.yaml_files import load_yaml_file
 
-from ..evaluation.experiment import summary_line
+from cottonsim_experiments.recording.experiment import summary_line
 from . import row_spacing as rs
 from .launcher import LaunchSpec, run_launch
+from .packages import package_path, rosrun_command
 from .seeds import aggregate_reports
 
 
 @dataclass(frozen=True)
 class Workspace:
-    """Where things are: the repository root and the results root [paths]."""
+    """Where things are: the results root and the folders of the packages the runs read [paths].
 
-    root: str
+    A package folder left empty is looked up with rospkg (its source folder in a devel space, its
+    share/ folder in an install space); tests give folders of their own.
+    """
+
     results: str
+    navigation: str = ""
+    perception: str = ""
 
-    @property
-    def navigation(self) -> str:
-        return os.path.join(self.root, "src", "cottonsim_navigation")
-
-    @property
-    def perception(self) -> str:
-        return os.path.join(self.root, "src", "cottonsim_perception")
+    def __post_init__(self) -> None:
+        if not self.results:
+            raise ValueError("results must name the results folder")
+        object.__setattr__(self, "results", os.path.abspath(self.results))
+        for name in ("navigation", "perception"):
+            if not getattr(self, name):
+                object.__setattr__(self, name, package_path(f"cottonsim_{name}"))
 
 
 # The two waypoint routes of the paper: launch file, route file, sim settings, mode, and whether the
@@ -165,7 +170,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
     seeds the simulator only (sensor noise, solver order) and keeps the farm of its sim settings, the
     one the shipped SLAM map was drawn from (see :func:`seed_overrides`).
 
-    With ``record_bag`` each run's bag is re-evaluated offline (scripts/evaluate_bag)
+    With ``record_bag`` each run's bag is re-evaluated offline (``rosrun cottonsim_experiments evaluate_bag``)
     and the summary says whether that reproduces the online report. ``waypoints``
     replaces the paper's route file (quick checks on a short route).
     """
@@ -230,8 +235,9 @@ def compare_reports(online: Mapping, offline: Mapping, tolerances: Mapping[str, 
 
 def _offline_check(ws: Workspace, mode: str, run_dir: str, waypoints: str, sim_yaml: str, report: Mapping) -> Dict:
     out = os.path.join(run_dir, "offline")
-    cmd = [sys.executable, os.path.join(ws.navigation, "scripts", "evaluate_bag"), os.path.join(run_dir, "run.bag"),
-           "--waypoints", waypoints, "--mode", mode, "--sim-config", sim_yaml, "--out", out]
+    cmd = rosrun_command("cottonsim_experiments", "evaluate_bag",
+                         [os.path.join(run_dir, "run.bag"), "--waypoints", waypoints, "--mode", mode,
+                          "--sim-config", sim_yaml, "--out", out])
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     offline = read_report(os.path.join(out, "report.json"))
     if proc.returncode != 0 or offline is None:
@@ -346,10 +352,10 @@ def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[s
         if not os.path.isdir(os.path.join(synthetic, "seg")):
             print(f"perception: generating {synthetic_images} held-out synthetic frames per task "
                   f"(farm seeds {synthetic_test_seeds})", flush=True)
-            subprocess.run([sys.executable, os.path.join(ws.perception, "scripts", "generate_dataset"),
-                            "--task", "both", "--out", synthetic, "--images", "0",
-                            "--test-images", str(synthetic_images), "--seeds", "",
-                            "--test-seeds", synthetic_test_seeds], check=True)
+            subprocess.run(rosrun_command("cottonsim_perception", "generate_dataset",
+                                          ["--task", "both", "--out", synthetic, "--images", "0",
+                                           "--test-images", str(synthetic_images), "--seeds", "",
+                                           "--test-seeds", synthetic_test_seeds]), check=True)
         det = os.path.join(synthetic, "det")
         # bolls beyond the labels' working range are ignore boxes; the strict row counts
         # predictions on them as false positives (docs/perception_data.md)
@@ -363,9 +369,9 @@ def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[s
         weights = os.path.join(ws.perception, TABLE_WEIGHTS.get(name, DEFAULT_WEIGHTS[task]))
         print(f"perception: {name} ({task}, {data}, split {split})", flush=True)
         t0 = time.monotonic()
-        proc = subprocess.run([sys.executable, os.path.join(ws.perception, "scripts", "evaluate"), "--task", task,
-                               "--data", data, "--weights", weights, "--split", split, "--json", out_json,
-                               *extra_args],
+        proc = subprocess.run(rosrun_command("cottonsim_perception", "evaluate",
+                                             ["--task", task, "--data", data, "--weights", weights, "--split", split,
+                                              "--json", out_json, *extra_args]),
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         summary["tables"][name] = {"task": task, "data": data, "split": split, "weights": weights,
                                    "json": out_json, "ok": proc.returncode == 0,
@@ -374,14 +380,3 @@ def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[s
     _write_json(os.path.join(out_dir, "summary.json"), summary)
     return summary
 
-
-def headline_metrics(evaluation: Mapping, split: str) -> Optional[Dict[str, float]]:
-    """The 'all' row (P, R, mAP50, mAP50-95) of an evaluate JSON: masks for seg, boxes for det."""
-    per_split = (evaluation.get("splits") or {}).get(split)
-    if not per_split:
-        return None
-    block = per_split.get("mask") if per_split.get("task") == "seg" else per_split.get("box")
-    for row in (block or {}).get("rows", []):
-        if row.get("class") == "all":
-            return {k: row[k] for k in ("p", "r", "map50", "map50_95") if k in row}
-    return None

@@ -6,9 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_navigation.evaluation.experiment import (TrajectoryLog, TrajectoryLogConfig, experiment_report,
+from cottonsim_experiments.recording.experiment import (TrajectoryLog, TrajectoryLogConfig, experiment_report,
                                                         planned_world_from_gps, planned_world_from_map,
                                                         sim_world_from_settings, summary_line, write_experiment)
+from cottonsim_experiments.reproduce.packages import package_path
 from cottonsim_navigation.waypoints.files import GpsWaypoint, MapWaypoint
 from cottonsim_world.farm.model import Lane, Pose2D
 from cottonsim_world.geodesy import HectorGeodesy
@@ -106,11 +107,11 @@ def test_sim_world_matches_the_default_farm():
 
 def test_committed_lanes_file_is_the_default_farms_lane_centres():
     import pathlib
-    from cottonsim_navigation.evaluation.experiment import farm_lanes_gps, sim_world_from_settings
+    from cottonsim_experiments.recording.experiment import farm_lanes_gps, sim_world_from_settings
     from cottonsim_navigation.waypoints.files import load_gps_lanes
     world = sim_world_from_settings({})
     lanes = farm_lanes_gps(world)
-    committed = load_gps_lanes(pathlib.Path(__file__).resolve().parents[3] / "config/waypoints/farm_lanes_gps.txt")
+    committed = load_gps_lanes(pathlib.Path(package_path("cottonsim_navigation")) / "config/waypoints/farm_lanes_gps.txt")
     assert len(committed) == len(world.lanes) == len(lanes)
     for (a, b), lane in zip(committed, world.lanes):
         # back through the simulator's geodesy: the lane's ends in the world frame

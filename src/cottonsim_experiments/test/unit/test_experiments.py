@@ -2,17 +2,16 @@
 import json
 import math
 import os
-import pathlib
 
 import pytest
 import yaml
 
-from cottonsim_navigation.experiments import row_spacing as rs
-from cottonsim_navigation.experiments.launcher import LaunchResult, LaunchSpec, ProgressParser
-from cottonsim_navigation.experiments.results_doc import render_results
-from cottonsim_navigation.experiments.runs import (Workspace, compare_reports, deep_merge, run_route,
+from cottonsim_experiments.reproduce import row_spacing as rs
+from cottonsim_experiments.reproduce.launcher import LaunchResult, LaunchSpec, ProgressParser
+from cottonsim_experiments.reproduce.results_doc import render_results
+from cottonsim_experiments.reproduce.runs import (Workspace, compare_reports, deep_merge, run_route,
                                                    run_row_spacing, write_sim_config)
-from cottonsim_navigation.experiments.seeds import aggregate_reports, format_spread, spread
+from cottonsim_experiments.reproduce.seeds import aggregate_reports, format_spread, spread
 from cottonsim_world.farm.config import FarmConfig
 
 
@@ -145,12 +144,7 @@ def _fake_runner(reports):
 
 
 def _workspace(tmp_path):
-    root = pathlib_root()
-    return Workspace(root=root, results=str(tmp_path / "results"))
-
-
-def pathlib_root():
-    return os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
+    return Workspace(results=str(tmp_path / "results"))
 
 
 def test_route_runs_per_seed_and_summarises_the_spread(tmp_path):
@@ -254,18 +248,18 @@ def test_progress_parser_follows_the_navigator_log():
 
 
 def test_screenshot_bringups_resolve_their_launch_arguments():
-    """$(find pkg) in a bringup's arguments becomes the workspace folder (roslaunch gets a list, no shell)."""
-    from cottonsim_navigation.experiments.screenshots import BRINGUPS, image_is_blank, resolve_find
-    assert resolve_find("/ws", "$(find cottonsim_world)/config/sim_in_lane.yaml") == \
-        "/ws/src/cottonsim_world/config/sim_in_lane.yaml"
-    assert resolve_find("/ws", 1.5) == "1.5"
-    root = str(pathlib.Path(__file__).resolve().parents[4])
+    """$(find pkg) in a bringup's arguments becomes the package's folder (roslaunch gets a list, no shell)."""
+    from cottonsim_experiments.reproduce.packages import package_path
+    from cottonsim_experiments.reproduce.screenshots import BRINGUPS, image_is_blank, resolve_find
+    assert resolve_find("$(find cottonsim_world)/config/sim_in_lane.yaml", find=lambda pkg: f"/ws/{pkg}") == \
+        "/ws/cottonsim_world/config/sim_in_lane.yaml"
+    assert resolve_find(1.5) == "1.5"
     for name, (launches, (rviz_pkg, rviz_rel), _) in BRINGUPS.items():
-        assert os.path.isfile(os.path.join(root, "src", rviz_pkg, rviz_rel)), name
+        assert os.path.isfile(os.path.join(package_path(rviz_pkg), rviz_rel)), name
         for pkg, launch_file, args in launches:
-            assert os.path.isfile(os.path.join(root, "src", pkg, "launch", launch_file)), name
+            assert os.path.isfile(os.path.join(package_path(pkg), "launch", launch_file)), name
             for value in args.values():
-                resolved = resolve_find(root, value)
+                resolved = resolve_find(value)
                 if resolved.endswith(".yaml"):
                     assert os.path.isfile(resolved), (name, resolved)
-    assert image_is_blank(os.path.join(root, "does_not_exist.png"))
+    assert image_is_blank(os.path.join(package_path("cottonsim_experiments"), "does_not_exist.png"))

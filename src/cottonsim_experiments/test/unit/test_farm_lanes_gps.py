@@ -1,11 +1,13 @@
-"""scripts/farm_lanes_gps: writes the farm's lane centre lines; bad settings exit 2 with one line."""
+"""rosrun cottonsim_experiments farm_lanes_gps: writes the farm's lane centre lines; bad settings exit 2 with one line."""
 import importlib.machinery
 import importlib.util
 import pathlib
 
+from cottonsim_experiments.reproduce.packages import package_path
 from cottonsim_navigation.waypoints.files import load_gps_lanes
 
-PKG = pathlib.Path(__file__).resolve().parents[3]
+PKG = pathlib.Path(__file__).resolve().parents[2]
+NAVIGATION = pathlib.Path(package_path("cottonsim_navigation"))
 
 
 def load_script():
@@ -20,7 +22,7 @@ def test_default_farm_gives_the_committed_file_and_a_smaller_farm_fewer_lanes(tm
     mod = load_script()
     out = tmp_path / "lanes.txt"
     assert mod.main([str(out)]) == 0
-    committed = load_gps_lanes(PKG / "config/waypoints/farm_lanes_gps.txt")
+    committed = load_gps_lanes(NAVIGATION / "config/waypoints/farm_lanes_gps.txt")
     written = load_gps_lanes(out)
     assert [(a.lat, a.lon, b.lat, b.lon) for a, b in written] == \
         [(a.lat, a.lon, b.lat, b.lon) for a, b in committed]

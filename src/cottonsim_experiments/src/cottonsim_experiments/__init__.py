@@ -1,0 +1,1 @@
+"""The paper's experiments: reproduce/ runs them and summarises, recording/ scores one run, ros/ records it live."""
