@@ -151,6 +151,16 @@ class LocalizationSupervisor:
         else:
             self.stationary.stop_relocalizing()
 
+    def respread_after_kidnap(self, pose) -> None:
+        """What a detected kidnap does: re-draw the particles around ``pose`` (x_m, y_m, yaw_rad; the wrong
+        estimate, :func:`~.quality.respread_after_kidnap`), not localised, re-localise with updates without
+        motion too; the detection stays armed (see the module doc)."""
+        respread_after_kidnap(self.amcl, pose, self.config.quality)
+        self.monitor.reset()
+        self.stationary.start_relocalizing()
+        self.armed = True
+        self.kidnaps += 1
+
     # --- one scan ---------------------------------------------------------------------
     def step(self, now_s: float, odom, scan: Scan) -> SupervisorStep:
         """Feed one scan with its time ``now_s`` [s] and the odometry pose (x_m, y_m, yaw_rad) at that time."""
@@ -174,10 +184,7 @@ class LocalizationSupervisor:
             self.armed = True
         kidnapped = self.armed and self.monitor.kidnapped
         if kidnapped:          # confidently wrong: spread the particles around the estimate again
-            respread_after_kidnap(self.amcl, pose, q)
-            self.monitor.reset()
-            self.stationary.start_relocalizing()
-            self.kidnaps += 1
+            self.respread_after_kidnap(pose)
             now = False
         particles = self.amcl.particles.copy()
         if not now:            # not localised: the whole set's spread, more while the scan does not fit
