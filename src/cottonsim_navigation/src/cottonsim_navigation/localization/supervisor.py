@@ -9,8 +9,10 @@ One :meth:`LocalizationSupervisor.step`:
 1. switch the free-space check of the beams (``free_space_mode``) on or off for this update: "always",
    "relocalizing" = only while not localised, "off";
 2. ask for a filter update without motion when the :class:`~.quality.StationaryUpdatePolicy` says so
-   (while localised with a poor scan fit at the current estimate; while re-localising after a kidnap,
-   then roughening the particles first);
+   (while localised with a poor scan fit at the current estimate; while a kidnap is suspected; once
+   localised, while "not localised" again -- the navigator stops the robot then, and without updates a
+   fit that recovers would never be confirmed; while re-localising after a kidnap, then roughening the
+   particles first);
 3. run :meth:`Amcl.update <.amcl.Amcl.update>`; after a filter update, feed the particle spread and the
    scan fit at the estimate to the :class:`~.quality.LocalizationMonitor`;
 4. a kidnap (a tight set whose scan fit stays poor, :attr:`LocalizationMonitor.kidnapped`) re-draws the
@@ -206,7 +208,8 @@ class LocalizationSupervisor:
             here = compose(self._map_to_odom, odom)
             hits = scan_hit_fraction(field_, (here.x_m, here.y_m, here.yaw_rad), scan, q.hit_distance_m,
                                      q.max_crossed_m)
-        update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits, self.monitor.suspect)
+        lost = self.armed and not self.monitor.localized
+        update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits, self.monitor.suspect or lost)
         if roughen:
             self.amcl.filter.roughen(q.roughen_std_xy_m, q.roughen_std_yaw_rad)
         if update:

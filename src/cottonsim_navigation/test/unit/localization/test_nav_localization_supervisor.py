@@ -107,6 +107,22 @@ def test_a_localised_robot_carried_toward_the_rows_is_detected_and_recovers(seed
     assert sup.armed
 
 
+def test_a_standing_robot_that_lost_its_localised_signal_regains_it():
+    # localised, then a few scans with clutter turn the signal off (no kidnap: too short); the navigator
+    # stops the robot. The filter must go on updating while it stands, or the signal never comes back.
+    sup, spec, occ = supervisor()
+    rng = np.random.default_rng(4)
+    truth, odom = np.array([0.0, -5.0, UP]), np.zeros(3)
+    sup.initialise((0.05, -5.05, UP), np.diag([0.01, 0.01, 0.003]), relocalize=False)
+    truth, odom, t, _ = drive(sup, spec, occ, truth, odom, 0.0, 10, rng=rng)
+    assert sup.localized
+    truth, odom, t, steps = drive(sup, spec, occ, truth, odom, t, 10, dy=0.0, clutter=0.8, rng=rng)
+    assert not sup.localized and sup.kidnaps == 0
+    truth, odom, t, steps = drive(sup, spec, occ, truth, odom, t, 20, dy=0.0, rng=rng)
+    assert sup.localized and sup.kidnaps == 0
+    assert error_m(*steps[-1]) < 0.1
+
+
 def test_reinitialising_disarms_the_kidnap_detection():
     sup, spec, occ = supervisor()
     sup.armed = True
