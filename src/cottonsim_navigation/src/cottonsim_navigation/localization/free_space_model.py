@@ -207,20 +207,25 @@ class FreeSpaceCheckedField:
             raise AttributeError(name)
         return getattr(self.field, name)
 
-    def crossed_log_factors(self, particles: np.ndarray, scan: Scan) -> np.ndarray:
-        """ln of the free-space factor (N,) of each particle (<= 0) for the beams the field uses."""
+    def _beams(self, particles, scan: Scan):
+        """(particles as a contiguous (N, 3) array, the used beams' end points (K, 2) in base_link, the
+        laser's x, y in base_link, the beams' vectors vx, vy from the laser and their lengths r)."""
         parts = np.ascontiguousarray(particles, dtype=float)
         if parts.ndim != 2 or parts.shape[1] != 3:
             raise ValueError(f"particles must be an (N, 3) array, got shape {parts.shape}")
         pts = self.field.select_beams(scan)
         lx, ly, _ = scan.laser_pose
         vx, vy = pts[:, 0] - lx, pts[:, 1] - ly
-        r = np.hypot(vx, vy)
+        return parts, pts, float(lx), float(ly), vx, vy, np.hypot(vx, vy)
+
+    def crossed_log_factors(self, particles: np.ndarray, scan: Scan) -> np.ndarray:
+        """ln of the free-space factor (N,) of each particle (<= 0) for the beams the field uses."""
+        parts, _, lx, ly, vx, vy, r = self._beams(particles, scan)
         keep = r > 1e-9
         r, vx, vy = r[keep], vx[keep], vy[keep]
         c = self.free_space_config
         spec = self.field.spec
-        return _crossed_log_factors(parts, float(lx), float(ly), np.ascontiguousarray(vx / r),
+        return _crossed_log_factors(parts, lx, ly, np.ascontiguousarray(vx / r),
                                     np.ascontiguousarray(vy / r), np.ascontiguousarray(r), self._occupied,
                                     spec.origin_x_m, spec.origin_y_m, spec.resolution_m, c.tolerance_m,
                                     c.sample_spacing_m, c.n_samples, c.far_sample_spacing_m, c.max_crossed_m,
@@ -229,11 +234,7 @@ class FreeSpaceCheckedField:
     def crossed_lengths(self, pose, scan: Scan) -> np.ndarray:
         """Crossed obstacle length [m] (capped at max_crossed_m) of each beam the field uses, robot at
         ``pose`` (x_m, y_m, yaw_rad); same order as ``select_beams`` (0 for a zero-length beam)."""
-        p = np.ascontiguousarray(np.asarray(pose, dtype=float).reshape(1, 3))
-        pts = self.field.select_beams(scan)
-        lx, ly, _ = scan.laser_pose
-        vx, vy = pts[:, 0] - lx, pts[:, 1] - ly
-        r = np.hypot(vx, vy)
+        p, pts, lx, ly, vx, vy, r = self._beams(np.asarray(pose, dtype=float).reshape(1, 3), scan)
         keep = r > 1e-9
         c = self.free_space_config
         spec = self.field.spec
@@ -286,18 +287,12 @@ class FreeSpaceCheckedField:
         return out
 
     def _per_beam_sum_weights(self, particles: np.ndarray, scan: Scan) -> np.ndarray:
-        parts = np.ascontiguousarray(particles, dtype=float)
-        if parts.ndim != 2 or parts.shape[1] != 3:
-            raise ValueError(f"particles must be an (N, 3) array, got shape {parts.shape}")
-        pts = self.field.select_beams(scan)
-        lx, ly, _ = scan.laser_pose
-        vx, vy = pts[:, 0] - lx, pts[:, 1] - ly
-        r = np.hypot(vx, vy)
+        parts, pts, lx, ly, vx, vy, r = self._beams(particles, scan)
         safe = np.where(r > 1e-9, r, 1.0)
         c = self.free_space_config
         spec = self.field.spec
         return _per_beam_sum_weights(parts, np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
-                                     float(lx), float(ly), np.ascontiguousarray(vx / safe),
+                                     lx, ly, np.ascontiguousarray(vx / safe),
                                      np.ascontiguousarray(vy / safe), np.where(r > 1e-9, r, 0.0),
                                      self.field.pz_map, self.field.pz_outside, self._occupied, spec.origin_x_m,
                                      spec.origin_y_m, spec.resolution_m, c.tolerance_m, c.sample_spacing_m,
