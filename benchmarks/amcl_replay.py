@@ -120,8 +120,11 @@ def supervisor_from_params(params, seed):
         return config_from_params(cls, prefix=prefix, get_param=lambda n, d=None: params.get(n, d),
                                   has_param=lambda n: n in params, overrides=extra or None)
 
-    pose = tuple(float(params.get("~initial_pose_" + k, 0.0)) for k in "xya")
-    amcl = Amcl(get(AmclConfig, "~", initial_pose=pose), np.random.default_rng(seed))
+    extra = {"initial_pose": tuple(float(params.get("~initial_pose_" + k, 0.0)) for k in "xya")}
+    for name, field in (("xx", "initial_cov_xx_m2"), ("yy", "initial_cov_yy_m2"), ("aa", "initial_cov_aa_rad2")):
+        if "~initial_cov_" + name in params:                 # the node's names for these fields
+            extra[field] = float(params["~initial_cov_" + name])
+    amcl = Amcl(get(AmclConfig, "~", **extra), np.random.default_rng(seed))
     config = SupervisorConfig(params.get("~free_space_mode", "relocalizing"),
                               get(FreeSpaceConfig, "~free_space_"), get(LocalizationQualityConfig, "~localized_"))
     return LocalizationSupervisor(amcl, config)
