@@ -15,7 +15,8 @@ One :meth:`LocalizationSupervisor.step`:
    particles first);
 3. run :meth:`Amcl.update <.amcl.Amcl.update>`; after a filter update, feed the particle spread and the
    scan fit at the estimate to the :class:`~.quality.LocalizationMonitor`;
-4. a kidnap (a tight set whose scan fit stays poor, :attr:`LocalizationMonitor.kidnapped`) re-draws the
+4. a kidnap (a tight set whose scan fit stays poor, judged per beam: :attr:`LocalizationMonitor.kidnapped`,
+   :func:`~.quality.scan_fit`) re-draws the
    particles around the estimate (:func:`~.quality.respread_after_kidnap`) and starts re-localising --
    but only once armed: the filter must have been localised since the last (re)initialisation. Before
    that, a tight set with a poor fit is a filter still converging from an uncertain start (in the open
@@ -42,7 +43,7 @@ from ..core.grid import GridSpec
 from .amcl import Amcl, AmclResult
 from .free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
 from .quality import (LocalizationMonitor, LocalizationQualityConfig, StationaryUpdatePolicy, particle_spread,
-                      reported_covariance, respread_after_kidnap, scan_hit_fraction)
+                      reported_covariance, respread_after_kidnap, scan_fit, scan_hit_fraction)
 from .sensor_models import Scan
 
 FREE_SPACE_MODES = ("off", "relocalizing", "always")
@@ -179,9 +180,9 @@ class LocalizationSupervisor:
         q = self.config.quality
         std_xy, std_yaw = particle_spread(self.amcl.particles, self.amcl.filter.weights)
         pose = (result.pose.x_m, result.pose.y_m, result.pose.yaw_rad)
-        hits = scan_hit_fraction(self.amcl.field, pose, scan, q.hit_distance_m, q.max_crossed_m)
+        hits, judged = scan_fit(self.amcl.field, pose, scan, q.hit_distance_m, q.max_crossed_m)
         was = self.monitor.localized
-        now = self.monitor.update(std_xy, std_yaw, hits)
+        now = self.monitor.update(std_xy, std_yaw, hits, judged)
         if now:
             self.armed = True
         kidnapped = self.armed and self.monitor.kidnapped
