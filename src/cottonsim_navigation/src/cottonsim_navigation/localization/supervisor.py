@@ -10,8 +10,10 @@ One :meth:`LocalizationSupervisor.step`:
    "relocalizing" = only while not localised, "off";
 2. ask for a filter update without motion when the :class:`~.quality.StationaryUpdatePolicy` says so
    (while localised with a poor scan fit at the current estimate; while a kidnap is suspected; once
-   localised, while "not localised" again -- the navigator stops the robot then, and without updates a
-   fit that recovers would never be confirmed; while re-localising after a kidnap, then roughening the
+   localised, while "not localised" again and the robot stands -- the navigator stops it then, and
+   without updates a fit that recovers would never be confirmed (while it drives, the motion updates do
+   that: forced updates on top of them, without motion noise, over-tighten the set until a scan that
+   fits a little worse looks like a kidnap); while re-localising after a kidnap, then roughening the
    particles first);
 3. run :meth:`Amcl.update <.amcl.Amcl.update>`; after a filter update, feed the particle spread and the
    scan fit at the estimate to the :class:`~.quality.LocalizationMonitor`;
@@ -47,6 +49,8 @@ from .quality import (LocalizationMonitor, LocalizationQualityConfig, Stationary
 from .sensor_models import Scan
 
 FREE_SPACE_MODES = ("off", "relocalizing", "always")
+STANDING_M = 1e-3           # odometry that moved less than this between two scans: the robot stands [m]
+STANDING_RAD = 1e-3         # ... and turned less than this [rad]
 
 
 @dataclass(frozen=True)
@@ -115,6 +119,7 @@ class LocalizationSupervisor:
         self.armed = False                      # kidnap detection: on once localised since (re)initialisation
         self.kidnaps = 0
         self._map_to_odom: Optional[Pose2D] = None
+        self._last_odom: Optional[Pose2D] = None
 
     @property
     def localized(self) -> bool:
@@ -209,7 +214,10 @@ class LocalizationSupervisor:
             here = compose(self._map_to_odom, odom)
             hits = scan_hit_fraction(field_, (here.x_m, here.y_m, here.yaw_rad), scan, q.hit_distance_m,
                                      q.max_crossed_m)
-        lost = self.armed and not self.monitor.localized
+        last, self._last_odom = self._last_odom, odom
+        standing = last is not None and abs(odom.x_m - last.x_m) < STANDING_M and abs(odom.y_m - last.y_m) < \
+            STANDING_M and abs(odom.yaw_rad - last.yaw_rad) < STANDING_RAD
+        lost = self.armed and not self.monitor.localized and standing
         update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits, self.monitor.suspect or lost)
         if roughen:
             self.amcl.filter.roughen(q.roughen_std_xy_m, q.roughen_std_yaw_rad)
