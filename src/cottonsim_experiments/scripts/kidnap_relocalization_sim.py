@@ -5,10 +5,10 @@ As in that rostest: the robot drives toward the rows at 0.5 m/s in the route's l
 carried forward, landing at rest 1.95 m before the first stems, facing them; the navigator goes on
 commanding 0.5 m/s for 0.6 s, then stops it; 1.0 s after the landing AMCL, having confirmed the kidnap,
 re-spreads its particles as its node does around an estimate 2.3-3.3 m behind the truth. From then on
-every /scan_360 of the simulator (pybullet VLP-16, nav_ci.yaml settings) goes through the node's logic
-(config/amcl.yaml + config/amcl_farm.yaml; the shipped SLAM map; filter updates after motion and, while
-re-localising, every 0.5 s with roughening; the free-space check on while not localised) until its monitor
-says "localised" (or 20 s of sim time). Odometry is perfect (the ground truth): only the filter is measured.
+every /scan_360 of the simulator (pybullet VLP-16, nav_ci.yaml settings) goes through the node's policy,
+``LocalizationSupervisor.step`` (config/amcl.yaml + config/amcl_farm.yaml; the shipped SLAM map; filter
+updates after motion and, while re-localising, every 0.5 s with roughening; the free-space check on while
+not localised) until it says "localised" (or 20 s of sim time). Odometry is perfect (the ground truth): only the filter is measured.
 Prints, per seed, the error along / across the heading at that moment, and how often the pose the node
 would report as localised is more than 0.25 m off (the rostest's CR radius) or more than 0.5 m (the set
 settled on a wrong peak of the likelihood, e.g. further along the lane).
@@ -16,7 +16,8 @@ settled on a wrong peak of the likelihood, e.g. further along the lane).
 Run:  rosrun cottonsim_experiments kidnap_relocalization_sim.py [seeds] [key=value ...]
           [--traces=FILE]
       key=value: LocalizationQualityConfig fields to override (e.g. relocalize_particles=2000);
-      --traces: go on with re-localising updates after "localised" and write every update's error as JSON.
+      --traces: go on with re-localising updates after "localised" (standing updates with roughening; the
+          free-space check then follows free_space_mode) and write every update's error as JSON.
 Results: docs/map_experiment.md, "Kidnap".
 """
 import dataclasses
@@ -32,11 +33,10 @@ from cottonsim_common.config.yaml_files import load_yaml_file  # noqa: E402
 from cottonsim_experiments.reproduce.packages import package_path  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E402
-from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig  # noqa: E402
-from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,  # noqa: E402
-                                                       StationaryUpdatePolicy, particle_spread,
-                                                       respread_after_kidnap, scan_hit_fraction)
+from cottonsim_navigation.localization.free_space_model import FreeSpaceConfig  # noqa: E402
+from cottonsim_navigation.localization.quality import LocalizationQualityConfig  # noqa: E402
 from cottonsim_navigation.localization.sensor_models import Scan  # noqa: E402
+from cottonsim_navigation.localization.supervisor import LocalizationSupervisor, SupervisorConfig  # noqa: E402
 from cottonsim_navigation.ros.params import config_from_params  # noqa: E402
 from cottonsim_world.config_io import simulator_config_from_dict  # noqa: E402
 from cottonsim_world.farm.config import FarmConfig  # noqa: E402
@@ -88,11 +88,10 @@ def next_scan(sim, laser_pose):
 
 
 def run(seed, sim, grid, spec, home, configs, keep_going=False):
-    """configs: (AmclConfig, LocalizationQualityConfig, FreeSpaceConfig)."""
-    config, q, free_space = configs
-    amcl = Amcl(config, np.random.default_rng(seed))
-    amcl.set_map(grid, spec)
-    amcl.field = FreeSpaceCheckedField(amcl.field, free_space)
+    """configs: (AmclConfig, SupervisorConfig)."""
+    config, supervisor_config = configs
+    sup = LocalizationSupervisor(Amcl(config, np.random.default_rng(seed)), supervisor_config)
+    sup.set_map(grid, spec)
     rng = np.random.default_rng(1000 + seed)
     bl = sim.base_T_sensor["velodyne"]
     laser = (float(bl[0, 3]), float(bl[1, 3]), math.atan2(bl[1, 0], bl[0, 0]))
@@ -116,36 +115,25 @@ def run(seed, sim, grid, spec, home, configs, keep_going=False):
     truth, _ = truth_now()
     behind_m = KIDNAP_M + rng.uniform(-0.7, 0.3)        # the robot drove on a little before AMCL noticed
     estimate = truth - behind_m * np.array([math.cos(truth[2]), math.sin(truth[2]), 0.0])
-    respread_after_kidnap(amcl, estimate, q)
-    monitor, policy = LocalizationMonitor(q), StationaryUpdatePolicy(q)
-    policy.start_relocalizing()
+    sup.respread_after_kidnap(estimate)
     trace = []         # one entry per filter update: the error then and the monitor's numbers
     while sim.time_s < t_kidnap + RESPREAD_AFTER_S + MAX_S and len(trace) < MAX_UPDATES:
         sim.command_velocity(0.0, 0.0)
         scan = next_scan(sim, laser)
         truth, world = truth_now()
-        t = sim.time_s
-        # a trace (keep_going) goes on with re-localising updates after "localised" too
-        relocalizing_view = False if keep_going else monitor.localized
-        amcl.field.enabled = not relocalizing_view
-        update, roughen = policy.decide(t, relocalizing_view, None, monitor.suspect)
-        if roughen:
-            amcl.filter.roughen(q.roughen_std_xy_m, q.roughen_std_yaw_rad)
-        if update:
-            amcl.request_update()
+        if keep_going:
+            sup.stationary.start_relocalizing()
         # perfect odometry (the ground truth in the world frame): only its increments matter to AMCL
-        res = amcl.update(tuple(world), scan)
-        if not res.updated:
+        step = sup.step(sim.time_s, tuple(world), scan)
+        if not step.updated:
             continue
-        std_xy, std_yaw = particle_spread(amcl.particles, amcl.filter.weights)
-        p = res.pose
-        hits = scan_hit_fraction(amcl.field, (p.x_m, p.y_m, p.yaw_rad), scan, q.hit_distance_m, q.max_crossed_m)
-        localized = monitor.update(std_xy, std_yaw, hits)
+        p, localized = step.result.pose, step.localized
         dx, dy = p.x_m - truth[0], p.y_m - truth[1]
         c, s = math.cos(truth[2]), math.sin(truth[2])
         trace.append(dict(along=c * dx + s * dy, across=-s * dx + c * dy, pose=(p.x_m, p.y_m, p.yaw_rad),
                           yaw=math.atan2(math.sin(p.yaw_rad - truth[2]), math.cos(p.yaw_rad - truth[2])),
-                          fit=hits, spread=std_xy, spread_yaw=std_yaw, localized=localized, t=t - t_kidnap))
+                          fit=step.hit_fraction, spread=step.std_xy_m, spread_yaw=step.std_yaw_rad,
+                          localized=localized, t=sim.time_s - t_kidnap))
         if localized and not keep_going:
             break
     return trace
@@ -169,8 +157,10 @@ def main():
     home = generate_farm(FarmConfig()).spawn
     params = amcl_params()
     configs = (from_params(AmclConfig, params, "~"),
-               dataclasses.replace(from_params(LocalizationQualityConfig, params, "~localized_"), **overrides),
-               from_params(FreeSpaceConfig, params, "~free_space_"))
+               SupervisorConfig(params.get("~free_space_mode", SupervisorConfig.free_space_mode),
+                                from_params(FreeSpaceConfig, params, "~free_space_"),
+                                dataclasses.replace(from_params(LocalizationQualityConfig, params, "~localized_"),
+                                                    **overrides)))
     t0 = time.monotonic()
     sim = make_sim(0)
     traces = []

@@ -22,7 +22,15 @@ filter updates that agree on the new state (hysteresis); a re-initialisation
 
 Kidnap detection: a tight particle set whose scan fit stays poor for
 ``relocalize_after`` consecutive updates is confidently wrong (the robot was
-moved, or a wrong initial pose was given). :attr:`LocalizationMonitor.kidnapped`
+moved). Poor here is judged per beam, on the beams the map can judge: a beam
+*contradicts* the estimate when its end point lies in mapped free space farther
+than ``hit_distance_m`` from any obstacle (or, with the free-space check, it
+would have crossed ``max_crossed_m`` of mapped obstacle); a beam ending in an
+unknown cell or beyond the map says nothing. The fit is poor when the share of
+the judged beams that hit is below ``min_hit_fraction`` (:func:`scan_fit`). So
+a robot in the open headland whose scan sees little, or beams into unmapped
+parts, are no kidnap, where the plain hit fraction over all beams (which the
+"localised" verdict uses: it needs positive evidence) would be low. :attr:`LocalizationMonitor.kidnapped`
 then turns true and the caller should spread the particles again
 (``relocalize_std_xy_m`` / ``relocalize_std_yaw_rad`` around the estimate, or
 globally). This complements AMCL's random-particle recovery (alpha_slow /
@@ -194,16 +202,27 @@ def particle_spread(particles: np.ndarray, weights: Optional[np.ndarray] = None)
 
 def scan_hit_fraction(field: LikelihoodField, pose, scan: Scan, hit_distance_m: float,
                       max_crossed_m: Optional[float] = None) -> float:
-    """Share of the model's beams whose end point, with the robot at ``pose`` (x, y, yaw), lies
-    within ``hit_distance_m`` of an obstacle of ``field``'s map; 0.0 when no beam is usable.
+    """Share of the model's beams that hit (see :func:`scan_fit`; beams ending beyond the map count as
+    misses); 0.0 when no beam is usable."""
+    return scan_fit(field, pose, scan, hit_distance_m, max_crossed_m)[0]
+
+
+def scan_fit(field: LikelihoodField, pose, scan: Scan, hit_distance_m: float,
+             max_crossed_m: Optional[float] = None):
+    """(hit_fraction, judged_hit_fraction) of the model's beams with the robot at ``pose`` (x, y, yaw).
+
+    A beam hits when its end point lies within ``hit_distance_m`` of an obstacle of ``field``'s map.
+    hit_fraction: the share of all used beams that hit (0.0 when no beam is usable). judged_hit_fraction:
+    the share among the beams the map can judge -- those that hit and those that contradict the pose
+    (end point in a mapped cell, not a hit); NaN when there is none (see the module doc).
 
     With ``max_crossed_m`` and a field that has ``crossed_lengths`` (a FreeSpaceCheckedField), a beam
-    that would have crossed that much mapped obstacle on its way also counts as a miss: its end point
-    may sit in a hedge, but the beam could not have got there (a pose metres along the rows).
+    that would have crossed that much mapped obstacle on its way is no hit and contradicts the pose: its
+    end point may sit in a hedge, but the beam could not have got there (a pose metres along the rows).
     """
     pts = field.select_beams(scan)
     if pts.shape[0] == 0:
-        return 0.0
+        return 0.0, math.nan
     x, y, yaw = (float(v) for v in np.asarray(pose, dtype=float).reshape(3))
     c, s = math.cos(yaw), math.sin(yaw)
     wx = x + c * pts[:, 0] - s * pts[:, 1]
@@ -214,10 +233,16 @@ def scan_hit_fraction(field: LikelihoodField, pose, scan: Scan, hit_distance_m: 
     inside = (mx >= 0) & (mx < spec.width) & (my >= 0) & (my < spec.height)
     d = np.full(pts.shape[0], np.inf)
     d[inside] = field.distance_m[my[inside], mx[inside]]
+    known = np.zeros(pts.shape[0], dtype=bool)
+    known[inside] = field.known[my[inside], mx[inside]]
     hit = d <= hit_distance_m
+    contradicts = known & ~hit
     if max_crossed_m is not None and hasattr(field, "crossed_lengths"):
-        hit &= field.crossed_lengths((x, y, yaw), scan) < max_crossed_m
-    return float(np.mean(hit))
+        crossed = field.crossed_lengths((x, y, yaw), scan) >= max_crossed_m
+        contradicts |= hit & crossed
+        hit &= ~crossed
+    judged = int(hit.sum() + contradicts.sum())
+    return float(np.mean(hit)), (float(hit.sum()) / judged if judged else math.nan)
 
 
 class LocalizationMonitor:
@@ -257,13 +282,19 @@ class LocalizationMonitor:
         return bool(std_xy_m <= c.max_std_xy_m and std_yaw_rad <= c.max_std_yaw_rad
                     and hit_fraction >= c.min_hit_fraction)
 
-    def update(self, std_xy_m: float, std_yaw_rad: float, hit_fraction: float) -> bool:
-        """Feed one filter update's numbers; returns the (possibly switched) state."""
+    def update(self, std_xy_m: float, std_yaw_rad: float, hit_fraction: float,
+               judged_hit_fraction: Optional[float] = None) -> bool:
+        """Feed one filter update's numbers; returns the (possibly switched) state.
+
+        judged_hit_fraction: :func:`scan_fit`'s second value (None: the same as hit_fraction; NaN: no
+        beam could be judged, no evidence of a kidnap). A kidnap builds up only while both are poor."""
         self.last_std_xy_m, self.last_std_yaw_rad, self.last_hit_fraction = std_xy_m, std_yaw_rad, hit_fraction
         ok = self.check(std_xy_m, std_yaw_rad, hit_fraction)
         c = self.config
         tight = std_xy_m <= c.max_std_xy_m and std_yaw_rad <= c.max_std_yaw_rad
-        self._poor_fit_streak = self._poor_fit_streak + 1 if (tight and hit_fraction < c.min_hit_fraction) else 0
+        judged = hit_fraction if judged_hit_fraction is None else judged_hit_fraction
+        poor = hit_fraction < c.min_hit_fraction and judged < c.min_hit_fraction      # False for NaN
+        self._poor_fit_streak = self._poor_fit_streak + 1 if (tight and poor) else 0
         if ok == self.localized:
             self._streak = 0
         else:

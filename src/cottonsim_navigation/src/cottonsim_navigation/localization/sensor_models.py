@@ -232,7 +232,8 @@ class LikelihoodField:
 
     occupancy: (H, W) nav_msgs/OccupancyGrid values; cells > ``occupied_threshold``
     (default 65, map_server's occupied_thresh 0.65) are obstacles.
-    ``distance_m`` holds the clipped distance to the nearest obstacle [m].
+    ``distance_m`` holds the clipped distance to the nearest obstacle [m]; ``known`` marks the mapped
+    cells (value >= 0).
     """
 
     def __init__(self, occupancy, spec: GridSpec, config: LikelihoodFieldConfig = LikelihoodFieldConfig(),
@@ -241,6 +242,7 @@ class LikelihoodField:
         self.spec = spec
         self.config = config
         occupied = occ > occupied_threshold
+        self.known = occ >= 0                     # mapped cells (free or occupied); -1 = unknown
         if occupied.any():
             dist = ndimage.distance_transform_edt(~occupied) * spec.resolution_m
         else:

@@ -1,14 +1,13 @@
 """amcl: adaptive Monte-Carlo localisation in a saved map (the ROS amcl node, for the map mode).
 
 The filter is ``cottonsim_navigation.localization.amcl.Amcl``; the localised
-signal is ``cottonsim_navigation.localization.quality``. This node converts
-messages and TF to the cores' types and back. The laser scan helper
+signal, the kidnap handling and the stationary updates are
+``cottonsim_navigation.localization.supervisor.LocalizationSupervisor``. This
+node converts messages and TF to the cores' types and back. The laser scan helper
 :func:`scan_from_msg` is shared with the SLAM node.
 """
 from __future__ import annotations
 
-import dataclasses
-import math
 import threading
 from typing import Dict, Optional, Tuple
 
@@ -22,19 +21,17 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Bool
 from std_srvs.srv import Empty, EmptyResponse
 
-from cottonsim_navigation.core.geometry import Pose2D, compose, yaw_to_quaternion
+from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
-from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
-from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
-                                                       StationaryUpdatePolicy, particle_spread, reported_covariance,
-                                                       respread_after_kidnap, scan_hit_fraction)
+from cottonsim_navigation.localization.free_space_model import FreeSpaceConfig
+from cottonsim_navigation.localization.quality import LocalizationQualityConfig
 from cottonsim_navigation.localization.sensor_models import Scan
+from cottonsim_navigation.localization.supervisor import LocalizationSupervisor, SupervisorConfig
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 from cottonsim_world.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
 
-FREE_SPACE_MODES = ("off", "relocalizing", "always")
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
 
@@ -131,8 +128,9 @@ class AmclNode:
       ~localized_switch_after 2, ~localized_relocalize_after 3 (0 = off), ~localized_relocalize_std_xy_m 2.0,
       ~localized_relocalize_std_yaw_rad 0.3, ~localized_relocalize_std_across_m 0 (= round),
       ~localized_relocalize_round_fraction 0 (share of the re-drawn particles with the round spread),
-      ~localized_relocalize_particles 10000 (how many are re-drawn; 0 = max_particles): after that many
-      updates with a tight set but a poor scan fit (a kidnap) the particles are re-drawn around the estimate
+      ~localized_relocalize_particles 10000 (how many are re-drawn; 0 = max_particles): once AMCL has been
+      localised since its (re)initialisation, after that many updates with a tight set but a poor scan fit
+      (a kidnap) the particles are re-drawn around the estimate
       with that spread (std_xy along the estimate's heading, std_across across it); while such a kidnap is
       suspected the standing robot's scans keep being used;
       ~localized_max_crossed_m 0.5 (with the free-space check a beam crossing that much mapped obstacle is a
@@ -140,7 +138,7 @@ class AmclNode:
       while localised with a poor scan fit at the estimate (a standing robot's kidnap) and while re-localising
       after a kidnap, then with jitter ~localized_roughen_std_xy_m 0.03, ~localized_roughen_std_yaw_rad 0.01);
       ~free_space_mode ("relocalizing"): the free-space check of the beams (localization/free_space_model.py)
-      "off", "relocalizing" (only while not localised) or "always"; FreeSpaceConfig fields with prefix
+      "off", "relocalizing" (only while not localised) or "always" (SupervisorConfig); FreeSpaceConfig fields with prefix
       ~free_space_ (~free_space_tolerance_m 0.2, ~free_space_check_length_m 1.0,
       ~free_space_sample_spacing_m 0.1, ~free_space_far_sample_spacing_m 0.5, ~free_space_max_crossed_m 1.0,
       ~free_space_decay_length_m 1.0);
@@ -164,10 +162,13 @@ class AmclNode:
                 overrides[field] = typed_param(ros_name, 0.0)
         self.config = config_from_params(AmclConfig, overrides=overrides)
         self.quality_config = config_from_params(LocalizationQualityConfig, prefix="~localized_")
-        self.free_space_mode = typed_param("~free_space_mode", "relocalizing")
-        if self.free_space_mode not in FREE_SPACE_MODES:
-            raise ValueError(f"~free_space_mode must be one of {FREE_SPACE_MODES}, got {self.free_space_mode!r}")
-        self.free_space_config = config_from_params(FreeSpaceConfig, prefix="~free_space_")
+        free_space_mode = typed_param("~free_space_mode", SupervisorConfig.free_space_mode)
+        try:
+            supervisor_config = SupervisorConfig(free_space_mode, config_from_params(FreeSpaceConfig,
+                                                                                     prefix="~free_space_"),
+                                                 self.quality_config)
+        except ValueError as exc:
+            raise ValueError(f"parameter ~{exc}") from exc
         self.scan_topic = typed_param("~scan_topic", "/scan_360")
         self.use_map_topic = typed_param("~use_map_topic", True)
         self.first_map_only = typed_param("~first_map_only", False)
@@ -180,8 +181,7 @@ class AmclNode:
         rng = np.random.default_rng(None if seed < 0 else seed)
 
         self.amcl = Amcl(self.config, rng)
-        self.monitor = LocalizationMonitor(self.quality_config)
-        self.stationary = StationaryUpdatePolicy(self.quality_config)
+        self.supervisor = LocalizationSupervisor(self.amcl, supervisor_config)
         self._lock = threading.Lock()
         self._have_map = False
         self._last_tf_stamp: Optional[rospy.Time] = None
@@ -226,13 +226,8 @@ class AmclNode:
             rospy.logwarn(f"amcl: map ignored: {exc}")
             return
         with self._lock:
-            self.amcl.set_map(grid, spec)
-            if self.free_space_mode != "off":
-                self.amcl.field = FreeSpaceCheckedField(self.amcl.field, self.free_space_config)
-            self.stationary.stop_relocalizing()
             # a new map invalidates the particles: start again from the configured initial pose
-            self.amcl.initialise(self.config.initial_pose)
-            self.monitor.reset()
+            self.supervisor.set_map(grid, spec)
             self._have_map = True
         self.localized_pub.publish(Bool(data=False))
         rospy.loginfo("amcl: map %d x %d cells at %.3f m; initial pose (%.2f, %.2f, %.2f)", spec.width,
@@ -261,18 +256,14 @@ class AmclNode:
             if not self._have_map:
                 rospy.logwarn("amcl: initialpose before a map; ignored")
                 return
-            self.amcl.initialise(pose, cov)
-            self.monitor.reset()
-            self.stationary.start_relocalizing()    # the robot may stand (a paused navigator): update anyway
+            self.supervisor.initialise(pose, cov)   # the robot may stand (a paused navigator): update anyway
         self.localized_pub.publish(Bool(data=False))
         rospy.loginfo("amcl: re-initialised at (%.2f, %.2f, %.2f)", *pose)
 
     def _on_global_localization(self, _req):
         with self._lock:
             if self._have_map:
-                self.amcl.global_localization()
-                self.monitor.reset()
-                self.stationary.start_relocalizing()    # may be standing: update without motion too
+                self.supervisor.global_localization()   # may be standing: update without motion too
                 rospy.loginfo("amcl: global localisation, %d particles over the free space", self.amcl.filter.n)
             else:
                 rospy.logwarn("amcl: global_localization before a map; nothing done")
@@ -295,74 +286,40 @@ class AmclNode:
         if odom is None:
             return
         with self._lock:
-            self._before_update(msg.header.stamp.to_sec(), odom, scan)
-            result = self.amcl.update(odom, scan)
-            if result.updated:
-                if result.motion_parts > 1:
-                    c = self.config
-                    rospy.logwarn_throttle(10.0, "amcl: late filter update (scans arrive faster than they are "
-                                                 "processed): its odometry increment was sampled in %d parts of "
-                                                 "<= %.2f m / %.2f rad" %
-                                           (result.motion_parts, c.odom_max_step_m, c.odom_max_step_rad))
-                std_xy, std_yaw = particle_spread(self.amcl.particles, self.amcl.filter.weights)
-                pose = result.pose
-                hits = scan_hit_fraction(self.amcl.field, (pose.x_m, pose.y_m, pose.yaw_rad), scan,
-                                         self.quality_config.hit_distance_m, self.quality_config.max_crossed_m)
-                was = self.monitor.localized
-                now = self.monitor.update(std_xy, std_yaw, hits)
-                kidnapped = self.monitor.kidnapped
-                if kidnapped:      # confidently wrong: spread the particles around the estimate again
-                    respread_after_kidnap(self.amcl, (pose.x_m, pose.y_m, pose.yaw_rad), self.quality_config)
-                    self.monitor.reset()
-                    self.stationary.start_relocalizing()
-                    now = False
-                particles = self.amcl.particles.copy()
-                if not now:        # not localised: the whole set's spread, more while the scan does not fit
-                    cov = reported_covariance(result.covariance, particles,
-                                              None if kidnapped else self.amcl.filter.weights, False, hits,
-                                              pose.yaw_rad, self.quality_config)
-                    result = dataclasses.replace(result, covariance=cov)
-            self._map_to_odom = result.map_to_odom
-        stamp = msg.header.stamp
-        if result.updated:
-            self._publish_pose(result, stamp)
-            self._publish_cloud(particles, stamp)
-            rospy.loginfo_throttle(5.0, "amcl: pose (%.2f, %.2f, %.3f), %d particles, spread %.3f m %.3f rad, "
-                                        "scan fit %.2f" % (result.pose.x_m, result.pose.y_m, result.pose.yaw_rad,
-                                                           result.n_particles, std_xy, std_yaw, hits))
-            if kidnapped:
-                q = self.quality_config
-                rospy.logwarn("amcl: the scan has not fitted the map for %d updates although the particles "
-                              "agree: kidnapped? Re-spreading them around (%.2f, %.2f) (std %.1f m along, %.1f m "
-                              "across the heading, %.2f rad)", q.relocalize_after, result.pose.x_m,
-                              result.pose.y_m, q.relocalize_std_xy_m,
-                              q.relocalize_std_across_m or q.relocalize_std_xy_m, q.relocalize_std_yaw_rad)
-            if now != was:
-                rospy.loginfo("amcl: %s (spread %.3f m, %.3f rad, scan fit %.2f)",
-                              "localised" if now else "NOT localised", std_xy, std_yaw, hits)
-                self.localized_pub.publish(Bool(data=now))
-        self._publish_tf(stamp)
+            step = self.supervisor.step(msg.header.stamp.to_sec(), (odom.x_m, odom.y_m, odom.yaw_rad), scan)
+            self._map_to_odom = step.result.map_to_odom
+        if step.updated:
+            self._log_step(step)
+            self._publish_pose(step.result, msg.header.stamp)
+            self._publish_cloud(step.particles, msg.header.stamp)
+            if step.changed:
+                self.localized_pub.publish(Bool(data=step.localized))
+        self._publish_tf(msg.header.stamp)
 
-    def _before_update(self, now_s: float, odom: Pose2D, scan: Scan) -> None:
-        """Free-space check on/off; a filter update without motion when the stationary policy asks."""
-        field = self.amcl.field
-        if isinstance(field, FreeSpaceCheckedField):
-            field.enabled = self.free_space_mode == "always" or not self.monitor.localized
-        hits = None
-        if self.monitor.localized and self._map_to_odom is not None and self.stationary.due(now_s):
-            here = compose(self._map_to_odom, odom)
-            hits = scan_hit_fraction(field, (here.x_m, here.y_m, here.yaw_rad), scan,
-                                     self.quality_config.hit_distance_m,
-                                     self.quality_config.max_crossed_m)
-        update, roughen = self.stationary.decide(now_s, self.monitor.localized, hits, self.monitor.suspect)
-        if roughen:
-            self.amcl.filter.roughen(self.quality_config.roughen_std_xy_m, self.quality_config.roughen_std_yaw_rad)
-        if update:
-            if hits is not None:
-                rospy.loginfo_throttle(5.0, "amcl: the scan fits the map poorly at the estimate (%.2f < %.2f); "
-                                            "updating although the robot stands" %
-                                       (hits, self.quality_config.min_hit_fraction))
-            self.amcl.request_update()
+    def _log_step(self, step) -> None:
+        result, q, c = step.result, self.quality_config, self.config
+        if step.stationary_poor_fit is not None:
+            rospy.loginfo_throttle(5.0, "amcl: the scan fits the map poorly at the estimate (%.2f < %.2f); "
+                                        "updating although the robot stands" %
+                                   (step.stationary_poor_fit, q.min_hit_fraction))
+        if result.motion_parts > 1:
+            rospy.logwarn_throttle(10.0, "amcl: late filter update (scans arrive faster than they are processed): "
+                                         "its odometry increment was sampled in %d parts of <= %.2f m / %.2f rad" %
+                                   (result.motion_parts, c.odom_max_step_m, c.odom_max_step_rad))
+        rospy.loginfo_throttle(5.0, "amcl: pose (%.2f, %.2f, %.3f), %d particles, spread %.3f m %.3f rad, "
+                                    "scan fit %.2f" % (result.pose.x_m, result.pose.y_m, result.pose.yaw_rad,
+                                                       result.n_particles, step.std_xy_m, step.std_yaw_rad,
+                                                       step.hit_fraction))
+        if step.kidnapped:
+            rospy.logwarn("amcl: the scan has not fitted the map for %d updates although the particles agree: "
+                          "kidnapped? Re-spreading them around (%.2f, %.2f) (std %.1f m along, %.1f m across the "
+                          "heading, %.2f rad)", q.relocalize_after, result.pose.x_m, result.pose.y_m,
+                          q.relocalize_std_xy_m, q.relocalize_std_across_m or q.relocalize_std_xy_m,
+                          q.relocalize_std_yaw_rad)
+        if step.changed:
+            rospy.loginfo("amcl: %s (spread %.3f m, %.3f rad, scan fit %.2f)",
+                          "localised" if step.localized else "NOT localised", step.std_xy_m, step.std_yaw_rad,
+                          step.hit_fraction)
 
     def _publish_pose(self, result, stamp):
         out = PoseWithCovarianceStamped()

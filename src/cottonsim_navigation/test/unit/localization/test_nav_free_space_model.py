@@ -48,7 +48,14 @@ def test_crossed_length_matches_the_geometry():
     field.enabled = False
     w_off = field.weights(p, scan)
     assert np.allclose(w_off, field.field.weights(p, scan))
-    assert np.allclose(w_on, w_off * np.exp(field.crossed_log_factors(p, scan)))
+    # ROS amcl's sum model (1 + sum pz^3): the one beam's pz times its own factor, not the weight times it
+    factor = np.exp(field.crossed_log_factors(p, scan))
+    assert factor[0] < 0.5
+    assert np.allclose(w_on, 1.0 + np.cbrt(w_off - 1.0) ** 3 * factor ** 3)
+    # the product model: the field's weight times the factors of all beams (the same thing for a product)
+    prob = FreeSpaceCheckedField(LikelihoodField(occ, spec, LikelihoodFieldConfig(model="likelihood_field_prob")),
+                                 cfg)
+    assert np.allclose(prob.weights(p, scan), prob.field.weights(p, scan) * factor)
     # the wrapper passes the field's attributes through
     assert field.spec is spec and field.distance_m is field.field.distance_m
 
@@ -153,3 +160,21 @@ def test_redraw_fraction_mixes_two_spreads():
         pf.redraw_fraction((0.0, 0.0, 0.0), np.eye(3), 1.5)
     with pytest.raises(ValueError, match="covariance"):
         pf.redraw_fraction((0.0, 0.0, 0.0), np.eye(2), 0.5)
+
+
+def test_in_the_sum_model_crossing_beams_cannot_outweigh_the_scan():
+    # ROS amcl's likelihood_field (1 + sum pz^3, amcl.yaml's default): at the truth 20 beams end on the
+    # hedge's face and 10 see through gaps between the stems (end 3.3 m away, behind the hedge), as the
+    # lidar does in the crop. A pose turned away from the hedge puts every end point in the open field and
+    # crosses nothing. Multiplying the flat sum by the factor of all beams (exp(-10 * 0.7)) let that pose
+    # win, and AMCL left the rows on replayed drives; per beam, the truth keeps the better weight.
+    spec, occ = hedge_map()
+    angles = np.linspace(-0.5, 0.5, 30)
+    ranges = 2.0 / np.cos(angles)
+    ranges[::3] = 3.3
+    scan = Scan(ranges, angles)
+    checked = FreeSpaceCheckedField(LikelihoodField(occ, spec))
+    truth, turned = [0.0, 0.0, 0.0], [0.0, 0.0, math.pi]
+    w = checked.weights(np.array([truth, turned]), scan)
+    assert checked.crossed_log_factors(np.array([truth]), scan)[0] < -5.0       # the truth pays ...
+    assert w[0] > 2.0 * w[1]                                                     # ... and still wins

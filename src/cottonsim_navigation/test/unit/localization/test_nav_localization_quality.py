@@ -8,7 +8,7 @@ import pytest
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.quality import (LocalizationMonitor, LocalizationQualityConfig,
-                                                       StationaryUpdatePolicy, particle_spread, scan_hit_fraction,
+                                                       StationaryUpdatePolicy, particle_spread, scan_fit, scan_hit_fraction,
                                                        reported_covariance, respread_after_kidnap, set_covariance)
 from cottonsim_navigation.localization.sensor_models import LikelihoodField, Scan
 
@@ -37,6 +37,40 @@ def test_hit_fraction_wall_in_front():
     assert scan_hit_fraction(field, (0.0, 0.0, 0.0), scan, 0.1) == pytest.approx(0.75)
     # shifted back by 1 m all beams end far from the wall
     assert scan_hit_fraction(field, (-1.0, 0.0, 0.0), scan, 0.1) == pytest.approx(0.0)
+
+
+def test_scan_fit_judges_only_beams_that_end_in_the_mapped_area():
+    # the wall at x = 1.9 .. 2.0 m; the cells behind x = 0.5 m (the half-plane x < 0.5) are unknown
+    spec = GridSpec(0.1, 40, 40, -2.0, -2.0)
+    occ = np.zeros(spec.shape, dtype=np.int8)
+    occ[:, 39] = 100
+    occ[:, :25] = -1
+    field = LikelihoodField(occ, spec)
+    # 2 beams on the wall, 1 ending in mapped free space (1.0 m ahead, 0.9 m before the wall), 3 backwards
+    # into the unknown half
+    scan = Scan(np.array([1.95, 1.95, 1.0, 1.0, 1.0, 1.0]), np.array([0.01, -0.01, 0.3, math.pi, 3.0, -3.0]))
+    hits, judged = scan_fit(field, (0.0, 0.0, 0.0), scan, 0.1)
+    assert hits == pytest.approx(2 / 6)                 # over all beams: poor
+    assert judged == pytest.approx(2 / 3)               # over the judged ones: the unknown say nothing
+    assert scan_hit_fraction(field, (0.0, 0.0, 0.0), scan, 0.1) == pytest.approx(hits)
+    # every beam into the unknown (or beyond the map): nothing judged
+    hits, judged = scan_fit(field, (0.0, 0.0, math.pi), Scan(np.array([1.0, 5.0]), np.array([0.0, 0.1])), 0.1)
+    assert hits == 0.0 and math.isnan(judged)
+    assert scan_fit(field, (0.0, 0.0, 0.0), Scan(np.array([np.inf]), np.array([0.0])), 0.1)[0] == 0.0
+
+
+def test_no_kidnap_without_beams_that_contradict_the_map():
+    mon = LocalizationMonitor(LocalizationQualityConfig(switch_after=2, relocalize_after=3))
+    for _ in range(3):
+        mon.update(0.05, 0.02, 0.9)
+    assert mon.localized
+    for _ in range(5):                                  # the scan sees (almost) nothing the map knows
+        mon.update(0.05, 0.02, 0.1, math.nan)
+        mon.update(0.05, 0.02, 0.1, 0.8)                # ... or what it judges fits
+    assert not mon.localized and not mon.kidnapped and not mon.suspect
+    for _ in range(3):                                  # beams in mapped free space: a kidnap
+        mon.update(0.05, 0.02, 0.1, 0.2)
+    assert mon.kidnapped
 
 
 def test_monitor_hysteresis_and_kidnap():
