@@ -55,146 +55,12 @@ import numpy as np
 
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE
-from cottonsim_navigation.navigation.recovery import (RECOVERY_NAMES, RecoveryBehaviour, RotateRecoveryConfig,
-                                                      make_recovery)
+from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
+from cottonsim_navigation.move_base.recovery import RecoveryBehaviour, RotateRecoveryConfig, make_recovery
+from cottonsim_navigation.move_base.vision_bias import blend_vision, inside_crop_row
 from cottonsim_navigation.planning.base import (GlobalPlanner, LocalPlanner, LocalPlannerStatus, Plan,
                                                 make_global_planner, make_local_planner)
 from cottonsim_navigation.planning.costmap import Costmap2D, ObstacleLayer
-
-DEFAULT_RECOVERIES = ("conservative_reset", "rotate_recovery", "aggressive_reset", "rotate_recovery")
-
-
-def _check_number(name: str, value, minimum: float = 0.0, strict: bool = False) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    if value < minimum or (strict and value == minimum):
-        raise ValueError(f"{name} must be {'>' if strict else '>='} {minimum}, got {value!r}")
-
-
-@dataclass(frozen=True)
-class MoveBaseConfig:
-    """move_base parameters (ROS names; times in s, frequencies in Hz, distances in m).
-
-    base_global_planner / base_local_planner: plugin names (the original's
-    'navfn/NavfnROS' and 'dwa_local_planner/DWAPlannerROS').
-    controller_frequency [Hz]: control loop rate (original 5.0).
-    planner_frequency [Hz]: re-plan rate while controlling; 0 = plan only on
-    a new goal or when the controller fails (move_base default 0.0).
-    planner_patience [s]: how long planning may fail before recoveries
-    (move_base default 5.0). controller_patience [s]: how long the local
-    planner may fail before recoveries (move_base default 15.0).
-    max_planning_retries: failed plans allowed before recoveries; -1 =
-    unlimited (only planner_patience counts; move_base default -1).
-    oscillation_timeout [s]: the robot must move oscillation_distance [m]
-    within this time, else recoveries; 0 disables (move_base defaults 0.0
-    and 0.5).
-    recovery_behavior_enabled: run recoveries at all (default true);
-    clearing_rotation_allowed: include 'rotate_recovery' entries (default true).
-    recovery_behaviours: names in order (move_base's default list:
-    conservative_reset, rotate_recovery, aggressive_reset, rotate_recovery).
-    conservative_reset_dist [m]: square side kept by conservative_reset (3.0).
-    abort_on_blocked_goal: abort at once when the goal lies in an obstacle
-    of a global costmap that recoveries cannot clear (port's addition, true).
-    """
-
-    base_global_planner: str = "navfn/NavfnROS"
-    base_local_planner: str = "dwa_local_planner/DWAPlannerROS"
-    controller_frequency: float = 5.0
-    planner_frequency: float = 0.0
-    planner_patience: float = 5.0
-    controller_patience: float = 15.0
-    max_planning_retries: int = -1
-    oscillation_timeout: float = 0.0
-    oscillation_distance: float = 0.5
-    recovery_behavior_enabled: bool = True
-    clearing_rotation_allowed: bool = True
-    recovery_behaviours: Tuple[str, ...] = DEFAULT_RECOVERIES
-    conservative_reset_dist: float = 3.0
-    abort_on_blocked_goal: bool = True
-
-    def __post_init__(self) -> None:
-        for name in ("base_global_planner", "base_local_planner"):
-            if not isinstance(getattr(self, name), str) or not getattr(self, name):
-                raise ValueError(f"{name} must be a non-empty plugin name, got {getattr(self, name)!r}")
-        _check_number("controller_frequency", self.controller_frequency, strict=True)
-        for name in ("planner_frequency", "planner_patience", "controller_patience", "oscillation_timeout",
-                     "oscillation_distance", "conservative_reset_dist"):
-            _check_number(name, getattr(self, name))
-        r = self.max_planning_retries
-        if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or r < -1:
-            raise ValueError(f"max_planning_retries must be an integer >= -1, got {r!r}")
-        for name in ("recovery_behavior_enabled", "clearing_rotation_allowed", "abort_on_blocked_goal"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        names = self.recovery_behaviours
-        if isinstance(names, str) or not all(isinstance(n, str) for n in names):
-            raise ValueError(f"recovery_behaviours must be a list of names, got {names!r}")
-        for n in names:
-            if n not in RECOVERY_NAMES:
-                raise ValueError(f"recovery_behaviours: unknown behaviour {n!r}; known: {', '.join(RECOVERY_NAMES)}")
-        object.__setattr__(self, "recovery_behaviours", tuple(names))
-
-
-@dataclass(frozen=True)
-class VisionBiasConfig:
-    """Row-centring correction blended into move_base's angular velocity.
-
-    enabled: use the correction (default false until perception lands).
-    max_age_s [s]: an estimate older than this is ignored (0.5).
-    max_vision_rate [rad/s]: bound on the added angular rate. Default
-    radians(5) = 0.0873 rad/s: the paper caps a correction at 5 deg, here
-    at most 5 deg of heading change per second of correction.
-    row_reach_m [m]: the robot counts as inside a crop row when the global
-    costmap has a LETHAL cell within this lateral distance on both sides (1.0).
-    """
-
-    enabled: bool = False
-    max_age_s: float = 0.5
-    max_vision_rate: float = math.radians(5.0)
-    row_reach_m: float = 1.0
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"enabled must be true or false, got {self.enabled!r}")
-        _check_number("max_age_s", self.max_age_s)
-        _check_number("max_vision_rate", self.max_vision_rate)
-        _check_number("row_reach_m", self.row_reach_m, strict=True)
-
-
-def blend_vision(w_radps: float, vision_w_radps: Optional[float], age_s: Optional[float], in_row: bool,
-                 config: VisionBiasConfig) -> float:
-    """The local planner's angular velocity plus the bounded vision correction.
-
-    Returns ``w_radps`` unchanged unless the correction is enabled, an
-    estimate exists, is finite and younger than ``max_age_s``, and the
-    robot is inside a crop row; then adds ``vision_w_radps`` clipped to
-    +/- ``max_vision_rate``.
-    """
-    if not config.enabled or vision_w_radps is None or age_s is None or not in_row:
-        return w_radps
-    if not (math.isfinite(vision_w_radps) and math.isfinite(age_s)) or age_s < 0 or age_s > config.max_age_s:
-        return w_radps
-    return w_radps + max(-config.max_vision_rate, min(config.max_vision_rate, vision_w_radps))
-
-
-def inside_crop_row(costmap: Costmap2D, pose: geo.Pose2D, reach_m: float = 1.0) -> bool:
-    """True when LETHAL cells lie within ``reach_m`` to the left AND to the right of the robot.
-
-    Samples lateral lines (perpendicular to the heading) at three points
-    along the robot (-0.35, 0, +0.35 m, the plant spacing's half) so a single
-    missing plant does not end the row.
-    """
-    step = 0.5 * costmap.spec.resolution_m
-    lat = np.arange(step, reach_m + 1e-9, step)
-    along = np.array([-0.35, 0.0, 0.35])
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    found = []
-    for side in (1.0, -1.0):
-        a, d = np.meshgrid(along, side * lat)
-        x = pose.x_m + a * c - d * s
-        y = pose.y_m + a * s + d * c
-        found.append(bool(np.any(costmap.cost_at_world(x.ravel(), y.ravel()) == LETHAL_OBSTACLE)))
-    return found[0] and found[1]
 
 
 class MoveBaseState(enum.Enum):
@@ -339,6 +205,7 @@ class MoveBase:
             for layer in cm.layers:
                 if isinstance(layer, ObstacleLayer):
                     layer.clear_all()
+            cm.request_full_update()
 
     # ------------------------------------------------------------------ helpers
     def _tolerance_m(self) -> float:

@@ -6,10 +6,10 @@ import pytest
 
 from cottonsim_navigation.core.geometry import Pose2D
 from cottonsim_navigation.core.grid import GridSpec, LETHAL_OBSTACLE
-from cottonsim_navigation.navigation.move_base import (MoveBase, MoveBaseConfig, MoveBaseState, Outcome,
-                                                       RecoveryTrigger, VisionBiasConfig, blend_vision,
-                                                       inside_crop_row)
-from cottonsim_navigation.navigation.recovery import RecoveryBehaviour
+from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
+from cottonsim_navigation.move_base.recovery import RecoveryBehaviour
+from cottonsim_navigation.move_base.state_machine import MoveBase, MoveBaseState, Outcome, RecoveryTrigger
+from cottonsim_navigation.move_base.vision_bias import blend_vision, inside_crop_row
 from cottonsim_navigation.planning.base import GlobalPlanner, LocalPlanner, LocalPlannerStatus, Plan
 from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, InflationLayer, ObstacleLayer,
                                                    StaticLayer, make_global_costmap, make_local_costmap)
@@ -327,8 +327,8 @@ def test_default_recovery_list_follows_move_base():
                                                "rotate_recovery"]
     mb = MoveBase(MoveBaseConfig(clearing_rotation_allowed=False), glob, local, FakeGlobal(), FakeLocal())
     assert [r.name for r in mb.recoveries] == ["conservative_reset", "aggressive_reset"]
-    # aggressive reset keeps 4 x the circumscribed radius of the padded 0.81 x 0.41 m footprint
-    r_c = math.hypot(0.405, 0.205)
+    # aggressive reset keeps 4 x the circumscribed radius of the Husky's body padded by 0.03 m
+    r_c = math.hypot(0.495 + 0.03, 0.335 + 0.03)
     assert mb.recoveries[1].config.reset_distance_m == pytest.approx(4 * r_c)
     mb = MoveBase(MoveBaseConfig(recovery_behavior_enabled=False), glob, local, FakeGlobal(), FakeLocal())
     assert mb.recoveries == []
