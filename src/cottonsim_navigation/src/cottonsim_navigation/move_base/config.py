@@ -34,15 +34,17 @@ class MoveBaseConfig:
     max_planning_retries: failed plans allowed before recoveries; -1 =
     unlimited (only planner_patience counts; move_base default -1).
     oscillation_timeout [s]: the robot must move oscillation_distance [m]
-    within this time, else recoveries; 0 disables (move_base defaults 0.0
-    and 0.5).
+    within this time, else recoveries (then an abort); 0 disables. Default
+    20.0 (move_base's 0.0 lets a pinned robot wait forever);
+    oscillation_distance default 0.5 (move_base's).
     recovery_behavior_enabled: run recoveries at all (default true);
     clearing_rotation_allowed: include 'rotate_recovery' entries (default true).
     recovery_behaviours: names in order (move_base's default list:
     conservative_reset, rotate_recovery, aggressive_reset, rotate_recovery).
     conservative_reset_dist [m]: square side kept by conservative_reset (3.0).
-    abort_on_blocked_goal: abort at once when the goal lies in an obstacle
-    of a global costmap that recoveries cannot clear (port's addition, true).
+    abort_on_blocked_goal: abort a goal the robot cannot stand at (in or
+    next to an obstacle): at once on a global costmap recoveries cannot
+    clear, else after planner_patience (port's addition, true).
     """
 
     base_global_planner: str = "navfn/NavfnROS"
@@ -52,7 +54,7 @@ class MoveBaseConfig:
     planner_patience: float = 5.0
     controller_patience: float = 15.0
     max_planning_retries: int = -1
-    oscillation_timeout: float = 0.0
+    oscillation_timeout: float = 20.0
     oscillation_distance: float = 0.5
     recovery_behavior_enabled: bool = True
     clearing_rotation_allowed: bool = True

@@ -19,18 +19,24 @@ The logic follows ROS's move_base (executeCycle):
   cycle stops the robot and asks for a new plan; after
   ``controller_patience`` seconds without a valid command -> CLEARING.
   If ``oscillation_timeout`` > 0 and the robot has not moved
-  ``oscillation_distance`` within that time -> CLEARING.
+  ``oscillation_distance`` within that time -> CLEARING. When the global
+  costmap has an obstacle layer, a plan whose poses ahead of the robot now
+  lie on an obstacle (seen after planning) is remade (PLANNING).
 * CLEARING: runs the next recovery behaviour (``recovery.py``) to its end,
   then PLANNING again. When none is left, the goal is ABORTED with a
   reason naming the trigger and the number of behaviours tried. The
   recovery index goes back to 0 when the trigger's problem went away (a
   valid plan, a valid command, or enough motion).
 
-One addition to ROS's behaviour (``abort_on_blocked_goal``): when the
-global costmap cannot change through recoveries (it has no obstacle layer)
-and the goal and every cell within the planner's tolerance are obstacles,
-the goal is aborted at once with that reason instead of spending the whole
-recovery sequence on a goal that can never become free.
+Additions to ROS's behaviour (``abort_on_blocked_goal``; ``goal_checks.py``):
+a goal whose cell and every cell within the planner's tolerance are obstacles
+or within the footprint's inscribed radius of one (the robot cannot stand
+there) is aborted with that reason instead of spending the recovery sequence
+on it: at once when the global costmap cannot change (no obstacle layer),
+else once it has stayed blocked for ``planner_patience`` seconds while
+move_base keeps planning and driving (an obstacle layer may still clear it).
+The clearing recoveries are not run for it: they would erase the very
+obstacle (a plant) the robot must not drive into.
 
 Vision correction (optional, :class:`VisionBiasConfig`): while CONTROLLING
 with a valid local plan, a fresh row-centring estimate (angular rate) is
@@ -54,8 +60,8 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 
 from cottonsim_navigation.core import geometry as geo
-from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE
 from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
+from cottonsim_navigation.move_base.goal_checks import blocked_goal_reason, plan_blocked_at
 from cottonsim_navigation.move_base.recovery import RecoveryBehaviour, RotateRecoveryConfig, make_recovery
 from cottonsim_navigation.move_base.vision_bias import blend_vision, inside_crop_row
 from cottonsim_navigation.planning.base import (GlobalPlanner, LocalPlanner, LocalPlannerStatus, Plan,
@@ -167,6 +173,7 @@ class MoveBase:
         self._last_plan_s = -math.inf
         self._last_reason = ""
         self._plan_tf: Optional[geo.Pose2D] = None
+        self.goal_blocked_since_s: Optional[float] = None
 
     def set_goal(self, goal, now_s: float) -> None:
         """Start a new goal (global frame); replaces (preempts) any active one."""
@@ -213,19 +220,31 @@ class MoveBase:
         return float(getattr(cfg, "default_tolerance", 0.0))
 
     def _blocked_goal_reason(self, goal: geo.Pose2D) -> str:
-        """Reason text when the goal and its tolerance window are all obstacle cells, else ''."""
-        cm = self.global_costmap
-        spec = cm.spec
-        tol = self._tolerance_m()
-        gx, gy = (int(v) for v in spec.world_to_map(goal.x_m, goal.y_m))
-        if not spec.in_bounds(gx, gy):
-            return f"goal ({goal.x_m:.2f}, {goal.y_m:.2f}) is off the global costmap"
-        n = int(math.floor(tol / spec.resolution_m + 1e-9))
-        win = cm.costs[max(0, gy - n):gy + n + 1, max(0, gx - n):gx + n + 1]
-        if win.size == 0 or not np.all((win == INSCRIBED_INFLATED_OBSTACLE) | (win == LETHAL_OBSTACLE)):
-            return ""
-        return (f"goal ({goal.x_m:.2f}, {goal.y_m:.2f}) is in an obstacle (cost {int(cm.costs[gy, gx])}) "
-                f"and no free cell within default_tolerance {tol:g} m")
+        return blocked_goal_reason(self.global_costmap, goal, self._tolerance_m())
+
+    def _check_blocked_goal(self, now_s: float) -> Optional[StepResult]:
+        """Abort once the goal has been blocked for planner_patience on a clearable global costmap."""
+        if not (self.config.abort_on_blocked_goal and self._global_costmap_clearable()):
+            return None
+        reason = self._blocked_goal_reason(self.goal)
+        if not reason:
+            self.goal_blocked_since_s = None
+            return None
+        if self.goal_blocked_since_s is None:
+            self.goal_blocked_since_s = now_s
+        if now_s - self.goal_blocked_since_s >= self.config.planner_patience:
+            return self._abort(f"{reason}, for {self.config.planner_patience:g} s (planner_patience)")
+        return None
+
+    def _plan_blocked(self, gpose: geo.Pose2D) -> bool:
+        """The plan ahead of the robot crosses an obstacle the global costmap's obstacle layer saw since."""
+        if self.plan is None or not self._global_costmap_clearable():
+            return False
+        i = plan_blocked_at(self.global_costmap, self.plan.poses, gpose, self.global_costmap.circumscribed_radius_m)
+        if i < 0:
+            return False
+        self._last_reason = f"plan blocked at ({self.plan.poses[i, 0]:.2f}, {self.plan.poses[i, 1]:.2f})"
+        return True
 
     def _global_costmap_clearable(self) -> bool:
         return any(isinstance(layer, ObstacleLayer) and layer.enabled for layer in self.global_costmap.layers)
@@ -277,8 +296,11 @@ class MoveBase:
         blocked = self._blocked_goal_reason(self.goal)
         if blocked:
             self._last_reason = blocked
-            if self.config.abort_on_blocked_goal and not self._global_costmap_clearable():
-                return self._abort(blocked)
+            if self.config.abort_on_blocked_goal:
+                if not self._global_costmap_clearable():
+                    return self._abort(blocked)
+                self.state = MoveBaseState.PLANNING        # _check_blocked_goal aborts after planner_patience
+                return None
         self.planning_retries += 1
         retries_out = 0 <= self.config.max_planning_retries < self.planning_retries
         if now_s > self.last_valid_plan_s + self.config.planner_patience or retries_out:
@@ -345,9 +367,15 @@ class MoveBase:
             if self.recovery_trigger == RecoveryTrigger.OSCILLATION:
                 self.recovery_index = 0
 
-        # planning: when asked to, or periodically while controlling
+        aborted = self._check_blocked_goal(now_s)
+        if aborted is not None:
+            return aborted
+
+        # planning: when asked to, periodically while controlling, or when the plan ahead became blocked
         replan_due = (cfg.planner_frequency > 0 and self.state == MoveBaseState.CONTROLLING
                       and now_s - self._last_plan_s >= 1.0 / cfg.planner_frequency)
+        if self.state == MoveBaseState.CONTROLLING and not replan_due and self._plan_blocked(gpose):
+            self.state = MoveBaseState.PLANNING
         if self.state == MoveBaseState.PLANNING or replan_due:
             aborted = self._do_plan(now_s, gpose)
             if aborted is not None:
