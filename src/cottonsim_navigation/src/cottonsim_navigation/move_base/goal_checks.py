@@ -37,21 +37,32 @@ def blocked_goal_reason(costmap: Costmap2D, goal: geo.Pose2D, tolerance_m: float
 
 
 def plan_blocked_at(costmap: Costmap2D, poses: np.ndarray, robot: geo.Pose2D, ignore_near_m: float) -> int:
-    """Index of the first pose of ``poses`` (N, 3) ahead of the robot on a blocking cell, or -1.
+    """Index of the plan segment (from pose i to i + 1) ahead of the robot that crosses a blocking cell, or -1.
 
-    Poses before the one nearest the robot are behind it; poses within
-    ``ignore_near_m`` of the robot are skipped too (the robot stands there,
-    and its own inflation or a recovery deals with that). The last pose
-    (the goal) is left to :func:`blocked_goal_reason`.
+    Segments are checked at half-cell steps. Those before the pose nearest
+    the robot are behind it; points within ``ignore_near_m`` of the robot are
+    skipped too (the robot stands there, and its own inflation or a recovery
+    deals with that), and so are points within the costmap's inscribed
+    radius of the goal (the last pose, left to :func:`blocked_goal_reason`).
     """
     poses = np.asarray(poses, dtype=float).reshape(-1, 3)
     if len(poses) < 2:
         return -1
-    d = np.hypot(poses[:, 0] - robot.x_m, poses[:, 1] - robot.y_m)
-    start = int(np.argmin(d))
-    ahead = np.arange(start, len(poses) - 1)
-    ahead = ahead[d[ahead] > ignore_near_m]
-    if ahead.size == 0:
+    start = int(np.argmin(np.hypot(poses[:, 0] - robot.x_m, poses[:, 1] - robot.y_m)))
+    step = 0.5 * costmap.spec.resolution_m
+    seg, xs, ys = [], [], []
+    for i in range(start, len(poses) - 1):
+        (x0, y0), (x1, y1) = poses[i, :2], poses[i + 1, :2]
+        t = np.linspace(0.0, 1.0, max(2, int(math.ceil(math.hypot(x1 - x0, y1 - y0) / step)) + 1))
+        seg.append(np.full(t.size, i))
+        xs.append(x0 + t * (x1 - x0))
+        ys.append(y0 + t * (y1 - y0))
+    if not seg:
         return -1
-    hit = _blocking(costmap.cost_at_world(poses[ahead, 0], poses[ahead, 1]))
-    return int(ahead[np.argmax(hit)]) if hit.any() else -1
+    seg, xs, ys = np.concatenate(seg), np.concatenate(xs), np.concatenate(ys)
+    goal = poses[-1]
+    keep = ((np.hypot(xs - robot.x_m, ys - robot.y_m) > ignore_near_m)
+            & (np.hypot(xs - goal[0], ys - goal[1]) > costmap.inscribed_radius_m))
+    hit = np.zeros(xs.shape, dtype=bool)
+    hit[keep] = _blocking(costmap.cost_at_world(xs[keep], ys[keep]))
+    return int(seg[np.argmax(hit)]) if hit.any() else -1

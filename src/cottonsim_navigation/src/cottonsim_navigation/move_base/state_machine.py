@@ -69,6 +69,11 @@ from cottonsim_navigation.planning.base import (GlobalPlanner, LocalPlanner, Loc
 from cottonsim_navigation.planning.costmap import Costmap2D, ObstacleLayer
 
 
+# A plan found blocked ahead is remade at most this often [s] (a new plan may still start in the
+# robot's own inflated surroundings; navfn on GPS mode's 100 x 100 m map takes a good part of a second).
+BLOCKED_PLAN_REPLAN_PERIOD_S = 1.0
+
+
 class MoveBaseState(enum.Enum):
     IDLE = "idle"
     PLANNING = "planning"
@@ -374,7 +379,8 @@ class MoveBase:
         # planning: when asked to, periodically while controlling, or when the plan ahead became blocked
         replan_due = (cfg.planner_frequency > 0 and self.state == MoveBaseState.CONTROLLING
                       and now_s - self._last_plan_s >= 1.0 / cfg.planner_frequency)
-        if self.state == MoveBaseState.CONTROLLING and not replan_due and self._plan_blocked(gpose):
+        if (self.state == MoveBaseState.CONTROLLING and not replan_due
+                and now_s - self._last_plan_s >= BLOCKED_PLAN_REPLAN_PERIOD_S and self._plan_blocked(gpose)):
             self.state = MoveBaseState.PLANNING
         if self.state == MoveBaseState.PLANNING or replan_due:
             aborted = self._do_plan(now_s, gpose)
