@@ -33,8 +33,9 @@ a goal whose cell and every cell within the planner's tolerance are obstacles
 or within the footprint's inscribed radius of one (the robot cannot stand
 there) is aborted with that reason instead of spending the recovery sequence
 on it: at once when the global costmap cannot change (no obstacle layer),
-else once it has stayed blocked for ``planner_patience`` seconds while
-move_base keeps planning and driving (an obstacle layer may still clear it).
+else once it has stayed blocked for ``planner_patience`` seconds, during
+which the robot stands still (an obstacle layer may still clear the goal,
+and then move_base plans and drives on).
 The clearing recoveries are not run for it: they would erase the very
 obstacle (a plant) the robot must not drive into.
 
@@ -375,6 +376,10 @@ class MoveBase:
         aborted = self._check_blocked_goal(now_s)
         if aborted is not None:
             return aborted
+        if self.goal_blocked_since_s is not None:
+            # do not drive towards a goal the robot cannot stand at (nor plan: navfn cannot reach it)
+            self.state = MoveBaseState.PLANNING
+            return StepResult(0.0, 0.0, self.state, Outcome.ACTIVE)
 
         # planning: when asked to, periodically while controlling, or when the plan ahead became blocked
         replan_due = (cfg.planner_frequency > 0 and self.state == MoveBaseState.CONTROLLING

@@ -52,6 +52,7 @@ def test_a_goal_that_becomes_blocked_while_driving_is_aborted_and_one_that_frees
     mark(glob, (2.0, 0.0))                                         # the LiDAR now sees a stem on the goal
     results, t2 = run(mb, 3, t)
     assert results[-1].outcome == Outcome.ACTIVE and mb.goal_blocked_since_s == t
+    assert all(r.v_mps == 0.0 and r.w_radps == 0.0 for r in results)   # it stops in front of the stem
     glob.obstacle_layer.clear_all()                                # it was not there after all
     glob.update_map(Pose2D(0, 0, 0))
     results, t3 = run(mb, 10, t2)
