@@ -42,15 +42,16 @@ class MoveBaseNode:
     Action server
       move_base                 move_base_msgs/MoveBaseAction. Goals in any TF frame (transformed to
                                 the global frame); feedback = robot pose in the global frame;
-                                aborted with a text reason (goal invalid / in an obstacle / no plan or
-                                no valid trajectory after N recovery behaviours / oscillating);
+                                aborted with a text reason (goal invalid / in or next to an obstacle /
+                                no plan or no valid trajectory after N recovery behaviours / oscillating);
                                 a new goal preempts the running one.
     Subscriptions
       move_base_simple/goal     geometry_msgs/PoseStamped   forwarded to the action server
       ~map_topic (/map)         nav_msgs/OccupancyGrid      static layer of the global costmap (latched)
       ~local_costmap/obstacle_layer/point_cloud_topic (/passthrough/output)
-                                sensor_msgs/PointCloud2     obstacles of the local costmap (any frame;
-                                                            transformed to the local frame with TF)
+                                sensor_msgs/PointCloud2     obstacles of the local costmap, and of the
+                                                            global one when its plugins have an
+                                                            obstacle_layer (any frame; moved with TF)
       ~odom_topic (/odometry/filtered) nav_msgs/Odometry    current velocity for the dynamic window
       ~vision_topic (husky/cv/coords) std_msgs/Float64MultiArray [linear_x, angular_z], only when
                                                             ~vision_bias is true
@@ -70,7 +71,7 @@ class MoveBaseNode:
       ~clear_costmaps           std_srvs/Empty     forget every obstacle-layer cell
     Parameters (defaults = config/*.yaml = the original's values; see those files)
       ~controller_frequency 5.0 Hz, ~planner_frequency 0.0 Hz, ~planner_patience 5.0 s,
-      ~controller_patience 15.0 s, ~max_planning_retries -1, ~oscillation_timeout 0.0 s,
+      ~controller_patience 15.0 s, ~max_planning_retries -1, ~oscillation_timeout 20.0 s,
       ~oscillation_distance 0.5 m, ~recovery_behavior_enabled true, ~clearing_rotation_allowed true,
       ~recovery_behaviours [conservative_reset, rotate_recovery, aggressive_reset, rotate_recovery],
       ~conservative_reset_dist 3.0 m, ~abort_on_blocked_goal true,
@@ -78,7 +79,9 @@ class MoveBaseNode:
       ~NavfnROS/* (navfn.yaml), ~DWAPlannerROS/* (dwa.yaml; controller_frequency is move_base's),
       ~global_costmap/* and ~local_costmap/* (costmap_common.yaml + global/local_costmap.yaml:
       frames, size, resolution, footprint, plugins [static_layer, obstacle_layer, inflation_layer]
-      and each layer's parameters), ~rotate_recovery/* (RotateRecoveryConfig),
+      and each layer's parameters; an obstacle_layer in ~global_costmap/plugins is updated at
+      ~global_costmap/update_frequency over a window around the robot, see move_base_costmaps.py),
+      ~rotate_recovery/* (RotateRecoveryConfig),
       ~use_static_map (true): wait for and use the map; false = the global costmap has its own
       configured geometry (width, height, origin_x/y) and no static layer,
       ~vision_bias (false), ~max_vision_rate (0.0873 rad/s = 5 deg/s), ~vision_max_age (0.5 s),
