@@ -116,19 +116,27 @@ class ObstacleLayer(CostmapLayer):
     def _clear(self, spec: GridSpec, origin: np.ndarray, ex: np.ndarray, ey: np.ndarray) -> None:
         ox, oy = spec.world_to_map(origin[0], origin[1])
         emx, emy = spec.world_to_map(ex, ey)
-        args = (np.int64(ox), np.int64(oy), emx.astype(np.int64), emy.astype(np.int64))
         n = self.config.clearing_miss_count
         if n == 1:
-            clear_rays(self.grid, *args, np.uint8(FREE_SPACE))
+            clear_rays(self.grid, np.int64(ox), np.int64(oy), emx.astype(np.int64), emy.astype(np.int64),
+                       np.uint8(FREE_SPACE))
             return
-        crossed = np.zeros(self.grid.shape, dtype=np.uint8)
-        clear_rays(crossed, *args, np.uint8(1))
+        # work on the rays' bounding box only (the global costmap's grid has millions of cells)
+        h, w = self.grid.shape
+        x0, x1 = max(0, int(min(ox, emx.min()))), min(w, int(max(ox, emx.max())) + 1)
+        y0, y1 = max(0, int(min(oy, emy.min()))), min(h, int(max(oy, emy.max())) + 1)
+        if x0 >= x1 or y0 >= y1:
+            return
+        crossed = np.zeros((y1 - y0, x1 - x0), dtype=np.uint8)
+        clear_rays(crossed, np.int64(ox - x0), np.int64(oy - y0), (emx - x0).astype(np.int64),
+                   (emy - y0).astype(np.int64), np.uint8(1))
         crossed = crossed.astype(bool)
-        lethal = crossed & (self.grid == LETHAL_OBSTACLE)
-        self.misses[lethal] = np.minimum(self.misses[lethal].astype(np.int16) + 1, 255).astype(np.uint8)
-        free = crossed & ((self.grid != LETHAL_OBSTACLE) | (self.misses >= n))
-        self.grid[free] = FREE_SPACE
-        self.misses[free] = 0
+        grid, misses = self.grid[y0:y1, x0:x1], self.misses[y0:y1, x0:x1]
+        lethal = crossed & (grid == LETHAL_OBSTACLE)
+        misses[lethal] = np.minimum(misses[lethal].astype(np.int16) + 1, 255).astype(np.uint8)
+        free = crossed & ((grid != LETHAL_OBSTACLE) | (misses >= n))
+        grid[free] = FREE_SPACE
+        misses[free] = 0
 
     def _apply(self, spec: GridSpec, pts: np.ndarray, origin: np.ndarray) -> None:
         c = self.config
