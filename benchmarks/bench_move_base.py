@@ -21,7 +21,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navi
 
 from cottonsim_navigation.core.geometry import Pose2D  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
-from cottonsim_navigation.navigation.move_base import MoveBase, MoveBaseConfig  # noqa: E402
+from cottonsim_navigation.move_base.config import MoveBaseConfig  # noqa: E402
+from cottonsim_navigation.move_base.state_machine import MoveBase  # noqa: E402
 from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402
 
 

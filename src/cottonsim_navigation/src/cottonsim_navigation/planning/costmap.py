@@ -20,15 +20,18 @@ LayeredCostmap:
   a Euclidean distance transform over cell centres (the same distances
   costmap_2d caches), so the numbers match ROS's.
 
-The whole master grid is recomputed on every update (no bounds tracking):
-simpler, and fast enough for the 5 x 5 m local and 40 x 40 m global maps
-(see benchmarks/bench_navigation.py).
+The whole master grid is recomputed on every update (no bounds tracking),
+fast enough for the 5 x 5 m local and 40 x 40 m global maps (see
+benchmarks/bench_navigation.py), unless ``update_map`` is given a window: then
+only the square of that side around the robot is recomputed (with the
+inflation radius as a margin, so its costs equal a full update's), which
+keeps a global costmap with an obstacle layer cheap to update as the robot
+drives (see :class:`CostmapWindow`).
 """
 from __future__ import annotations
 
-import abc
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -37,21 +40,14 @@ from scipy import ndimage
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
                                             NO_INFORMATION, GridSpec)
-from cottonsim_navigation.core.raytrace import clear_rays
+from cottonsim_navigation.planning.costmap_layer import CostmapLayer, check_finite_positive, shift_grid
+from cottonsim_navigation.planning.obstacle_layer import ObstacleLayer, ObstacleLayerConfig
 
-# The original's footprint (0.8 x 0.4 m). NOTE: the real Husky A200 body is
-# 0.99 x 0.67 m; the original's smaller footprint is kept as the default so the
-# robot fits its narrow lanes the way the paper's runs did.
-DEFAULT_FOOTPRINT = ((0.4, 0.2), (-0.4, 0.2), (-0.4, -0.2), (0.4, -0.2))
-
-
-def _finite_positive(name: str, value: float, allow_zero: bool = False) -> None:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} must be a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
+# The Husky A200's body, 0.99 x 0.67 m, centred on base_link (the original's
+# 0.8 x 0.4 m box let plans and trajectories pass 0.13 m closer to plants on
+# each side than the body can), and a padding of 0.03 m around it.
+DEFAULT_FOOTPRINT = ((0.495, 0.335), (-0.495, 0.335), (-0.495, -0.335), (0.495, -0.335))
+DEFAULT_FOOTPRINT_PADDING_M = 0.03
 
 
 @dataclass(frozen=True)
@@ -75,16 +71,16 @@ class CostmapConfig:
     rolling_window: bool = False
     track_unknown_space: bool = False
     footprint: Tuple[Tuple[float, float], ...] = DEFAULT_FOOTPRINT
-    footprint_padding: float = 0.005
+    footprint_padding: float = DEFAULT_FOOTPRINT_PADDING_M
     update_frequency: float = 4.0
     publish_frequency: float = 3.0
     transform_tolerance: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "resolution"):
-            _finite_positive(name, getattr(self, name))
+            check_finite_positive(name, getattr(self, name))
         for name in ("update_frequency", "publish_frequency", "footprint_padding", "transform_tolerance"):
-            _finite_positive(name, getattr(self, name), allow_zero=True)
+            check_finite_positive(name, getattr(self, name), allow_zero=True)
         for name in ("origin_x", "origin_y"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
@@ -97,23 +93,6 @@ class CostmapConfig:
 
     def padded_footprint(self) -> np.ndarray:
         return geo.pad_footprint(self.footprint, self.footprint_padding)
-
-
-class CostmapLayer(abc.ABC):
-    """One layer of a :class:`Costmap2D` (a costmap_2d plugin)."""
-
-    name: str = "layer"
-    enabled: bool = True
-
-    def match_size(self, costmap: "Costmap2D") -> None:
-        """The master grid was (re)created: allocate layer storage. Default: nothing."""
-
-    def shift(self, costmap: "Costmap2D", dx_cells: int, dy_cells: int) -> None:
-        """The rolling window moved by (dx, dy) cells: keep what stays in view. Default: nothing."""
-
-    @abc.abstractmethod
-    def update_costs(self, master: np.ndarray, costmap: "Costmap2D", robot_pose: geo.Pose2D) -> None:
-        """Write this layer's contribution into ``master`` (uint8, in place)."""
 
 
 # --- static layer ---------------------------------------------------------------
@@ -187,111 +166,6 @@ class StaticLayer(CostmapLayer):
         master[inside] = self.map_costs[sy[inside], sx[inside]]
 
 
-# --- obstacle layer ---------------------------------------------------------------
-@dataclass(frozen=True)
-class ObstacleLayerConfig:
-    """costmap_2d ObstacleLayer parameters (one observation source).
-
-    obstacle_range [m]: points farther than this from the sensor are not marked
-    (ROS default 2.5, the original 5.5); raytrace_range [m]: free space is
-    cleared up to this distance (ROS 3.0, original 6.0);
-    min/max_obstacle_height [m]: only points with z in this band mark
-    (ROS 0.0 / 2.0); footprint_clearing_enabled: the robot's own footprint is
-    cleared every update; marking / clearing switch the two operations.
-    """
-
-    enabled: bool = True
-    obstacle_range: float = 5.5
-    raytrace_range: float = 6.0
-    min_obstacle_height: float = 0.0
-    max_obstacle_height: float = 2.0
-    marking: bool = True
-    clearing: bool = True
-    footprint_clearing_enabled: bool = True
-
-    def __post_init__(self) -> None:
-        _finite_positive("obstacle_range", self.obstacle_range)
-        _finite_positive("raytrace_range", self.raytrace_range)
-        for name in ("min_obstacle_height", "max_obstacle_height"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite")
-        if self.min_obstacle_height > self.max_obstacle_height:
-            raise ValueError(f"min_obstacle_height ({self.min_obstacle_height}) exceeds "
-                             f"max_obstacle_height ({self.max_obstacle_height})")
-
-
-class ObstacleLayer(CostmapLayer):
-    """Obstacles from point clouds, with ray-traced clearing.
-
-    Call ``add_observation(points, sensor_origin)`` with points (N, 3) already
-    in the costmap's global frame and the sensor position (3,) in that frame;
-    observations are applied (clear, then mark) at the next ``update_map``.
-    The layer grid persists between updates and moves with a rolling window.
-    """
-
-    name = "obstacle_layer"
-
-    def __init__(self, config: ObstacleLayerConfig = ObstacleLayerConfig()):
-        self.config = config
-        self.enabled = config.enabled
-        self.grid: Optional[np.ndarray] = None
-        self._pending: List[Tuple[np.ndarray, np.ndarray]] = []
-        self._default = FREE_SPACE
-
-    def match_size(self, costmap):
-        self._default = NO_INFORMATION if costmap.config.track_unknown_space else FREE_SPACE
-        self.grid = np.full(costmap.spec.shape, self._default, dtype=np.uint8)
-
-    def shift(self, costmap, dx_cells, dy_cells):
-        self.grid = _shift_grid(self.grid, dx_cells, dy_cells, self._default)
-
-    def add_observation(self, points: np.ndarray, sensor_origin: Sequence[float]) -> None:
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] < 3:
-            raise ValueError(f"points must be an (N, 3) array, got shape {pts.shape}")
-        origin = np.asarray(sensor_origin, dtype=float).reshape(-1)
-        if origin.size < 2 or not np.all(np.isfinite(origin)):
-            raise ValueError(f"sensor_origin must be a finite (x, y[, z]) position, got {sensor_origin!r}")
-        pts = pts[np.all(np.isfinite(pts[:, :3]), axis=1), :3]   # NaN returns (no hit) carry nothing
-        self._pending.append((pts, origin[:3] if origin.size >= 3 else np.r_[origin[:2], 0.0]))
-
-    def clear_all(self) -> None:
-        if self.grid is not None:
-            self.grid[...] = self._default
-
-    def _apply(self, spec: GridSpec, pts: np.ndarray, origin: np.ndarray) -> None:
-        c = self.config
-        d = np.hypot(pts[:, 0] - origin[0], pts[:, 1] - origin[1])
-        ox, oy = spec.world_to_map(origin[0], origin[1])
-        if c.clearing and len(pts):
-            # shorten rays beyond raytrace_range to that length (as costmap_2d does)
-            scale = np.where(d > c.raytrace_range, c.raytrace_range / np.maximum(d, 1e-12), 1.0)
-            ex = origin[0] + (pts[:, 0] - origin[0]) * scale
-            ey = origin[1] + (pts[:, 1] - origin[1]) * scale
-            emx, emy = spec.world_to_map(ex, ey)
-            clear_rays(self.grid, np.int64(ox), np.int64(oy), emx.astype(np.int64), emy.astype(np.int64),
-                       np.uint8(FREE_SPACE))
-        if c.marking and len(pts):
-            keep = ((d <= c.obstacle_range) & (pts[:, 2] >= c.min_obstacle_height)
-                    & (pts[:, 2] <= c.max_obstacle_height))
-            mx, my = spec.world_to_map(pts[keep, 0], pts[keep, 1])
-            inside = spec.in_bounds(mx, my)
-            self.grid[my[inside], mx[inside]] = LETHAL_OBSTACLE
-
-    def update_costs(self, master, costmap, robot_pose):
-        if self.grid is None:
-            self.match_size(costmap)
-        for pts, origin in self._pending:
-            self._apply(costmap.spec, pts, origin)
-        self._pending.clear()
-        if self.config.footprint_clearing_enabled:
-            fx, fy = geo.footprint_cells(costmap.spec, robot_pose, costmap.footprint)
-            self.grid[fy, fx] = FREE_SPACE
-        known = self.grid != NO_INFORMATION
-        write = known & ((master == NO_INFORMATION) | (master < self.grid))
-        master[write] = self.grid[write]
-
-
 # --- inflation layer ----------------------------------------------------------------
 @dataclass(frozen=True)
 class InflationLayerConfig:
@@ -309,8 +183,8 @@ class InflationLayerConfig:
     inflate_unknown: bool = False
 
     def __post_init__(self) -> None:
-        _finite_positive("inflation_radius", self.inflation_radius, allow_zero=True)
-        _finite_positive("cost_scaling_factor", self.cost_scaling_factor, allow_zero=True)
+        check_finite_positive("inflation_radius", self.inflation_radius, allow_zero=True)
+        check_finite_positive("cost_scaling_factor", self.cost_scaling_factor, allow_zero=True)
 
 
 def inflation_cost(distance_m, inscribed_radius_m: float, cost_scaling_factor: float) -> np.ndarray:
@@ -352,16 +226,22 @@ class InflationLayer(CostmapLayer):
 
 
 # --- the costmap ----------------------------------------------------------------------
-def _shift_grid(grid: np.ndarray, dx: int, dy: int, fill: int) -> np.ndarray:
-    """Content moved so that new[y, x] = old[y + dy, x + dx]; uncovered cells = fill."""
-    out = np.full_like(grid, fill)
-    h, w = grid.shape
-    if abs(dx) >= w or abs(dy) >= h:
-        return out
-    sx0, sx1 = max(0, dx), min(w, w + dx)
-    sy0, sy1 = max(0, dy), min(h, h + dy)
-    out[sy0 - dy:sy1 - dy, sx0 - dx:sx1 - dx] = grid[sy0:sy1, sx0:sx1]
-    return out
+@dataclass(frozen=True)
+class CostmapWindow:
+    """What a layer sees of a :class:`Costmap2D` during a window update.
+
+    spec: the window's cells (the master array the layers write into);
+    full_spec: the whole grid; window: (row slice, column slice) of the
+    window in the whole grid; config, footprint and inscribed_radius_m as
+    the costmap's.
+    """
+
+    spec: GridSpec
+    full_spec: GridSpec
+    window: Tuple[slice, slice]
+    config: CostmapConfig
+    footprint: np.ndarray
+    inscribed_radius_m: float
 
 
 class Costmap2D:
@@ -386,6 +266,7 @@ class Costmap2D:
         self.footprint = config.padded_footprint()
         self.inscribed_radius_m, self.circumscribed_radius_m = geo.footprint_radii(self.footprint)
         self._default = NO_INFORMATION if config.track_unknown_space else FREE_SPACE
+        self._full_update_due = True
         self.resize(GridSpec(config.resolution, int(round(config.width / config.resolution)),
                              int(round(config.height / config.resolution)), config.origin_x, config.origin_y))
 
@@ -396,6 +277,7 @@ class Costmap2D:
         self.costs = np.full(spec.shape, self._default, dtype=np.uint8)
         for layer in self.layers:
             layer.match_size(self)
+        self._full_update_due = True
 
     def layer(self, cls) -> Optional[CostmapLayer]:
         for layer in self.layers:
@@ -425,21 +307,64 @@ class Costmap2D:
             return
         self.spec = GridSpec(res, self.spec.width, self.spec.height,
                              self.spec.origin_x_m + dx * res, self.spec.origin_y_m + dy * res)
-        self.costs = _shift_grid(self.costs, dx, dy, self._default)
+        self.costs = shift_grid(self.costs, dx, dy, self._default)
         for layer in self.layers:
             layer.shift(self, dx, dy)
 
-    def update_map(self, robot_pose) -> np.ndarray:
-        """Recompute the master grid for the robot at ``robot_pose`` (costmap frame); returns it."""
+    @property
+    def full_spec(self) -> GridSpec:
+        return self.spec
+
+    @property
+    def window(self) -> Tuple[slice, slice]:
+        return (slice(None), slice(None))
+
+    def request_full_update(self) -> None:
+        """The next ``update_map`` recomputes the whole grid even when given a window (after a clearing)."""
+        self._full_update_due = True
+
+    def update_map(self, robot_pose, window_m: Optional[float] = None) -> np.ndarray:
+        """Recompute the master grid for the robot at ``robot_pose`` (costmap frame); returns it.
+
+        window_m [m]: recompute only a square of this side centred on the
+        robot (a fixed, non-rolling grid only; None = the whole grid).
+        """
         pose = geo.as_pose(robot_pose)
         if self.config.rolling_window:
             self.update_origin(pose.x_m - 0.5 * self.spec.size_x_m, pose.y_m - 0.5 * self.spec.size_y_m)
+        if window_m is not None and not self.config.rolling_window and not self._full_update_due:
+            check_finite_positive("window_m", window_m)
+            self._update_window(pose, float(window_m))
+            return self.costs
         master = np.full(self.spec.shape, self._default, dtype=np.uint8)
         for layer in self.layers:
             if layer.enabled:
                 layer.update_costs(master, self, pose)
         self.costs = master
+        self._full_update_due = False
         return master
+
+    def _update_window(self, pose: geo.Pose2D, window_m: float) -> None:
+        spec = self.spec
+        res = spec.resolution_m
+        inflation = self.inflation_layer
+        margin = int(math.ceil(inflation.config.inflation_radius / res)) + 1 if inflation is not None else 0
+        cx, cy = spec.world_to_map(pose.x_m, pose.y_m)
+        half = int(math.ceil(0.5 * window_m / res))
+        inner = [(max(0, int(c) - half), min(n, int(c) + half + 1)) for c, n in ((cx, spec.width), (cy, spec.height))]
+        if inner[0][0] >= inner[0][1] or inner[1][0] >= inner[1][1]:
+            return                                                  # the window lies off the grid
+        (x0, x1), (y0, y1) = [(max(0, a - margin), min(n, b + margin))
+                              for (a, b), n in zip(inner, (spec.width, spec.height))]
+        view = CostmapWindow(GridSpec(res, x1 - x0, y1 - y0, spec.origin_x_m + x0 * res, spec.origin_y_m + y0 * res),
+                             spec, (slice(y0, y1), slice(x0, x1)), self.config, self.footprint,
+                             self.inscribed_radius_m)
+        master = np.full(view.spec.shape, self._default, dtype=np.uint8)
+        for layer in self.layers:
+            if layer.enabled:
+                layer.update_costs(master, view, pose)
+        (ix0, ix1), (iy0, iy1) = inner
+        self.costs[iy0:iy1, ix0:ix1] = master[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0]
 
     # --- queries ---
     def cost_at_world(self, x_m, y_m):

@@ -1,8 +1,8 @@
 """ROS layer of move_base: the action server around the pure state machine.
 
-The decisions live in ``cottonsim_navigation.navigation.move_base.MoveBase``;
-this module converts messages, looks up TF, keeps the two costmaps fed and
-runs the control loop at ~controller_frequency inside the action server's
+The decisions live in ``cottonsim_navigation.move_base.state_machine.MoveBase``;
+the costmaps are fed by ``move_base_costmaps.MoveBaseCostmaps``; this module
+looks up TF and runs the control loop at ~controller_frequency inside the action server's
 execute callback. See :class:`MoveBaseNode` for the ROS API.
 """
 from __future__ import annotations
@@ -12,100 +12,27 @@ import threading
 from typing import Optional, Tuple
 
 import actionlib
-import numpy as np
 import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedback, MoveBaseResult
-from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from nav_msgs.msg import Odometry, Path
 from nav_msgs.srv import GetPlan, GetPlanResponse
-from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Empty, EmptyResponse
 
 from cottonsim_navigation.core import geometry as geo
-from cottonsim_navigation.core.grid import GridSpec
-from cottonsim_navigation.navigation.move_base import MoveBase, MoveBaseConfig, Outcome, VisionBiasConfig
-from cottonsim_navigation.navigation.recovery import RotateRecoveryConfig
+from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
+from cottonsim_navigation.move_base.recovery import RotateRecoveryConfig
+from cottonsim_navigation.move_base.state_machine import MoveBase, Outcome
 from cottonsim_navigation.planning.base import make_global_planner, make_local_planner
-from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, InflationLayer, InflationLayerConfig,
-                                                   ObstacleLayer, ObstacleLayerConfig, StaticLayer,
-                                                   StaticLayerConfig)
 from cottonsim_navigation.planning.global_planners.navfn import NavfnConfig
 from cottonsim_navigation.planning.local_planners.dwa import DWAConfig
+from cottonsim_navigation.ros.move_base_costmaps import MoveBaseCostmaps
+from cottonsim_navigation.ros.move_base_messages import path_msg, pose_msg_is_valid, transform_to_pose2d
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 from cottonsim_world.ros import conversions as conv
 
-_LAYER_CONFIGS = {"static_layer": StaticLayerConfig, "obstacle_layer": ObstacleLayerConfig,
-                  "inflation_layer": InflationLayerConfig}
-
-
-# ----------------------------------------------------------------- conversions
-def transform_to_pose2d(t) -> geo.Pose2D:
-    """geometry_msgs/Transform (planar part) -> Pose2D."""
-    return geo.Pose2D(t.translation.x, t.translation.y, conv.yaw_from_quaternion_msg(t.rotation))
-
-
-def transform_matrix(t) -> np.ndarray:
-    """geometry_msgs/Transform -> 4 x 4 homogeneous matrix."""
-    q = t.rotation
-    x, y, z, w = q.x, q.y, q.z, q.w
-    n = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
-    x, y, z, w = x / n, y / n, z / n, w / n
-    m = np.eye(4)
-    m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-    m[:3, 3] = (t.translation.x, t.translation.y, t.translation.z)
-    return m
-
-
-def pose_msg_is_valid(pose) -> Tuple[bool, str]:
-    """A goal pose must be finite with a non-zero quaternion."""
-    p, q = pose.position, pose.orientation
-    values = (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
-    if not all(math.isfinite(v) for v in values):
-        return False, f"goal has a non-finite (NaN/inf) value: position ({p.x}, {p.y}, {p.z}), " \
-                      f"orientation ({q.x}, {q.y}, {q.z}, {q.w})"
-    if q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w < 1e-6:
-        return False, "goal has a zero-length quaternion"
-    return True, ""
-
-
-def path_msg(poses: np.ndarray, frame_id: str, stamp) -> Path:
-    msg = Path()
-    msg.header = conv.header(stamp, frame_id)
-    for x, y, yaw in np.asarray(poses, dtype=float).reshape(-1, 3):
-        ps = PoseStamped()
-        ps.header = msg.header
-        ps.pose.position.x, ps.pose.position.y = float(x), float(y)
-        ps.pose.orientation = conv.quaternion_msg(geo.yaw_to_quaternion(float(yaw)))
-        msg.poses.append(ps)
-    return msg
-
-
-def costmap_msg(costmap: Costmap2D, frame_id: str, stamp) -> OccupancyGrid:
-    spec = costmap.spec
-    msg = OccupancyGrid()
-    msg.header = conv.header(stamp, frame_id)
-    msg.info.map_load_time = stamp
-    msg.info.resolution = spec.resolution_m
-    msg.info.width, msg.info.height = spec.width, spec.height
-    msg.info.origin.position.x, msg.info.origin.position.y = spec.origin_x_m, spec.origin_y_m
-    msg.info.origin.orientation.w = 1.0
-    msg.data = costmap.to_occupancy().ravel().tolist()
-    return msg
-
-
-def occupancy_from_msg(msg: OccupancyGrid) -> Tuple[np.ndarray, GridSpec]:
-    """nav_msgs/OccupancyGrid -> ((height, width) int16 values, GridSpec); ValueError on a bad map."""
-    info = msg.info
-    if info.width < 1 or info.height < 1 or len(msg.data) != info.width * info.height:
-        raise ValueError(f"map is {info.width} x {info.height} cells but carries {len(msg.data)} values")
-    o = info.origin.position
-    spec = GridSpec(float(info.resolution), int(info.width), int(info.height), float(o.x), float(o.y))
-    occ = np.asarray(msg.data, dtype=np.int16).reshape(info.height, info.width)
-    return occ, spec
 
 
 # ----------------------------------------------------------------- the node
@@ -115,15 +42,16 @@ class MoveBaseNode:
     Action server
       move_base                 move_base_msgs/MoveBaseAction. Goals in any TF frame (transformed to
                                 the global frame); feedback = robot pose in the global frame;
-                                aborted with a text reason (goal invalid / in an obstacle / no plan or
-                                no valid trajectory after N recovery behaviours / oscillating);
+                                aborted with a text reason (goal invalid / in or next to an obstacle /
+                                no plan or no valid trajectory after N recovery behaviours / oscillating);
                                 a new goal preempts the running one.
     Subscriptions
       move_base_simple/goal     geometry_msgs/PoseStamped   forwarded to the action server
       ~map_topic (/map)         nav_msgs/OccupancyGrid      static layer of the global costmap (latched)
       ~local_costmap/obstacle_layer/point_cloud_topic (/passthrough/output)
-                                sensor_msgs/PointCloud2     obstacles of the local costmap (any frame;
-                                                            transformed to the local frame with TF)
+                                sensor_msgs/PointCloud2     obstacles of the local costmap, and of the
+                                                            global one when its plugins have an
+                                                            obstacle_layer (any frame; moved with TF)
       ~odom_topic (/odometry/filtered) nav_msgs/Odometry    current velocity for the dynamic window
       ~vision_topic (husky/cv/coords) std_msgs/Float64MultiArray [linear_x, angular_z], only when
                                                             ~vision_bias is true
@@ -143,7 +71,7 @@ class MoveBaseNode:
       ~clear_costmaps           std_srvs/Empty     forget every obstacle-layer cell
     Parameters (defaults = config/*.yaml = the original's values; see those files)
       ~controller_frequency 5.0 Hz, ~planner_frequency 0.0 Hz, ~planner_patience 5.0 s,
-      ~controller_patience 15.0 s, ~max_planning_retries -1, ~oscillation_timeout 0.0 s,
+      ~controller_patience 15.0 s, ~max_planning_retries -1, ~oscillation_timeout 20.0 s,
       ~oscillation_distance 0.5 m, ~recovery_behavior_enabled true, ~clearing_rotation_allowed true,
       ~recovery_behaviours [conservative_reset, rotate_recovery, aggressive_reset, rotate_recovery],
       ~conservative_reset_dist 3.0 m, ~abort_on_blocked_goal true,
@@ -151,7 +79,9 @@ class MoveBaseNode:
       ~NavfnROS/* (navfn.yaml), ~DWAPlannerROS/* (dwa.yaml; controller_frequency is move_base's),
       ~global_costmap/* and ~local_costmap/* (costmap_common.yaml + global/local_costmap.yaml:
       frames, size, resolution, footprint, plugins [static_layer, obstacle_layer, inflation_layer]
-      and each layer's parameters), ~rotate_recovery/* (RotateRecoveryConfig),
+      and each layer's parameters; an obstacle_layer in ~global_costmap/plugins is updated at
+      ~global_costmap/update_frequency over a window around the robot, see move_base_costmaps.py),
+      ~rotate_recovery/* (RotateRecoveryConfig),
       ~use_static_map (true): wait for and use the map; false = the global costmap has its own
       configured geometry (width, height, origin_x/y) and no static layer,
       ~vision_bias (false), ~max_vision_rate (0.0873 rad/s = 5 deg/s), ~vision_max_age (0.5 s),
@@ -178,11 +108,14 @@ class MoveBaseNode:
             "max_vision_rate": typed_param("~max_vision_rate", VisionBiasConfig().max_vision_rate, minimum=0.0),
             "max_age_s": typed_param("~vision_max_age", VisionBiasConfig().max_age_s, minimum=0.0),
             "row_reach_m": typed_param("~vision_row_reach", VisionBiasConfig().row_reach_m, minimum=0.0)})
-        self.global_costmap = self._make_costmap("global_costmap", default_layers=("static_layer", "inflation_layer"))
-        self.local_costmap = self._make_costmap("local_costmap", default_layers=("obstacle_layer", "inflation_layer"))
-        self.global_frame = self.global_costmap.config.global_frame
-        self.local_frame = self.local_costmap.config.global_frame
-        self.base_frame = self.local_costmap.config.robot_base_frame
+        self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        self.costmaps = MoveBaseCostmaps(self.lock, self.tf_buffer, self.use_static_map, self._pose_in)
+        self.global_costmap = self.costmaps.global_costmap
+        self.local_costmap = self.costmaps.local_costmap
+        self.global_frame = self.costmaps.global_frame
+        self.local_frame = self.costmaps.local_frame
+        self.base_frame = self.costmaps.base_frame
         navfn = config_from_params(NavfnConfig, "~NavfnROS/")
         dwa = config_from_params(DWAConfig, "~DWAPlannerROS/",
                                  overrides={"controller_frequency": self.config.controller_frequency})
@@ -193,27 +126,16 @@ class MoveBaseNode:
                              make_global_planner(self.config.base_global_planner, navfn),
                              make_local_planner(self.config.base_local_planner, dwa),
                              vision=vision, rotate=rotate)
-        self.map_received = not self.use_static_map
-        self._cloud: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._velocity = (0.0, 0.0)
         self._vision: Optional[Tuple[float, float]] = None      # (angular_z, receive time s)
-        self._global_dirty = True
 
-        self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
-        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.cmd_pub = rospy.Publisher("cmd_vel", Twist, queue_size=1)
         self.plan_pub = rospy.Publisher("~NavfnROS/plan", Path, queue_size=1, latch=True)
         self.local_plan_pub = rospy.Publisher("~DWAPlannerROS/local_plan", Path, queue_size=1)
-        self.global_cm_pub = rospy.Publisher("~global_costmap/costmap", OccupancyGrid, queue_size=1, latch=True)
-        self.local_cm_pub = rospy.Publisher("~local_costmap/costmap", OccupancyGrid, queue_size=1)
         self.goal_pub = rospy.Publisher("~current_goal", PoseStamped, queue_size=1, latch=True)
         self.action_goal_pub = rospy.Publisher("move_base/goal", MoveBaseActionGoal, queue_size=1)
 
-        if self.use_static_map:
-            rospy.Subscriber(typed_param("~map_topic", "/map"), OccupancyGrid, self._on_map, queue_size=1)
-        if self.local_costmap.obstacle_layer is not None:
-            topic = typed_param("~local_costmap/obstacle_layer/point_cloud_topic", "/passthrough/output")
-            rospy.Subscriber(topic, PointCloud2, self._on_cloud, queue_size=1, buff_size=2 ** 24)
+        self.costmaps.start()
         rospy.Subscriber(typed_param("~odom_topic", "/odometry/filtered"), Odometry, self._on_odom, queue_size=1)
         if vision.enabled:
             rospy.Subscriber(typed_param("~vision_topic", "husky/cv/coords"), Float64MultiArray,
@@ -225,65 +147,11 @@ class MoveBaseNode:
         self.server = actionlib.SimpleActionServer("move_base", MoveBaseAction, execute_cb=self._execute,
                                                    auto_start=False)
         self.server.start()
-        lc = self.local_costmap.config
-        rospy.Timer(rospy.Duration(1.0 / max(lc.update_frequency, 0.1)), self._update_local_costmap)
-        rospy.Timer(rospy.Duration(1.0 / max(lc.publish_frequency, 0.1)), self._publish_costmaps)
         rospy.loginfo("move_base: %s + %s, global frame %s, local frame %s, controller %.1f Hz, %d recoveries",
                       self.config.base_global_planner, self.config.base_local_planner, self.global_frame,
                       self.local_frame, self.config.controller_frequency, len(self.core.recoveries))
 
-    # ------------------------------------------------------------- setup helpers
-    def _make_costmap(self, ns: str, default_layers) -> Costmap2D:
-        config = config_from_params(CostmapConfig, f"~{ns}/")
-        plugins = typed_param(f"~{ns}/plugins", tuple(default_layers))
-        layers = []
-        for name in plugins:
-            if name not in _LAYER_CONFIGS:
-                raise ValueError(f"parameter ~{ns}/plugins: unknown layer {name!r}; known: "
-                                 f"{', '.join(_LAYER_CONFIGS)}")
-            if name == "static_layer" and not self.use_static_map:
-                continue
-            layer_config = config_from_params(_LAYER_CONFIGS[name], f"~{ns}/{name}/")
-            layers.append({"static_layer": StaticLayer, "obstacle_layer": ObstacleLayer,
-                           "inflation_layer": InflationLayer}[name](layer_config))
-        return Costmap2D(config, layers)
-
     # ------------------------------------------------------------- callbacks
-    def _on_map(self, msg: OccupancyGrid) -> None:
-        try:
-            occ, spec = occupancy_from_msg(msg)
-        except ValueError as exc:
-            rospy.logwarn("move_base: ignoring map: %s", exc)
-            return
-        if msg.header.frame_id and msg.header.frame_id.lstrip("/") != self.global_frame:
-            rospy.logwarn("move_base: map is in frame %s, the global costmap in %s; using it as %s",
-                          msg.header.frame_id, self.global_frame, self.global_frame)
-        with self.lock:
-            cm = self.global_costmap
-            if not cm.config.rolling_window:
-                cm.resize(spec)
-            cm.static_layer.set_map(occ, spec, track_unknown_space=cm.config.track_unknown_space)
-            cm.update_map(geo.Pose2D(*spec.map_to_world(0, 0), 0.0))
-            self.map_received = True
-            self._global_dirty = True
-        rospy.loginfo("move_base: static map %d x %d cells at %.3f m", spec.width, spec.height, spec.resolution_m)
-
-    def _on_cloud(self, msg: PointCloud2) -> None:
-        try:
-            xyz = conv.cloud_to_xyz(msg, skip_nans=True)
-            t = self.tf_buffer.lookup_transform(self.local_frame, msg.header.frame_id, msg.header.stamp,
-                                                rospy.Duration(0.2)).transform
-        except ValueError as exc:
-            rospy.logwarn_throttle(5.0, f"move_base: ignoring cloud: {exc}")
-            return
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
-            rospy.logwarn_throttle(5.0, f"move_base: no TF for the cloud: {exc}")
-            return
-        m = transform_matrix(t)
-        pts = xyz.astype(float) @ m[:3, :3].T + m[:3, 3]
-        with self.lock:
-            self._cloud = (pts, m[:3, 3].copy())
-
     def _on_odom(self, msg: Odometry) -> None:
         v, w = msg.twist.twist.linear.x, msg.twist.twist.angular.z
         if not (math.isfinite(v) and math.isfinite(w)):
@@ -328,31 +196,6 @@ class MoveBaseNode:
             return None, f"cannot transform the goal from {frame} to {self.global_frame}: {exc}"
         return geo.compose(transform_to_pose2d(t.transform), pose), ""
 
-    # ------------------------------------------------------------- costmaps
-    def _update_local_costmap(self, _event=None) -> None:
-        pose = self._pose_in(self.local_frame)
-        if pose is None:
-            return
-        with self.lock:
-            if self._cloud is not None and self.local_costmap.obstacle_layer is not None:
-                self.local_costmap.obstacle_layer.add_observation(*self._cloud)
-                self._cloud = None
-            self.local_costmap.update_map(pose)
-            if self.global_costmap.obstacle_layer is not None:
-                gpose = self._pose_in(self.global_frame)
-                if gpose is not None:
-                    self.global_costmap.update_map(gpose)
-                    self._global_dirty = True
-
-    def _publish_costmaps(self, _event=None) -> None:
-        stamp = rospy.Time.now()
-        with self.lock:
-            if self._global_dirty and self.map_received:
-                self.global_cm_pub.publish(costmap_msg(self.global_costmap, self.global_frame, stamp))
-                self._global_dirty = False
-            if self.local_cm_pub.get_num_connections() > 0:
-                self.local_cm_pub.publish(costmap_msg(self.local_costmap, self.local_frame, stamp))
-
     # ------------------------------------------------------------- services
     def _on_make_plan(self, req) -> GetPlanResponse:
         resp = GetPlanResponse()
@@ -389,7 +232,7 @@ class MoveBaseNode:
         goal, reason = self._to_global(goal_msg.target_pose)
         if goal is None:
             return reason
-        if not self.map_received:
+        if not self.costmaps.map_received:
             return f"no map received on the map topic yet (use_static_map is true)"
         with self.lock:
             self.core.set_goal(goal, rospy.Time.now().to_sec())

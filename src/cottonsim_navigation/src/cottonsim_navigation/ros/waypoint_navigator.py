@@ -23,7 +23,8 @@ sent again. The route is never cut short by a lost localisation.
 State (std_msgs/String on ~state, latched): a JSON object
 ``{"state": waiting|navigating|returning_home|paused|finished, "index": i (1-based goal), "total": N,
 "label": ..., "goal": [x, y, yaw], "succeeded": n, "passed": n (of the succeeded, driven through),
-"aborted": n, "skipped": n, "returned_home": bool, "home_reached": bool|null, "holds": n (goals held
+"aborted": n, "aborted_waypoints": [{"index": i, "label": ..., "reason": move_base's status text}, ...],
+"skipped": n, "returned_home": bool, "home_reached": bool|null, "holds": n (goals held
 while localisation was lost), "reason": ...}``.
 """
 from __future__ import annotations
@@ -158,7 +159,7 @@ class WaypointNavigatorBase:
 
         self._lock = threading.Lock()
         self._goal_seq = 0              # sequence number of the goal in flight (0: none)
-        self._result = None             # (seq, GoalStatus) of a finished goal
+        self._result = None             # (seq, GoalStatus, status text) of a finished goal
         self._goal_sent_at = None
         self._battery_low = False
         self._gate = LocalisationGate()                # the localiser's verdicts
@@ -199,9 +200,10 @@ class WaypointNavigatorBase:
         if gh.get_comm_state() != actionlib.CommState.DONE:
             return
         status = gh.get_goal_status()
+        text = gh.get_goal_status_text()
         with self._lock:
             if seq == self._goal_seq:
-                self._result = (seq, status)
+                self._result = (seq, status, text)
 
     def robot_pose(self) -> Optional[MapWaypoint]:
         """The robot's pose in ~goal_frame from TF, or None when the transform is not there yet."""
@@ -226,6 +228,8 @@ class WaypointNavigatorBase:
                "goal": [goal.x_m, goal.y_m, goal.yaw_rad] if goal is not None else None,
                "succeeded": s.succeeded if s else 0, "passed": s.passed if s else 0,
                "aborted": s.aborted if s else 0,
+               "aborted_waypoints": [dict(a, label=getattr(f.goals[a["index"] - 1], "label", ""))
+                                     for a in s.aborted_waypoints] if s else [],
                "skipped": s.skipped if s else 0, "returned_home": s.returned_home if s else False,
                "home_reached": s.home_reached if s else None, "holds": s.holds if s else 0,
                "reason": reason or (s.stopped_reason if s else "")}
@@ -346,12 +350,15 @@ class WaypointNavigatorBase:
             result, self._result = self._result, None
         lost = self.localisation_lost()
         if result is not None and f.state is FollowerState.ACTIVE:
-            status = result[1]
+            status, text = result[1], result[2]
             ok = status == GoalStatus.SUCCEEDED
+            reason = f"move_base {_STATUS_NAMES.get(status, status)}: {text}" if text else \
+                f"move_base {_STATUS_NAMES.get(status, status)}"
             if not ok:
-                rospy.logwarn("%s: goal %s ended %s", self.NAME, "Home" if f.going_home else f.index + 1,
-                              _STATUS_NAMES.get(status, status))
-            f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED)
+                rospy.logwarn("%s: goal %s ended: %s; %s", self.NAME, "Home" if f.going_home else f.index + 1,
+                              reason, "going on with the route" if self.follower_config.on_failure == "skip"
+                              else "stopping")
+            f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED, reason)
         elif lost or self._paused_since is not None:
             pass                         # paused or resuming: no pass-through or time-out of a held goal
         elif f.current_is_pass_through and self._passed_current():
@@ -361,7 +368,7 @@ class WaypointNavigatorBase:
               and (rospy.Time.now() - self._goal_sent_at).to_sec() > self.goal_timeout_s):
             rospy.logwarn("%s: goal %s timed out after %.0f s; cancelled", self.NAME, f.index + 1, self.goal_timeout_s)
             self._cancel_active()
-            f.report_result(GoalResult.ABORTED)
+            f.report_result(GoalResult.ABORTED, f"timed out after {self.goal_timeout_s:.0f} s (goal_timeout_s)")
         if f.finished:
             return
         if lost:

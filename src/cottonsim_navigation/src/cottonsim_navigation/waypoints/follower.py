@@ -80,6 +80,8 @@ class FollowerSummary:
     stopped_reason: str = ""
     holds: int = 0                 # goals withdrawn while localisation was lost (then sent again)
     results: List[str] = field(default_factory=list)    # per attempted goal, in order
+    # per aborted route waypoint, in order: {"index": 1-based waypoint number, "reason": why}
+    aborted_waypoints: List[dict] = field(default_factory=list)
 
 
 class WaypointFollower:
@@ -128,8 +130,8 @@ class WaypointFollower:
         self.state = FollowerState.ACTIVE
         return self.goals[self.index]
 
-    def report_result(self, result: GoalResult) -> None:
-        """move_base finished the active goal."""
+    def report_result(self, result: GoalResult, reason: str = "") -> None:
+        """move_base finished the active goal; ``reason`` says why when it did not succeed."""
         if self.state is not FollowerState.ACTIVE:
             raise ValueError(f"report_result called with no active goal (state {self.state.value})")
         result = GoalResult(result)
@@ -142,6 +144,7 @@ class WaypointFollower:
             self.summary.succeeded += 1
         else:
             self.summary.aborted += 1
+            self.summary.aborted_waypoints.append({"index": self.index + 1, "reason": str(reason)})
             if self.config.on_failure == "stop":
                 self.summary.skipped = len(self.goals) - self.index - 1
                 self.index = len(self.goals)

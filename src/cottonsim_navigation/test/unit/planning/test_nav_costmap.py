@@ -76,10 +76,11 @@ def test_inflation_layer_on_a_map():
     occ[20, 20] = 100
     cm = make_global_costmap(occ, spec)
     assert cm.costs[20, 20] == LETHAL_OBSTACLE
-    assert cm.costs[20, 24] == INSCRIBED_INFLATED_OBSTACLE                   # 0.20 m <= 0.205
-    assert cm.costs[20, 25] == int(252 * math.exp(-10 * (0.25 - 0.205)))    # 0.25 m
-    assert cm.costs[23, 24] == int(252 * math.exp(-10 * (0.25 - 0.205)))    # (3,4) cells = 0.25 m
-    assert cm.costs[20, 30] == int(252 * math.exp(-10 * (0.5 - 0.205)))     # 0.50 m, edge of radius
+    # the inscribed radius of the Husky's 0.99 x 0.67 m body padded by 0.03 m: 0.365 m
+    assert cm.costs[20, 27] == INSCRIBED_INFLATED_OBSTACLE                   # 0.35 m <= 0.365
+    assert cm.costs[20, 28] == int(252 * math.exp(-10 * (0.40 - 0.365)))   # 0.40 m
+    assert cm.costs[26, 28] == int(252 * math.exp(-10 * (0.5 - 0.365)))    # (6,8) cells = 0.50 m
+    assert cm.costs[20, 30] == int(252 * math.exp(-10 * (0.5 - 0.365)))    # 0.50 m, edge of radius
     assert cm.costs[20, 31] == 0                                             # 0.55 m: beyond
     assert cm.costs[20, 0] == 0
 
@@ -123,7 +124,7 @@ def test_rolling_window_keeps_cells_in_view():
 def test_footprint_cost_and_config_validation():
     spec = GridSpec(0.05, 60, 60, -1.5, -1.5)
     occ = np.zeros(spec.shape, np.int8)
-    occ[30, 40] = 100                         # obstacle at x = 0.525, y = 0.025
+    occ[30, 42] = 100                         # obstacle at x = 0.625, y = 0.025 (footprint to 0.525)
     cm = make_global_costmap(occ, spec, inflation=InflationLayerConfig(enabled=False))
     assert cm.footprint_cost(geo.Pose2D(0, 0, 0)) == 0
     assert cm.footprint_cost(geo.Pose2D(0.2, 0, 0)) == LETHAL_OBSTACLE

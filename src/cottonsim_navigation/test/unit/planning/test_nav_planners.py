@@ -211,7 +211,7 @@ def test_dwa_reports_no_valid_trajectory_when_boxed_in():
     cm = Costmap2D(CostmapConfig(rolling_window=True, width=5.0, height=5.0), [])
     cm.update_map(Pose2D(0, 0, 0))
     cx, cy = cm.spec.map_to_world(*np.meshgrid(np.arange(100), np.arange(100)))
-    free = (np.abs(cx) < 0.43) & (np.abs(cy) < 0.23)
+    free = (np.abs(cx) < 0.55) & (np.abs(cy) < 0.39)
     cm.costs[...] = LETHAL_OBSTACLE
     cm.costs[free] = 0
     assert cm.footprint_cost(Pose2D(0, 0, 0)) == 0

@@ -73,10 +73,11 @@ def test_follower_skip_and_stop():
     assert f.next_goal() is None                    # one goal at a time
     f.report_result(GoalResult.SUCCEEDED)
     assert f.next_goal() == "b"
-    f.report_result(GoalResult.ABORTED)
+    f.report_result(GoalResult.ABORTED, "goal (2.00, 0.00) is in or next to an obstacle")
     assert f.next_goal() == "c"
     f.report_result(GoalResult.SUCCEEDED)
     assert f.finished and f.summary.succeeded == 2 and f.summary.aborted == 1
+    assert f.summary.aborted_waypoints == [{"index": 2, "reason": "goal (2.00, 0.00) is in or next to an obstacle"}]
     g = WaypointFollower(["a", "b", "c"], FollowerConfig(on_failure="stop"))
     g.next_goal()
     g.report_result(GoalResult.ABORTED)

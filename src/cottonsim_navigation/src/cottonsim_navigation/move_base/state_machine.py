@@ -19,18 +19,25 @@ The logic follows ROS's move_base (executeCycle):
   cycle stops the robot and asks for a new plan; after
   ``controller_patience`` seconds without a valid command -> CLEARING.
   If ``oscillation_timeout`` > 0 and the robot has not moved
-  ``oscillation_distance`` within that time -> CLEARING.
+  ``oscillation_distance`` within that time -> CLEARING. When the global
+  costmap has an obstacle layer, a plan whose poses ahead of the robot now
+  lie on an obstacle (seen after planning) is remade (PLANNING).
 * CLEARING: runs the next recovery behaviour (``recovery.py``) to its end,
   then PLANNING again. When none is left, the goal is ABORTED with a
   reason naming the trigger and the number of behaviours tried. The
   recovery index goes back to 0 when the trigger's problem went away (a
   valid plan, a valid command, or enough motion).
 
-One addition to ROS's behaviour (``abort_on_blocked_goal``): when the
-global costmap cannot change through recoveries (it has no obstacle layer)
-and the goal and every cell within the planner's tolerance are obstacles,
-the goal is aborted at once with that reason instead of spending the whole
-recovery sequence on a goal that can never become free.
+Additions to ROS's behaviour (``abort_on_blocked_goal``; ``goal_checks.py``):
+a goal whose cell and every cell within the planner's tolerance are obstacles
+or within the footprint's inscribed radius of one (the robot cannot stand
+there) is aborted with that reason instead of spending the recovery sequence
+on it: at once when the global costmap cannot change (no obstacle layer),
+else once it has stayed blocked for ``planner_patience`` seconds, during
+which the robot stands still (an obstacle layer may still clear the goal,
+and then move_base plans and drives on).
+The clearing recoveries are not run for it: they would erase the very
+obstacle (a plant) the robot must not drive into.
 
 Vision correction (optional, :class:`VisionBiasConfig`): while CONTROLLING
 with a valid local plan, a fresh row-centring estimate (angular rate) is
@@ -54,147 +61,18 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 
 from cottonsim_navigation.core import geometry as geo
-from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE
-from cottonsim_navigation.navigation.recovery import (RECOVERY_NAMES, RecoveryBehaviour, RotateRecoveryConfig,
-                                                      make_recovery)
+from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
+from cottonsim_navigation.move_base.goal_checks import blocked_goal_reason, plan_blocked_at
+from cottonsim_navigation.move_base.recovery import RecoveryBehaviour, RotateRecoveryConfig, make_recovery
+from cottonsim_navigation.move_base.vision_bias import blend_vision, inside_crop_row
 from cottonsim_navigation.planning.base import (GlobalPlanner, LocalPlanner, LocalPlannerStatus, Plan,
                                                 make_global_planner, make_local_planner)
 from cottonsim_navigation.planning.costmap import Costmap2D, ObstacleLayer
 
-DEFAULT_RECOVERIES = ("conservative_reset", "rotate_recovery", "aggressive_reset", "rotate_recovery")
 
-
-def _check_number(name: str, value, minimum: float = 0.0, strict: bool = False) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    if value < minimum or (strict and value == minimum):
-        raise ValueError(f"{name} must be {'>' if strict else '>='} {minimum}, got {value!r}")
-
-
-@dataclass(frozen=True)
-class MoveBaseConfig:
-    """move_base parameters (ROS names; times in s, frequencies in Hz, distances in m).
-
-    base_global_planner / base_local_planner: plugin names (the original's
-    'navfn/NavfnROS' and 'dwa_local_planner/DWAPlannerROS').
-    controller_frequency [Hz]: control loop rate (original 5.0).
-    planner_frequency [Hz]: re-plan rate while controlling; 0 = plan only on
-    a new goal or when the controller fails (move_base default 0.0).
-    planner_patience [s]: how long planning may fail before recoveries
-    (move_base default 5.0). controller_patience [s]: how long the local
-    planner may fail before recoveries (move_base default 15.0).
-    max_planning_retries: failed plans allowed before recoveries; -1 =
-    unlimited (only planner_patience counts; move_base default -1).
-    oscillation_timeout [s]: the robot must move oscillation_distance [m]
-    within this time, else recoveries; 0 disables (move_base defaults 0.0
-    and 0.5).
-    recovery_behavior_enabled: run recoveries at all (default true);
-    clearing_rotation_allowed: include 'rotate_recovery' entries (default true).
-    recovery_behaviours: names in order (move_base's default list:
-    conservative_reset, rotate_recovery, aggressive_reset, rotate_recovery).
-    conservative_reset_dist [m]: square side kept by conservative_reset (3.0).
-    abort_on_blocked_goal: abort at once when the goal lies in an obstacle
-    of a global costmap that recoveries cannot clear (port's addition, true).
-    """
-
-    base_global_planner: str = "navfn/NavfnROS"
-    base_local_planner: str = "dwa_local_planner/DWAPlannerROS"
-    controller_frequency: float = 5.0
-    planner_frequency: float = 0.0
-    planner_patience: float = 5.0
-    controller_patience: float = 15.0
-    max_planning_retries: int = -1
-    oscillation_timeout: float = 0.0
-    oscillation_distance: float = 0.5
-    recovery_behavior_enabled: bool = True
-    clearing_rotation_allowed: bool = True
-    recovery_behaviours: Tuple[str, ...] = DEFAULT_RECOVERIES
-    conservative_reset_dist: float = 3.0
-    abort_on_blocked_goal: bool = True
-
-    def __post_init__(self) -> None:
-        for name in ("base_global_planner", "base_local_planner"):
-            if not isinstance(getattr(self, name), str) or not getattr(self, name):
-                raise ValueError(f"{name} must be a non-empty plugin name, got {getattr(self, name)!r}")
-        _check_number("controller_frequency", self.controller_frequency, strict=True)
-        for name in ("planner_frequency", "planner_patience", "controller_patience", "oscillation_timeout",
-                     "oscillation_distance", "conservative_reset_dist"):
-            _check_number(name, getattr(self, name))
-        r = self.max_planning_retries
-        if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or r < -1:
-            raise ValueError(f"max_planning_retries must be an integer >= -1, got {r!r}")
-        for name in ("recovery_behavior_enabled", "clearing_rotation_allowed", "abort_on_blocked_goal"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        names = self.recovery_behaviours
-        if isinstance(names, str) or not all(isinstance(n, str) for n in names):
-            raise ValueError(f"recovery_behaviours must be a list of names, got {names!r}")
-        for n in names:
-            if n not in RECOVERY_NAMES:
-                raise ValueError(f"recovery_behaviours: unknown behaviour {n!r}; known: {', '.join(RECOVERY_NAMES)}")
-        object.__setattr__(self, "recovery_behaviours", tuple(names))
-
-
-@dataclass(frozen=True)
-class VisionBiasConfig:
-    """Row-centring correction blended into move_base's angular velocity.
-
-    enabled: use the correction (default false until perception lands).
-    max_age_s [s]: an estimate older than this is ignored (0.5).
-    max_vision_rate [rad/s]: bound on the added angular rate. Default
-    radians(5) = 0.0873 rad/s: the paper caps a correction at 5 deg, here
-    at most 5 deg of heading change per second of correction.
-    row_reach_m [m]: the robot counts as inside a crop row when the global
-    costmap has a LETHAL cell within this lateral distance on both sides (1.0).
-    """
-
-    enabled: bool = False
-    max_age_s: float = 0.5
-    max_vision_rate: float = math.radians(5.0)
-    row_reach_m: float = 1.0
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"enabled must be true or false, got {self.enabled!r}")
-        _check_number("max_age_s", self.max_age_s)
-        _check_number("max_vision_rate", self.max_vision_rate)
-        _check_number("row_reach_m", self.row_reach_m, strict=True)
-
-
-def blend_vision(w_radps: float, vision_w_radps: Optional[float], age_s: Optional[float], in_row: bool,
-                 config: VisionBiasConfig) -> float:
-    """The local planner's angular velocity plus the bounded vision correction.
-
-    Returns ``w_radps`` unchanged unless the correction is enabled, an
-    estimate exists, is finite and younger than ``max_age_s``, and the
-    robot is inside a crop row; then adds ``vision_w_radps`` clipped to
-    +/- ``max_vision_rate``.
-    """
-    if not config.enabled or vision_w_radps is None or age_s is None or not in_row:
-        return w_radps
-    if not (math.isfinite(vision_w_radps) and math.isfinite(age_s)) or age_s < 0 or age_s > config.max_age_s:
-        return w_radps
-    return w_radps + max(-config.max_vision_rate, min(config.max_vision_rate, vision_w_radps))
-
-
-def inside_crop_row(costmap: Costmap2D, pose: geo.Pose2D, reach_m: float = 1.0) -> bool:
-    """True when LETHAL cells lie within ``reach_m`` to the left AND to the right of the robot.
-
-    Samples lateral lines (perpendicular to the heading) at three points
-    along the robot (-0.35, 0, +0.35 m, the plant spacing's half) so a single
-    missing plant does not end the row.
-    """
-    step = 0.5 * costmap.spec.resolution_m
-    lat = np.arange(step, reach_m + 1e-9, step)
-    along = np.array([-0.35, 0.0, 0.35])
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    found = []
-    for side in (1.0, -1.0):
-        a, d = np.meshgrid(along, side * lat)
-        x = pose.x_m + a * c - d * s
-        y = pose.y_m + a * s + d * c
-        found.append(bool(np.any(costmap.cost_at_world(x.ravel(), y.ravel()) == LETHAL_OBSTACLE)))
-    return found[0] and found[1]
+# A plan found blocked ahead is remade at most this often [s] (a new plan may still start in the
+# robot's own inflated surroundings; navfn on GPS mode's 100 x 100 m map takes a good part of a second).
+BLOCKED_PLAN_REPLAN_PERIOD_S = 1.0
 
 
 class MoveBaseState(enum.Enum):
@@ -301,6 +179,7 @@ class MoveBase:
         self._last_plan_s = -math.inf
         self._last_reason = ""
         self._plan_tf: Optional[geo.Pose2D] = None
+        self.goal_blocked_since_s: Optional[float] = None
 
     def set_goal(self, goal, now_s: float) -> None:
         """Start a new goal (global frame); replaces (preempts) any active one."""
@@ -339,6 +218,7 @@ class MoveBase:
             for layer in cm.layers:
                 if isinstance(layer, ObstacleLayer):
                     layer.clear_all()
+            cm.request_full_update()
 
     # ------------------------------------------------------------------ helpers
     def _tolerance_m(self) -> float:
@@ -346,19 +226,31 @@ class MoveBase:
         return float(getattr(cfg, "default_tolerance", 0.0))
 
     def _blocked_goal_reason(self, goal: geo.Pose2D) -> str:
-        """Reason text when the goal and its tolerance window are all obstacle cells, else ''."""
-        cm = self.global_costmap
-        spec = cm.spec
-        tol = self._tolerance_m()
-        gx, gy = (int(v) for v in spec.world_to_map(goal.x_m, goal.y_m))
-        if not spec.in_bounds(gx, gy):
-            return f"goal ({goal.x_m:.2f}, {goal.y_m:.2f}) is off the global costmap"
-        n = int(math.floor(tol / spec.resolution_m + 1e-9))
-        win = cm.costs[max(0, gy - n):gy + n + 1, max(0, gx - n):gx + n + 1]
-        if win.size == 0 or not np.all((win == INSCRIBED_INFLATED_OBSTACLE) | (win == LETHAL_OBSTACLE)):
-            return ""
-        return (f"goal ({goal.x_m:.2f}, {goal.y_m:.2f}) is in an obstacle (cost {int(cm.costs[gy, gx])}) "
-                f"and no free cell within default_tolerance {tol:g} m")
+        return blocked_goal_reason(self.global_costmap, goal, self._tolerance_m())
+
+    def _check_blocked_goal(self, now_s: float) -> Optional[StepResult]:
+        """Abort once the goal has been blocked for planner_patience on a clearable global costmap."""
+        if not (self.config.abort_on_blocked_goal and self._global_costmap_clearable()):
+            return None
+        reason = self._blocked_goal_reason(self.goal)
+        if not reason:
+            self.goal_blocked_since_s = None
+            return None
+        if self.goal_blocked_since_s is None:
+            self.goal_blocked_since_s = now_s
+        if now_s - self.goal_blocked_since_s >= self.config.planner_patience:
+            return self._abort(f"{reason}, for {self.config.planner_patience:g} s (planner_patience)")
+        return None
+
+    def _plan_blocked(self, gpose: geo.Pose2D) -> bool:
+        """The plan ahead of the robot crosses an obstacle the global costmap's obstacle layer saw since."""
+        if self.plan is None or not self._global_costmap_clearable():
+            return False
+        i = plan_blocked_at(self.global_costmap, self.plan.poses, gpose, self.global_costmap.circumscribed_radius_m)
+        if i < 0:
+            return False
+        self._last_reason = f"plan blocked at ({self.plan.poses[i, 0]:.2f}, {self.plan.poses[i, 1]:.2f})"
+        return True
 
     def _global_costmap_clearable(self) -> bool:
         return any(isinstance(layer, ObstacleLayer) and layer.enabled for layer in self.global_costmap.layers)
@@ -410,8 +302,11 @@ class MoveBase:
         blocked = self._blocked_goal_reason(self.goal)
         if blocked:
             self._last_reason = blocked
-            if self.config.abort_on_blocked_goal and not self._global_costmap_clearable():
-                return self._abort(blocked)
+            if self.config.abort_on_blocked_goal:
+                if not self._global_costmap_clearable():
+                    return self._abort(blocked)
+                self.state = MoveBaseState.PLANNING        # _check_blocked_goal aborts after planner_patience
+                return None
         self.planning_retries += 1
         retries_out = 0 <= self.config.max_planning_retries < self.planning_retries
         if now_s > self.last_valid_plan_s + self.config.planner_patience or retries_out:
@@ -478,9 +373,20 @@ class MoveBase:
             if self.recovery_trigger == RecoveryTrigger.OSCILLATION:
                 self.recovery_index = 0
 
-        # planning: when asked to, or periodically while controlling
+        aborted = self._check_blocked_goal(now_s)
+        if aborted is not None:
+            return aborted
+        if self.goal_blocked_since_s is not None:
+            # do not drive towards a goal the robot cannot stand at (nor plan: navfn cannot reach it)
+            self.state = MoveBaseState.PLANNING
+            return StepResult(0.0, 0.0, self.state, Outcome.ACTIVE)
+
+        # planning: when asked to, periodically while controlling, or when the plan ahead became blocked
         replan_due = (cfg.planner_frequency > 0 and self.state == MoveBaseState.CONTROLLING
                       and now_s - self._last_plan_s >= 1.0 / cfg.planner_frequency)
+        if (self.state == MoveBaseState.CONTROLLING and not replan_due
+                and now_s - self._last_plan_s >= BLOCKED_PLAN_REPLAN_PERIOD_S and self._plan_blocked(gpose)):
+            self.state = MoveBaseState.PLANNING
         if self.state == MoveBaseState.PLANNING or replan_due:
             aborted = self._do_plan(now_s, gpose)
             if aborted is not None:

@@ -28,7 +28,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from cottonsim_navigation.core import geometry as geo
-from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, NO_INFORMATION)
+from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE
 from cottonsim_navigation.planning.costmap import Costmap2D, ObstacleLayer
 
 
@@ -60,7 +60,6 @@ def clear_obstacles_outside(costmap: Costmap2D, centre_x_m: float, centre_y_m: f
     master grid is refreshed by the costmap's next ``update_map``.
     """
     changed = 0
-    default = NO_INFORMATION if costmap.config.track_unknown_space else FREE_SPACE
     spec = costmap.spec
     half = 0.5 * reset_distance_m
     xs = spec.origin_x_m + (np.arange(spec.width) + 0.5) * spec.resolution_m
@@ -70,9 +69,8 @@ def clear_obstacles_outside(costmap: Costmap2D, centre_x_m: float, centre_y_m: f
     outside = ~(keep_y[:, None] & keep_x[None, :])
     for layer in costmap.layers:
         if isinstance(layer, ObstacleLayer) and layer.grid is not None:
-            mask = outside & (layer.grid != default)
-            changed += int(mask.sum())
-            layer.grid[mask] = default
+            changed += layer.forget(outside)
+    costmap.request_full_update()
     return changed
 
 

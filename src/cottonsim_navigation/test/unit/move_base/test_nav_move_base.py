@@ -5,100 +5,14 @@ import numpy as np
 import pytest
 
 from cottonsim_navigation.core.geometry import Pose2D
-from cottonsim_navigation.core.grid import GridSpec, LETHAL_OBSTACLE
-from cottonsim_navigation.navigation.move_base import (MoveBase, MoveBaseConfig, MoveBaseState, Outcome,
-                                                       RecoveryTrigger, VisionBiasConfig, blend_vision,
-                                                       inside_crop_row)
-from cottonsim_navigation.navigation.recovery import RecoveryBehaviour
-from cottonsim_navigation.planning.base import GlobalPlanner, LocalPlanner, LocalPlannerStatus, Plan
-from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, InflationLayer, ObstacleLayer,
-                                                   StaticLayer, make_global_costmap, make_local_costmap)
+from cottonsim_navigation.core.grid import GridSpec
+from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
+from cottonsim_navigation.move_base.state_machine import MoveBase, MoveBaseState, Outcome
+from cottonsim_navigation.move_base.vision_bias import blend_vision, inside_crop_row
+from cottonsim_navigation.planning.base import LocalPlannerStatus
+from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap
 
-DT = 0.2   # 1 / controller_frequency 5 Hz
-
-
-# ----------------------------------------------------------------- fakes
-class FakeGlobal(GlobalPlanner):
-    """Straight two-pose plans, or failure while ``fail`` is set; records the goals asked for."""
-
-    def __init__(self, fail=False):
-        self.fail = fail
-        self.goals = []
-
-    def make_plan(self, costmap, start, goal, tolerance_m=None):
-        self.goals.append(goal)
-        if self.fail:
-            return Plan.empty("fake: no path")
-        return Plan(np.array([[start.x_m, start.y_m, 0.0], [goal.x_m, goal.y_m, goal.yaw_rad]]), "", 1.0)
-
-
-class FakeLocal(LocalPlanner):
-    """Returns the scripted (v, w, status); records the plans it was given."""
-
-    def __init__(self, v=0.3, w=0.0, status=LocalPlannerStatus.OK):
-        self.v, self.w, self.status = v, w, status
-        self.plans = []
-        self.calls = []          # "set_plan" / "update_plan_frame", in order
-
-    def set_plan(self, path):
-        self.plans.append(np.asarray(path, dtype=float))
-        self.calls.append("set_plan")
-
-    def update_plan_frame(self, path):
-        self.plans.append(np.asarray(path, dtype=float))
-        self.calls.append("update_plan_frame")
-
-    def compute_velocity(self, pose, velocity, costmap):
-        return self.v, self.w, self.status
-
-    def is_goal_reached(self, pose, velocity):
-        return self.status == LocalPlannerStatus.GOAL_REACHED
-
-
-class CountingRecovery(RecoveryBehaviour):
-    """Finishes after ``cycles`` steps; logs its name into a shared list when started."""
-
-    def __init__(self, name, log, cycles=1):
-        self.name, self.log, self.cycles = name, log, cycles
-
-    def start(self, local_pose, costmaps):
-        self.log.append(self.name)
-        self.left = self.cycles
-
-    def step(self, local_pose, velocity, local_costmap, dt_s):
-        self.left -= 1
-        return 0.0, 0.5, self.left <= 0
-
-
-def empty_costmaps(obstacle_layer_in_global=False):
-    spec = GridSpec(0.05, 200, 200, -5.0, -5.0)
-    occ = np.zeros(spec.shape, np.int8)
-    if obstacle_layer_in_global:
-        glob = Costmap2D(CostmapConfig(track_unknown_space=True),
-                         [StaticLayer(), ObstacleLayer(), InflationLayer()])
-        glob.resize(spec)
-        glob.static_layer.set_map(occ, spec)
-        glob.update_map(Pose2D(0, 0, 0))
-    else:
-        glob = make_global_costmap(occ, spec)
-    local = make_local_costmap()
-    local.update_map(Pose2D(0, 0, 0))
-    return glob, local
-
-
-def run(mb, steps, t0=0.0, pose=Pose2D(0, 0, 0), move=None):
-    """Step the machine; returns the results and the time after the last step."""
-    out = []
-    t = t0
-    for _ in range(steps):
-        if move is not None:
-            pose = move(pose, t)
-        r = mb.step(t, pose, pose, (0.0, 0.0))
-        out.append(r)
-        t += DT
-        if r.outcome in (Outcome.SUCCEEDED, Outcome.ABORTED):
-            break
-    return out, t
+from move_base_fakes import DT, CountingRecovery, FakeGlobal, FakeLocal, empty_costmaps, run
 
 
 # ----------------------------------------------------------------- state machine
@@ -168,7 +82,7 @@ def test_goal_inside_static_obstacle_aborts_at_once():
     mb.set_goal(Pose2D(2.5, 0.5, 0.0), 0.0)
     r = mb.step(0.0, Pose2D(0, 0, 0), Pose2D(0, 0, 0))
     assert r.outcome == Outcome.ABORTED
-    assert "is in an obstacle (cost 254)" in r.reason and "default_tolerance 0.1 m" in r.reason
+    assert "is in or next to an obstacle (cost 254" in r.reason and "default_tolerance 0.1 m" in r.reason
     # make_plan reports the same reason and an empty path; a reachable goal gives a path
     p = mb.make_plan(Pose2D(0, 0, 0), Pose2D(2.5, 0.5, 0.0))
     assert not p.ok and "cost 254" in p.reason
@@ -178,12 +92,13 @@ def test_goal_inside_static_obstacle_aborts_at_once():
     assert glob.cost_at_world(p.poses[:, 0], p.poses[:, 1]).max() < 253
 
 
-def test_goal_in_obstacle_with_clearable_global_costmap_goes_through_recoveries():
+def test_goal_in_obstacle_goes_through_recoveries_without_abort_on_blocked_goal():
     glob, local = empty_costmaps(obstacle_layer_in_global=True)
     glob.obstacle_layer.add_observation(np.array([[2.0, 0.0, 0.5]]), (0.0, 0.0, 0.5))
     glob.update_map(Pose2D(0, 0, 0))
     log = []
-    mb = MoveBase(MoveBaseConfig(planner_patience=0.5), glob, local, recoveries=[CountingRecovery("a", log)])
+    mb = MoveBase(MoveBaseConfig(planner_patience=0.5, abort_on_blocked_goal=False), glob, local,
+                  recoveries=[CountingRecovery("a", log)])
     mb.set_goal(Pose2D(2.0, 0.0, 0.0), 0.0)
     r = mb.step(0.0, Pose2D(0, 0, 0), Pose2D(0, 0, 0))
     assert r.outcome == Outcome.ACTIVE                     # an obstacle-layer cell may be cleared
@@ -327,8 +242,8 @@ def test_default_recovery_list_follows_move_base():
                                                "rotate_recovery"]
     mb = MoveBase(MoveBaseConfig(clearing_rotation_allowed=False), glob, local, FakeGlobal(), FakeLocal())
     assert [r.name for r in mb.recoveries] == ["conservative_reset", "aggressive_reset"]
-    # aggressive reset keeps 4 x the circumscribed radius of the padded 0.81 x 0.41 m footprint
-    r_c = math.hypot(0.405, 0.205)
+    # aggressive reset keeps 4 x the circumscribed radius of the Husky's body padded by 0.03 m
+    r_c = math.hypot(0.495 + 0.03, 0.335 + 0.03)
     assert mb.recoveries[1].config.reset_distance_m == pytest.approx(4 * r_c)
     mb = MoveBase(MoveBaseConfig(recovery_behavior_enabled=False), glob, local, FakeGlobal(), FakeLocal())
     assert mb.recoveries == []

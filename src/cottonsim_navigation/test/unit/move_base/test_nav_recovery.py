@@ -6,9 +6,8 @@ import pytest
 
 from cottonsim_navigation.core.geometry import Pose2D
 from cottonsim_navigation.core.grid import FREE_SPACE, LETHAL_OBSTACLE
-from cottonsim_navigation.navigation.recovery import (ClearCostmapConfig, ClearCostmapRecovery, RotateRecovery,
-                                                      RotateRecoveryConfig, clear_obstacles_outside,
-                                                      make_recovery)
+from cottonsim_navigation.move_base.recovery import (ClearCostmapConfig, ClearCostmapRecovery, RotateRecovery,
+                                                     RotateRecoveryConfig, clear_obstacles_outside, make_recovery)
 from cottonsim_navigation.planning.costmap import make_local_costmap
 
 
@@ -21,12 +20,12 @@ def local_with_points(points, pose=Pose2D(0, 0, 0)):
 
 
 def test_clear_obstacles_outside_keeps_the_square_around_the_robot():
-    cm = local_with_points([[0.5, 0.0, 0.3], [2.0, 0.0, 0.3], [0.0, -1.9, 0.3]])
-    assert cm.cost_at_world(np.array([0.5, 2.0, 0.0]), np.array([0.0, 0.0, -1.9])).tolist() == [LETHAL_OBSTACLE] * 3
+    cm = local_with_points([[0.8, 0.0, 0.3], [2.0, 0.0, 0.3], [0.0, -1.9, 0.3]])
+    assert cm.cost_at_world(np.array([0.8, 2.0, 0.0]), np.array([0.0, 0.0, -1.9])).tolist() == [LETHAL_OBSTACLE] * 3
     n = clear_obstacles_outside(cm, 0.0, 0.0, 3.0)          # keeps |dx|, |dy| <= 1.5
     assert n == 2
     cm.update_map(Pose2D(0, 0, 0))
-    assert cm.cost_at_world(np.array([0.5, 2.0, 0.0]), np.array([0.0, 0.0, -1.9])).tolist() == [
+    assert cm.cost_at_world(np.array([0.8, 2.0, 0.0]), np.array([0.0, 0.0, -1.9])).tolist() == [
         LETHAL_OBSTACLE, FREE_SPACE, FREE_SPACE]
 
 
@@ -69,8 +68,8 @@ def test_rotate_recovery_turns_once_and_stops():
 
 
 def test_rotate_recovery_stops_before_hitting_an_obstacle():
-    # a point 0.35 m to the left of the robot: the 0.8 x 0.4 footprint's corner sweeps through it
-    cm = local_with_points([[0.0, 0.35, 0.3]])
+    # a point 0.5 m to the left of the robot: the padded 1.05 x 0.73 m footprint's corner sweeps through it
+    cm = local_with_points([[0.0, 0.5, 0.3]])
     rec = RotateRecovery()
     ws, done = spin(rec, cm, Pose2D(0.0, 0.0, 0.0))
     assert done and rec.blocked
