@@ -109,7 +109,6 @@ def measure(a, master_uri: str, log_path: str) -> int:
     os.environ["ROS_MASTER_URI"] = master_uri
     import rosgraph
     import rospy
-    import rostopic
     from rosgraph_msgs.msg import Clock
 
     wall_end = time.monotonic() + a.timeout_s
@@ -134,7 +133,7 @@ def measure(a, master_uri: str, log_path: str) -> int:
 
     rospy.Subscriber("/clock", Clock, on_clock, queue_size=1)
     for topic in COUNTED_TOPICS:
-        rospy.Subscriber(topic, rostopic.AnyMsg, counter(topic), queue_size=50)
+        rospy.Subscriber(topic, rospy.AnyMsg, counter(topic), queue_size=50)
 
     def wait_sim(t_s):
         while clock["t"] < t_s:
