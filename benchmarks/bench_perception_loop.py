@@ -17,7 +17,7 @@ It measures the perception nodes of whatever workspace is sourced: to compare
 two trees, source each one's scripts/env.sh and run this script from either.
 
   python benchmarks/bench_perception_loop.py [--warmup-s 20] [--window-s 60] [--mask-source network]
-         [--arg NAME:=VALUE ...]
+         [--arg NAME:=VALUE ...] [--launch-file FILE]
 
 Exit code 0, or 2 with one line if the bringup did not reach the window in --timeout-s of wall time.
 """
@@ -72,6 +72,8 @@ def main() -> int:
     ap.add_argument("--real-time-factor", type=float, default=0.0, help="0 = as fast as possible (default)")
     ap.add_argument("--mask-source", default="network", help="network (default) | ground_truth")
     ap.add_argument("--arg", action="append", default=[], help="more perception_demo.launch args, NAME:=VALUE")
+    ap.add_argument("--launch-file", default=None,
+                    help="a launch file to run instead of perception_demo.launch (e.g. other node settings)")
     ap.add_argument("--timeout-s", type=float, default=900.0, help="wall-time limit (default 900)")
     a = ap.parse_args()
     if a.warmup_s < 0 or a.window_s <= 0:
@@ -80,7 +82,8 @@ def main() -> int:
     master_uri = f"http://localhost:{port}"
     env = dict(os.environ, ROS_MASTER_URI=master_uri)
     results = tempfile.mkdtemp(prefix="bench_perception_loop_")
-    cmd = ["roslaunch", "cottonsim_perception", "perception_demo.launch",
+    launch_file = [a.launch_file] if a.launch_file else ["cottonsim_perception", "perception_demo.launch"]
+    cmd = ["roslaunch", *launch_file,
            f"real_time_factor:={a.real_time_factor}", f"mask_source:={a.mask_source}",
            f"results_dir:={results}", *a.arg]
     log_path = os.path.join(results, "launch.log")

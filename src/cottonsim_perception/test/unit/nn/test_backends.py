@@ -10,7 +10,7 @@ import torch
 
 from cottonsim_perception.inference import Predictor
 from cottonsim_perception.nn.backends import OUTPUT_TOLERANCE, check_backend_name
-from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
+from cottonsim_perception.nn.models import build_model, save_checkpoint
 from cottonsim_perception.nn.onnx_export import export_onnx, onnx_path_for
 
 SHIPPED = pathlib.Path(__file__).resolve().parents[3] / "weights"
@@ -30,25 +30,9 @@ def _frames(count, height=480, width=640, seed=0):
 
 
 @pytest.fixture(scope="module", params=["seg", "seg_stride1", "det"])
-def exported(request, tmp_path_factory):
-    """A small random network of each kind (BatchNorms non-trivial), its checkpoint and ONNX export."""
-    torch.manual_seed(0)
-    small = dict(width_multiple=0.0625, input_width=160, input_height=128)
-    if request.param == "det":
-        cfg = ModelConfig.boll_detector(**small)
-    else:
-        cfg = ModelConfig.scene_segmenter(proto_stride=1 if request.param == "seg_stride1" else 4, **small)
-    model = build_model(cfg)
-    g = torch.Generator().manual_seed(1)
-    for m in model.modules():
-        if isinstance(m, torch.nn.BatchNorm2d):
-            m.running_mean.copy_(torch.randn(m.num_features, generator=g) * 0.2)
-            m.running_var.copy_(torch.rand(m.num_features, generator=g) + 0.5)
-    head = model.head.detect if hasattr(model.head, "detect") else model.head
-    for cls in head.cls:            # class probabilities spread over 0..1 (prior ~0.01): detections to compare
-        torch.nn.init.zeros_(cls[-1].bias)
-    path = str(tmp_path_factory.mktemp("w") / f"{request.param}.pt")
-    save_checkpoint(path, model.eval())
+def exported(request, tmp_path_factory, save_small_random_network):
+    """A small random network of each kind, its checkpoint and its ONNX export."""
+    path = save_small_random_network(str(tmp_path_factory.mktemp("w") / f"{request.param}.pt"), request.param)
     export_onnx(path)
     return path
 
