@@ -33,6 +33,13 @@ ms per frame over the rounds: on a shared machine the fairest A/B figure.
 With --seg-weights-b, --compare runs the frozen predictors of --seg-weights
 and of those weights in alternation instead (A/B of two segmenter
 architectures, e.g. proto_stride 2 vs 1, on the same frames and load).
+
+--compare-backends runs the torch backend (frozen graph) and the onnxruntime
+backend (the .onnx export beside the weights, what the nodes run) in
+alternation the same way; for the detector also onnxruntime on both side
+cameras' frames as one batch of 2 (the boll_detection node), per frame:
+
+  python benchmarks/bench_perception.py --compare-backends [--rounds 10] [--threads 1]
 """
 import argparse
 import glob
@@ -103,6 +110,26 @@ def compare_cpu(variants, frames, rounds: int, per_round: int = 5):
     return best
 
 
+def backend_variants(task: str, path: str, threads: int):
+    """name -> fn(frame) doing a node's whole work per frame on each backend (det: also a batch of 2, per frame)."""
+    preds = {b: Predictor(path, threads=threads, backend=b) for b in ("torch", "onnxruntime")}
+    if task == "seg":
+        return {b: (lambda f, p=p: label_image_from_detections(p.predict(f), f.shape[:2])) for b, p in preds.items()}
+    variants = {b: p.predict for b, p in preds.items()}
+    batch = preds["onnxruntime"]
+    # one call handles two frames; it runs every other call, so its CPU per call is per frame
+    pending = []
+
+    def both_cameras(frame):
+        pending.append(frame)
+        if len(pending) == 2:
+            batch.predict_batch(pending)
+            pending.clear()
+
+    variants["onnxruntime, batch of 2"] = both_cameras
+    return variants
+
+
 def load_frames(folder: str, count: int = 8):
     """Up to ``count`` RGB frames of a folder resized to 640x480, or one noise frame if none."""
     paths = sorted(glob.glob(os.path.join(folder, "*.jpg")) + glob.glob(os.path.join(folder, "*.png")))[:count]
@@ -123,6 +150,8 @@ def main() -> int:
     ap.add_argument("--random-weights", action="store_true", help="untrained networks of the presets")
     ap.add_argument("--eager", action="store_true", help="fused eager model instead of the frozen graph")
     ap.add_argument("--compare", action="store_true", help="interleaved eager vs frozen CPU time per frame")
+    ap.add_argument("--compare-backends", action="store_true",
+                    help="interleaved torch vs onnxruntime CPU time per frame (and a batch of 2 for det)")
     ap.add_argument("--rounds", type=int, default=10, help="with --compare: rounds of 5 frames (default 10)")
     ap.add_argument("--threads", default="1,2", help="torch thread counts to time, comma-separated (default 1,2)")
     ap.add_argument("--seg-weights", default=os.path.join(WEIGHTS, "scene_segmenter.pt"))
@@ -168,6 +197,14 @@ def main() -> int:
                     print(f"{task}: weights {path} not found (use --random-weights)", file=sys.stderr)
                     return 2
             frames, source = load_frames(a.seg_images if task == "seg" else a.det_images)
+            if a.compare_backends:
+                for threads in thread_counts:
+                    # rounds of 6 frames: the batch variant runs 3 whole batches per round
+                    best = compare_cpu(backend_variants(task, path, threads), frames, a.rounds, per_round=6)
+                    print(f"{task} ({os.path.basename(path)}), threads {threads}: lowest CPU ms per frame over "
+                          f"{a.rounds} interleaved rounds ({source}): "
+                          + ", ".join(f"{k} {v:.1f}" for k, v in best.items()))
+                continue
             if a.compare:
                 for threads in thread_counts:
                     if task == "seg" and a.seg_weights_b:

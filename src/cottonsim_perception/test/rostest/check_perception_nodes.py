@@ -14,7 +14,7 @@ import rosnode
 import rospy
 import rostest
 import tf2_ros
-from cottonsim_msgs.msg import BollDetections
+from cottonsim_msgs.msg import BollDetections, CottonEyeHealth
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image
 from std_msgs.msg import Bool, Float32, Float64MultiArray, Int16, String
@@ -89,6 +89,8 @@ class PerceptionNodesTest(unittest.TestCase):
         cls.right = Collector("/boll_detection_right/detections", BollDetections)
         cls.in_reach = Collector("/cotton_eye/bolls_in_reach", Bool)
         cls.truth = Collector("/ground_truth/odom", Odometry)
+        cls.bad_detections = Collector("/boll_detection_bad/detections", BollDetections)
+        cls.health = Collector("/cotton_eye/health", CottonEyeHealth)
         cls.probe_pub = rospy.Publisher("/probe/labels", Image, queue_size=5)
         cls.tf_buffer = tf2_ros.Buffer()
         cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
@@ -150,6 +152,45 @@ class PerceptionNodesTest(unittest.TestCase):
         self.labels.wait(3)                          # the simulator is producing frames
         self.assertEqual(self.nw_labels.msgs, [], "published labels without weights")
         self.assertTrue(rosnode.rosnode_ping("/segmentation_nw", max_count=1), "node died")
+
+    def _health_of(self, node, count=2, timeout_s=60.0):
+        """The newest health reports of one node (at least ``count`` if they come within timeout_s)."""
+        wall_end = time.monotonic() + timeout_s
+        while True:
+            mine = [m for m in self.health.wait(1, timeout_s=1.0) if m.node == node]
+            if len(mine) >= count or time.monotonic() > wall_end or rospy.is_shutdown():
+                return mine
+            time.sleep(0.2)
+
+    def test_a_weights_file_that_does_not_load_leaves_the_node_up_reporting_it(self):
+        reports = self._health_of("boll_detection", count=1)
+        bad = [m for m in reports if [c.camera for c in m.cameras] == ["realsense_secondary"]]
+        self.assertTrue(bad, f"no health report of boll_detection_bad: {[m.backend for m in reports]}")
+        self.assertEqual(bad[-1].backend, "none")
+        self.assertIn("cannot load weights", bad[-1].error)
+        self.assertIn("README.md", bad[-1].error)
+        self.assertTrue(rosnode.rosnode_ping("/boll_detection_bad", max_count=1), "node died")
+        self.assertEqual(self.bad_detections.msgs, [], "published detections without a network")
+
+    def test_health_counts_frames_and_names_the_source(self):
+        seg = self._health_of("segmentation", count=2)
+        ground_truth = [m for m in seg if m.backend == "ground_truth"]
+        self.assertGreaterEqual(len(ground_truth), 2, f"segmentation reports: {[m.backend for m in seg]}")
+        first, last = ground_truth[0].cameras[0], ground_truth[-1].cameras[0]
+        self.assertEqual(last.camera, "realsense_p")
+        self.assertGreater(last.frames_processed, first.frames_processed)
+        self.assertLessEqual(last.frames_processed, last.frames_received)
+        # (at real-time factor 0 the sim clock may outrun the renders: stale then is true, and must say so)
+        self.assertEqual(last.stale, last.last_frame_age_s > 1.0, f"age {last.last_frame_age_s:.2f} s")
+        self.assertEqual(last.frames_black, 0)
+        no_weights = [m for m in seg if m.backend == "none"]
+        self.assertTrue(no_weights and "does not exist" in no_weights[-1].error, "segmentation_nw's report")
+        bolls = [m for m in self._health_of("boll_detection", count=4) if len(m.cameras) == 2]
+        self.assertTrue(bolls, "no report of the two-camera boll_detection node")
+        self.assertEqual([c.camera for c in bolls[-1].cameras], ["realsense_secondary", "realsense_tertiary"])
+        self.assertTrue(all(c.frames_processed > 0 for c in bolls[-1].cameras))
+        rows = self._health_of("row_centring", count=1)
+        self.assertTrue(any(c.frames_processed > 0 for m in rows for c in m.cameras), "row_centring's report")
 
     def test_boll_detections_in_base_link_on_the_right_side(self):
         truth = self.truth.wait(1)[-1].pose.pose

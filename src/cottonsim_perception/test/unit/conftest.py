@@ -36,6 +36,43 @@ def _save_untrained(path, preset_name):
     return path
 
 
+def _save_small_random_network(path, kind):
+    """A small untrained network (width 1/16, 160x128 input) with non-trivial BatchNorm statistics and class
+    probabilities spread over 0..1 (so that folding and thresholds are exercised), saved at ``path``.
+    kind: 'seg' (prototypes at stride 4), 'seg_stride1' (with its detail path switched on) or 'det'."""
+    from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
+
+    torch.manual_seed(0)
+    small = dict(width_multiple=0.0625, input_width=160, input_height=128)
+    if kind == "det":
+        cfg = ModelConfig.boll_detector(**small)
+    else:
+        cfg = ModelConfig.scene_segmenter(proto_stride=1 if kind == "seg_stride1" else 4, **small)
+    model = build_model(cfg)
+    g = torch.Generator().manual_seed(1)
+    for m in model.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            n = m.num_features
+            m.running_mean.copy_(torch.randn(n, generator=g) * 0.2)
+            m.running_var.copy_(torch.rand(n, generator=g) + 0.5)
+            m.weight.data.copy_(torch.rand(n, generator=g) + 0.5)
+            m.bias.data.copy_(torch.randn(n, generator=g) * 0.1)
+    head = model.head.detect if hasattr(model.head, "detect") else model.head
+    for cls in head.cls:            # class probabilities spread over 0..1 (prior ~0.01)
+        torch.nn.init.zeros_(cls[-1].bias)
+    if cfg.proto_stride == 1:        # the detail path starts at zero: make it count
+        torch.nn.init.normal_(model.head.proto.detail_out.weight, std=0.5)
+        torch.nn.init.normal_(model.head.proto.detail_out.bias, std=0.5)
+    save_checkpoint(path, model.eval())
+    return path
+
+
+@pytest.fixture(scope="session")
+def save_small_random_network():
+    """save(path, kind) -> path: see _save_small_random_network."""
+    return _save_small_random_network
+
+
 @pytest.fixture
 def tiny_seg_weights(tmp_path):
     """An untrained scene segmenter (width 1/16, 128x96 input) saved as a checkpoint."""

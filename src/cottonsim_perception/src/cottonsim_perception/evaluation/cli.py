@@ -4,7 +4,7 @@
 
     evaluate --task seg|det --data DIR --weights W --json OUT
              [--split valid,test] [--conf 0.001] [--iou 0.7] [--mask-threshold T] [--no-ignore]
-             [--flip-tta] [--group-by COLUMN]
+             [--flip-tta] [--backend torch|onnxruntime] [--group-by COLUMN]
 
 DIR is a YOLO-format dataset: a data.yaml naming the splits (as Ultralytics
 reads it), a Roboflow export or Ultralytics' split folders (see
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import os
 import sys
@@ -35,10 +36,10 @@ from cottonsim_perception.evaluation.splits import evaluate_predictions, evaluat
 EXIT_USAGE = 2
 
 
-def _default_predictor_factory(weights: str, conf: float, iou: float):
+def _default_predictor_factory(weights: str, conf: float, iou: float, backend: str = "torch"):
     from cottonsim_perception.inference import Predictor
 
-    return Predictor(weights, conf_threshold=conf, iou_threshold=iou)
+    return Predictor(weights, conf_threshold=conf, iou_threshold=iou, backend=backend)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--flip-tta", action="store_true",
                    help="det only: also run the network on each image mirrored left-right and merge the "
                         "boxes in one NMS (test-time augmentation, Predictor's flip_tta)")
+    p.add_argument("--backend", choices=("torch", "onnxruntime"), default="torch",
+                   help="inference backend (default torch; onnxruntime runs the .onnx export beside the weights, "
+                        "as the nodes do)")
     p.add_argument("--group-by", metavar="COLUMN", default=None,
                    help="also evaluate each value of this column of DIR/manifest.csv (generate_dataset's: "
                         "mode, camera, growth_stage, farm_seed, ...) separately")
@@ -92,7 +96,7 @@ def main(argv: Optional[Sequence[str]] = None,
         return _fail(f"dataset folder {args.data!r} does not exist")
     if not os.path.isfile(args.weights):
         return _fail(f"weights file {args.weights!r} does not exist")
-    factory = predictor_factory or _default_predictor_factory
+    factory = predictor_factory or functools.partial(_default_predictor_factory, backend=args.backend)
     try:
         predictor = factory(args.weights, args.conf, args.iou)
     except Exception as exc:  # any load failure becomes one clear line
@@ -119,6 +123,7 @@ def main(argv: Optional[Sequence[str]] = None,
                                   "mask_threshold": getattr(post_config, "mask_threshold", None)
                                   if args.task == "seg" else None,
                                   "ignore_boxes": not args.no_ignore, "flip_tta": args.flip_tta,
+                                  "backend": args.backend,
                                   "splits": {}}
         if groups:
             out["groups"] = {"column": args.group_by, "splits": {}}

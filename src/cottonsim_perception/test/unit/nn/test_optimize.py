@@ -6,42 +6,14 @@ from scipy.optimize import linear_sum_assignment
 
 from cottonsim_perception.inference import Predictor
 from cottonsim_perception.nn.letterbox import LetterboxTransform, letterbox
-from cottonsim_perception.nn.models import ModelConfig, build_model, save_checkpoint
+from cottonsim_perception.nn.models import ModelConfig, build_model
 from cottonsim_perception.nn.optimize import freeze_for_inference
 from cottonsim_perception.nn.postprocess import PostprocessConfig
 
 
-def _randomized_bn(model):
-    """Non-trivial BatchNorm statistics, so that folding them is really exercised."""
-    g = torch.Generator().manual_seed(1)
-    for m in model.modules():
-        if isinstance(m, torch.nn.BatchNorm2d):
-            n = m.num_features
-            m.running_mean.copy_(torch.randn(n, generator=g) * 0.2)
-            m.running_var.copy_(torch.rand(n, generator=g) + 0.5)
-            m.weight.data.copy_(torch.rand(n, generator=g) + 0.5)
-            m.bias.data.copy_(torch.randn(n, generator=g) * 0.1)
-    head = model.head.detect if hasattr(model.head, "detect") else model.head
-    for cls in head.cls:            # class probabilities spread over 0..1 (prior ~0.01)
-        torch.nn.init.zeros_(cls[-1].bias)
-    return model.eval()
-
-
 @pytest.fixture(scope="module", params=["seg", "seg_stride1", "det"])
-def weights(request, tmp_path_factory):
-    torch.manual_seed(0)
-    small = dict(width_multiple=0.0625, input_width=160, input_height=128)
-    if request.param == "det":
-        cfg = ModelConfig.boll_detector(**small)
-    else:
-        cfg = ModelConfig.scene_segmenter(proto_stride=1 if request.param == "seg_stride1" else 4, **small)
-    model = _randomized_bn(build_model(cfg))
-    if cfg.proto_stride == 1:        # the detail path starts at zero: make it count
-        torch.nn.init.normal_(model.head.proto.detail_out.weight, std=0.5)
-        torch.nn.init.normal_(model.head.proto.detail_out.bias, std=0.5)
-    path = str(tmp_path_factory.mktemp("w") / f"{request.param}.pt")
-    save_checkpoint(path, model)
-    return path
+def weights(request, tmp_path_factory, save_small_random_network):
+    return save_small_random_network(str(tmp_path_factory.mktemp("w") / f"{request.param}.pt"), request.param)
 
 
 def test_frozen_network_equals_eager(weights):
