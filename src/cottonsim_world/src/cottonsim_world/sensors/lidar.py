@@ -186,12 +186,15 @@ class Vlp16Model:
         """Run the numba caster from a checked pose into self._range / self._hit."""
         import numba
         b, cfg = self._bvh, self.config
+        hidden = visibility.triangle_hidden
+        if len(hidden) != len(b.tri):        # a snapshot taken before the tree was built
+            hidden = self.scene.triangle_mask(visibility.hidden)
         before = numba.get_num_threads()
         if cfg.num_threads > 0:
             numba.set_num_threads(min(cfg.num_threads, numba.config.NUMBA_NUM_THREADS))
         try:
             cast_rays(np.ascontiguousarray(pose[:3, 3]), np.ascontiguousarray(pose[:3, :3]), self._dirs,
-                      float(cfg.max_range_m), b.tri, b.tri_id, visibility.triangle_hidden, b.root_box, b.anchor, b.wide_record_f,
+                      float(cfg.max_range_m), b.tri, b.tri_id, hidden, b.root_box, b.anchor, b.wide_record_f,
                       b.wide_record,
                       self._range, self._hit)
         finally:

@@ -131,9 +131,9 @@ class BollVisibility:
     """Which bolls the sensors leave out: one immutable snapshot (``SensorScene.set_hidden_bolls``).
 
     revision: the label it was set with; hidden (B,) bool per boll id;
-    triangle_hidden (T,) uint8 per full-detail global triangle id of
-    ``SensorScene.fast_plants`` (1 = a hidden boll's; what the numba LiDAR
-    skips), empty until those structures exist.
+    triangle_hidden (T,) uint8 per triangle of ``SensorScene.fast_bvh`` in
+    the tree's (sorted) order (1 = a hidden boll's; what the numba LiDAR
+    skips, reading it in step with the triangles), empty until the tree exists.
     """
 
     revision: int
@@ -240,19 +240,21 @@ class SensorScene:
         if mask.shape != (self.split.boll_total,) or mask.dtype != bool:
             raise ValueError(f"hidden must be a bool array of shape ({self.split.boll_total},), one per boll, "
                              f"got {mask.dtype} {mask.shape}")
-        tri = self._triangle_mask(mask) if self._fast_plants is not None else np.zeros(0, np.uint8)
-        self._visibility = BollVisibility(int(revision), _read_only(mask.copy()), _read_only(tri))
+        mask = _read_only(mask.copy())
+        self._visibility = BollVisibility(int(revision), mask, self.triangle_mask(mask))
         return self._visibility
 
-    def _triangle_mask(self, hidden: np.ndarray) -> np.ndarray:
-        """(full-detail triangles,) uint8: 1 for the triangles of hidden bolls (global ids of ``fast_plants``)."""
+    def triangle_mask(self, hidden: np.ndarray) -> np.ndarray:
+        """``BollVisibility.triangle_hidden`` of ``hidden`` (empty while the LiDAR's tree is not built)."""
+        if self._fast_bvh is None:
+            return _read_only(np.zeros(0, np.uint8))
         inst = self._fast_plants
-        mask = np.zeros(inst.triangle_count, np.uint8)
+        by_id = np.zeros(inst.triangle_count, np.uint8)       # per full-detail global triangle id
         p = self.split.plant_count
         for j in np.nonzero(hidden)[0]:
             first = int(inst.plant_gbase[p + j])
-            mask[first:first + int(inst.model_fcount[inst.plant_model[p + j]])] = 1
-        return mask
+            by_id[first:first + int(inst.model_fcount[inst.plant_model[p + j]])] = 1
+        return _read_only(np.ascontiguousarray(by_id[self._fast_bvh.tri_id]))
 
     def visible_bolls(self, plant_index: np.ndarray, hidden: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Boll ids on the plants ``plant_index`` (n,) not marked in ``hidden``, and each one's position in
@@ -270,8 +272,6 @@ class SensorScene:
             cfg = self.config
             self._fast_plants = InstancedPlants(self.split.instances, cfg.sun_direction, cfg.ambient_coeff,
                                                 cfg.diffuse_coeff, cfg.light_rgb)
-            v = self._visibility
-            self._visibility = BollVisibility(v.revision, v.hidden, _read_only(self._triangle_mask(v.hidden)))
         return self._fast_plants
 
     @property
@@ -282,6 +282,8 @@ class SensorScene:
             from cottonsim_world.sensors.fast.bvh import TriangleBVH
             triangles, ids = self.fast_plants.world_triangles(one_sided_duplicates=True)
             self._fast_bvh = TriangleBVH(triangles, ids)
+            v = self._visibility
+            self._visibility = BollVisibility(v.revision, v.hidden, self.triangle_mask(v.hidden))
         return self._fast_bvh
 
     def background_layer(self) -> Tuple[np.ndarray, float, float, float, float, np.ndarray]:

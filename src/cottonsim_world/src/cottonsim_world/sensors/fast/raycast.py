@@ -121,13 +121,13 @@ def _box_limit32(t):  # pragma: no cover
 
 
 @njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def cast_rays(origin, rot, dirs, max_range, tri, tri_id, id_hidden, root_box, anchor, record_f, record_i, out_range,
-              out_hit):  # pragma: no cover
+def cast_rays(origin, rot, dirs, max_range, tri, tri_id, tri_hidden, root_box, anchor, record_f, record_i,
+              out_range, out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
 
     tri (G, 9) float32: corner, edge, edge per sorted triangle; tri_id maps
-    the sorted index to the global id; id_hidden (> max id,) uint8: 1 for
-    the global ids that rays pass through (hidden bolls,
+    the sorted index to the global id; tri_hidden (G,) uint8 per sorted
+    triangle: 1 = rays pass through it (a hidden boll's,
     ``SensorScene.visibility.triangle_hidden``); root_box (6,) [m]; anchor (3,) [m]:
     the point the records' boxes are relative to; record_f / record_i:
     float32 and int32 views of ``bvh.TriangleBVH.wide_record`` (the 4-wide
@@ -229,8 +229,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, id_hidden, root_box, an
                     leaf = -1 - node
                     first = leaf >> LEAF_COUNT_BITS
                     for g in range(first, first + (leaf & _LEAF_COUNT_MASK)):
-                        gid = tri_id[g]
-                        if id_hidden[gid] != 0:
+                        if tri_hidden[g] != 0:
                             continue
                         ax, ay, az = tri[g, 0], tri[g, 1], tri[g, 2]
                         e1x, e1y, e1z = tri[g, 3], tri[g, 4], tri[g, 5]
@@ -240,6 +239,7 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, id_hidden, root_box, an
                         qy = sz * e1x - sx * e1z
                         qz = sx * e1y - sy * e1x
                         t_num = e2x * qx + e2y * qy + e2z * qz
+                        gid = tri_id[g]
                         for k in range(m):
                             dx, dy, dz = dxa[k], dya[k], dza[k]
                             px = dy * e2z - dz * e2y
