@@ -46,11 +46,8 @@ returns, by each reading's stamp: scheduled ones come from
 ``sim.faults.clear(sim.time_s)`` ends them all. Without faults the readings
 are untouched.
 
-Bolls: ``sim.bolls`` is the farm's ``farm.bolls.BollField``; the arm side
-changes boll states through it (detach, move_held, drop_in_bin). A camera
-or LiDAR reading that falls due after a change no longer shows the bolls
-that left their plants (each sensor job takes the visibility snapshot of
-the step it falls due in, so pipelined readings stay as serial ones).
+Bolls: the arm side changes boll states through ``sim.bolls`` (``farm.bolls.BollField``); each sensor
+job takes the boll visibility of the step it falls due in, so later readings lack the bolls that left.
 """
 from __future__ import annotations
 
