@@ -24,6 +24,9 @@ def test_ids_follow_the_plants_and_their_models(farm):
         assert (b.boll_id, b.plant_id, b.index_on_plant) == (boll_id, plant_id, k)
         assert np.allclose(b.position_m, centre) and b.diameter_m == pytest.approx(diameter)
         assert b.state == BollState.ON_PLANT and b.holder == ""
+        plant = next(p for p in farm.plants if p.plant_id == plant_id)
+        away = np.array([centre[0] - plant.x_m, centre[1] - plant.y_m, 0.0])
+        assert np.allclose(field.outward[boll_id], away / np.linalg.norm(away))
     assert not field.off_plant_mask().any()
 
 

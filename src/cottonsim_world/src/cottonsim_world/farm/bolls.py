@@ -81,7 +81,13 @@ def _check_point(name: str, point: Sequence[float]) -> np.ndarray:
 
 
 class BollField:
-    """Every boll of a farm with its state (see the module docstring)."""
+    """Every boll of a farm with its state (see the module docstring).
+
+    Fixed per boll (arrays over ids, read-only): ``diameter_m``, ``plant_id``,
+    ``index_on_plant`` and ``outward`` (count, 3), the horizontal unit vector
+    from its plant's stem towards where it hung (the side an end effector
+    approaches it from).
+    """
 
     def __init__(self, farm: Farm, config: BollFieldConfig = BollFieldConfig()) -> None:
         if not isinstance(config, BollFieldConfig):
@@ -89,7 +95,7 @@ class BollField:
         if not hasattr(farm, "plants"):
             raise ValueError("farm must be a farm.model.Farm (it has no 'plants')")
         self.config = config
-        centres, diameters, plant_ids, index_on_plant = [], [], [], []
+        centres, diameters, plant_ids, index_on_plant, stems = [], [], [], [], []
         for plant in farm.plants:
             c = plant.boll_centres_world().reshape(-1, 3)
             r = np.asarray(plant.model.boll_radii, dtype=float).reshape(-1)
@@ -99,12 +105,18 @@ class BollField:
             diameters.append(2.0 * r)
             plant_ids.append(np.full(len(r), plant.plant_id, dtype=np.int64))
             index_on_plant.append(np.arange(len(r), dtype=np.int64))
+            stems.append(np.tile([plant.x_m, plant.y_m], (len(r), 1)))
         self._origin_m = np.concatenate(centres) if centres else np.zeros((0, 3))
         self._origin_m.setflags(write=False)
         self.diameter_m = np.concatenate(diameters) if diameters else np.zeros(0)
         self.plant_id = np.concatenate(plant_ids) if plant_ids else np.zeros(0, np.int64)
         self.index_on_plant = np.concatenate(index_on_plant) if index_on_plant else np.zeros(0, np.int64)
-        for a in (self.diameter_m, self.plant_id, self.index_on_plant):
+        # where each boll faces on its plant: horizontally away from the stem (+x for a boll on the stem)
+        away = self._origin_m[:, :2] - (np.concatenate(stems) if stems else np.zeros((0, 2)))
+        norm = np.linalg.norm(away, axis=1, keepdims=True)
+        self.outward = np.zeros((len(away), 3))
+        self.outward[:, :2] = np.where(norm > 1e-9, away / np.maximum(norm, 1e-300), [1.0, 0.0])
+        for a in (self.diameter_m, self.plant_id, self.index_on_plant, self.outward):
             a.setflags(write=False)
         self._position_m = self._origin_m.copy()
         self._state = np.zeros(len(self._origin_m), dtype=np.uint8)
