@@ -45,6 +45,9 @@ returns, by each reading's stamp: scheduled ones come from
 ``SimulatorConfig.faults``, run-time ones from ``sim.faults.add(FaultSpec(...))``,
 ``sim.faults.clear(sim.time_s)`` ends them all. Without faults the readings
 are untouched.
+
+Bolls: the arm side changes boll states through ``sim.bolls`` (``farm.bolls.BollField``); each sensor
+job takes the boll visibility of the step it falls due in, so later readings lack the bolls that left.
 """
 from __future__ import annotations
 
@@ -58,6 +61,7 @@ from typing import Callable, Deque, Dict, List, Optional, Sequence
 import numpy as np
 
 from cottonsim_world.estimation.odometry_ekf import OdometryEkf
+from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Farm, Pose2D
 from cottonsim_world.faults import FaultInjector
@@ -71,7 +75,7 @@ from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.sensors.camera import CameraModel
 from cottonsim_world.sensors.cloud_filters import cloud_to_laserscans, original_passthrough
 from cottonsim_world.sensors.lidar import Vlp16Model
-from cottonsim_world.sensors.scene import SensorScene
+from cottonsim_world.sensors.scene import BollVisibility, SensorScene
 from cottonsim_world.transforms import matrix_to_quaternion, pose_matrix
 # the simulator's public names, importable from here as before the config and readings had modules of their own
 from cottonsim_world.simulator_config import (ARM_JOINT_NAMES, ARM_PERIOD_S, ARM_PREFIX, BASE_FRAME,  # noqa: F401
@@ -105,6 +109,7 @@ class Simulator:
         self.wheel_odometry = WheelOdometry(WheelOdometryConfig.from_husky(cfg.husky, cfg.drive_limits))
         self.ekf = OdometryEkf(cfg.ekf)
         self.arm = Ur5eArm.from_urdf(urdf, ARM_PREFIX, initial_positions=cfg.arm_initial_positions_rad)
+        self.bolls = BollField(self.farm, cfg.bolls)
 
         self.sensor_scene: Optional[SensorScene] = None
         self.cameras: Dict[str, CameraModel] = {}
@@ -491,17 +496,25 @@ class Simulator:
     # Cameras and LiDAR in two halves: what they need from the main thread, taken when they fall
     # due (the sensor pose from the physics state, switches), and the work on it, which touches
     # only that sensor's model (its scene is read-only), so a worker thread can run it.
+    def _boll_visibility(self) -> BollVisibility:
+        """The sensor scene's boll snapshot, brought up to date with ``bolls`` first."""
+        scene = self.sensor_scene
+        if scene.visibility.revision != self.bolls.revision:
+            scene.set_hidden_bolls(self.bolls.off_plant_mask(), self.bolls.revision)
+        return scene.visibility
+
     def _camera_job(self, name: str, now: float, state: RobotState):
         world_T_optical = self.world_T_base(state) @ self.base_T_sensor[name]
-        return self._camera, (name, now, world_T_optical, self._camera_cloud_wanted[name])
+        return self._camera, (name, now, world_T_optical, self._camera_cloud_wanted[name], self._boll_visibility())
 
     def _lidar_job(self, now: float, state: RobotState):
         world_T_lidar = self.world_T_base(state) @ self.base_T_sensor[LIDAR_FRAME]
-        return self._lidar, (now, world_T_lidar)
+        return self._lidar, (now, world_T_lidar, self._boll_visibility())
 
-    def _camera(self, name: str, now: float, world_T_optical: np.ndarray, cloud_wanted: bool) -> CameraReading:
+    def _camera(self, name: str, now: float, world_T_optical: np.ndarray, cloud_wanted: bool,
+                visibility: BollVisibility) -> CameraReading:
         camera = self.cameras[name]
-        frame = camera.render(world_T_optical)
+        frame = camera.render(world_T_optical, visibility)
         reading = CameraReading(now, name, optical_frame(name), frame, camera.intrinsics())
         if cloud_wanted:
             packed, reading.cloud_rgb = camera.point_cloud_xyzrgb(frame)
@@ -509,8 +522,8 @@ class Simulator:
             reading.cloud_xyz = packed[:, :3]
         return reading
 
-    def _lidar(self, now: float, world_T_lidar: np.ndarray) -> LidarReading:
-        scan = self.lidar.scan(world_T_lidar)
+    def _lidar(self, now: float, world_T_lidar: np.ndarray, visibility: BollVisibility) -> LidarReading:
+        scan = self.lidar.scan(world_T_lidar, visibility)
         kept = original_passthrough(scan.points, self.config.passthrough)
         ranges, ranges_360 = cloud_to_laserscans(scan.points, (self.config.laserscan, self.config.laserscan_360))
         return LidarReading(now, LIDAR_FRAME, scan, kept, ranges, self.config.laserscan,

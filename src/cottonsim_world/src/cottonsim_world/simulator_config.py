@@ -13,6 +13,7 @@ from typing import Tuple
 import numpy as np
 
 from cottonsim_world.estimation.odometry_ekf import OdometryEkfConfig
+from cottonsim_world.farm.bolls import BollFieldConfig
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.faults import FaultScheduleConfig
 from cottonsim_world.geodesy import GpsNoiseConfig
@@ -67,6 +68,7 @@ class SimulatorConfig:
     one sensor period of sim time).
     faults: scheduled sensor faults (``cottonsim_world.faults``; default none); a
     camera_blackout must name a camera of ``cameras`` (or 'all').
+    bolls: rules of the boll field (``farm.bolls.BollFieldConfig``).
     sensor_switch_interval_s: Python's GIL switch interval [s]
     (``sys.setswitchinterval``, Python's default 0.005) while pipelined,
     restored by ``close()``; 0 (default) = leave it. A sensor job coming
@@ -109,6 +111,7 @@ class SimulatorConfig:
     sensor_workers: int = 0
     sensor_switch_interval_s: float = 0.0
     faults: FaultScheduleConfig = FaultScheduleConfig()
+    bolls: BollFieldConfig = BollFieldConfig()
 
     def __post_init__(self):
         if (not isinstance(self.sensor_workers, int) or isinstance(self.sensor_workers, bool)

@@ -7,9 +7,10 @@ import os
 import numpy as np
 import pytest
 
+from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import (OccupancyMapConfig, export_all, frame_to_world, load_map_yaml,
-                                         rasterize_occupancy, world_to_frame, write_map_yaml)
+                                         rasterize_occupancy, world_to_frame, write_bolls_csv, write_map_yaml)
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Pose2D
 from cottonsim_world.geodesy import HectorGeodesy
@@ -131,6 +132,13 @@ def test_tables_and_route_files(farm, exported):
     assert float(rows[0]["x_m"]) == pytest.approx(farm.plants[0].x_m, abs=1e-4)
     bolls = list(csv.DictReader(open(exported["bolls"])))
     assert len(bolls) == sum(len(p.model.boll_centres) for p in farm.plants)
+    truth = BollField(farm)
+    assert [int(r["boll_id"]) for r in bolls] == list(range(truth.count))
+    assert {r["state"] for r in bolls} == {"ON_PLANT"}
+    b7 = truth.get(7)
+    assert (int(bolls[7]["plant_id"]), int(bolls[7]["boll"])) == (b7.plant_id, b7.index_on_plant)
+    assert [float(bolls[7][k]) for k in ("x_m", "y_m", "z_m")] == pytest.approx(b7.position_m, abs=1e-4)
+    assert float(bolls[7]["diameter_m"]) == pytest.approx(b7.diameter_m, abs=1e-4)
     lanes = list(csv.DictReader(open(exported["lanes"])))
     assert [float(r["x_m"]) for r in lanes] == pytest.approx([l.x_m for l in farm.lanes], abs=1e-4)
     world = list(csv.DictReader(open(exported["route_world"])))
@@ -146,6 +154,18 @@ def test_tables_and_route_files(farm, exported):
     data = json.load(open(exported["farm_json"]))
     assert data["config"]["rows"] == 3 and len(data["plants"]) == len(farm.plants)
     assert len(data["route"]) == len(farm.route)
+    assert [b["boll_id"] for b in data["bolls"]] == list(range(truth.count))
+    assert data["bolls"][7]["plant_id"] == b7.plant_id and data["bolls"][7]["state"] == "ON_PLANT"
+
+
+def test_bolls_csv_follows_the_field(farm, tmp_path):
+    field = BollField(farm)
+    field.detach(2, "nozzle", (1.0, 2.0, 3.0))
+    field.drop_in_bin(5)
+    write_bolls_csv(str(tmp_path / "bolls.csv"), farm, field)
+    rows = list(csv.DictReader(open(tmp_path / "bolls.csv")))
+    assert [r["state"] for r in rows[:6]] == ["ON_PLANT", "ON_PLANT", "HELD", "ON_PLANT", "ON_PLANT", "IN_BIN"]
+    assert [float(rows[2][k]) for k in ("x_m", "y_m", "z_m")] == [1.0, 2.0, 3.0]
 
 
 def test_map_config_validation():

@@ -68,7 +68,7 @@ def run_stream(urdf, workers, seconds=0.6, slow_lidar_s=0.0, on_step=None):
     sim = Simulator(config(workers), urdf)
     if slow_lidar_s > 0.0:           # a scan that takes long in wall time: physics must wait for it
         scan = sim.lidar.scan
-        sim.lidar.scan = lambda pose: (time.sleep(slow_lidar_s), scan(pose))[1]
+        sim.lidar.scan = lambda pose, visibility: (time.sleep(slow_lidar_s), scan(pose, visibility))[1]
     try:
         return drive(sim, seconds, on_step), sim.sensor_names
     finally:
@@ -137,7 +137,7 @@ def test_serial_mode_returns_each_reading_in_its_own_step(urdf):
 def test_close_with_pending_jobs_returns(urdf):
     sim = Simulator(config(1), urdf)
     scan = sim.lidar.scan
-    sim.lidar.scan = lambda pose: (time.sleep(0.2), scan(pose))[1]
+    sim.lidar.scan = lambda pose, visibility: (time.sleep(0.2), scan(pose, visibility))[1]
     sim.step_for(0.05)
     assert sim.delivered_time_s < sim.time_s          # the first LiDAR scan is still pending
     sim.close()
@@ -189,7 +189,7 @@ def test_no_workers_without_heavy_sensors(urdf):
 def test_a_failing_job_raises_in_the_stepping_thread(urdf):
     sim = Simulator(config(1), urdf)
 
-    def broken(pose):
+    def broken(pose, visibility):
         raise RuntimeError("scan failed")
 
     sim.lidar.scan = broken

@@ -83,8 +83,9 @@ def rays(rng, n, origin_box, elevation_deg, azimuth_deg=(-180.0, 180.0)):
 def cast(bvh, origin, directions, max_range_m):
     """Ranges [m] and hits of rays from one origin along directions (N, 3), cast in packets."""
     out_r, out_h = np.empty(len(directions)), np.empty(len(directions), np.int32)
+    none_hidden = np.zeros(len(bvh.tri_id), np.uint8)
     cast_rays(np.asarray(origin, float), np.eye(3), np.ascontiguousarray(directions, dtype=float), max_range_m,
-              bvh.tri, bvh.tri_id, bvh.root_box, bvh.anchor, bvh.wide_record_f, bvh.wide_record,
+              bvh.tri, bvh.tri_id, none_hidden, bvh.root_box, bvh.anchor, bvh.wide_record_f, bvh.wide_record,
               out_r, out_h)
     return out_r, out_h
 

@@ -12,11 +12,13 @@ Files written by ``export_all(farm, out_dir)``:
   a height band (default z 0.3-0.5 m, the LiDAR's), world frame;
 * ``map_home.yaml/.pgm``   the same in the Home frame (origin = spawn pose);
 * ``plants.csv``  plant_id,row,index,x_m,y_m,yaw_rad,height_m (world);
-* ``bolls.csv``   plant_id,boll,x_m,y_m,z_m,radius_m (world);
+* ``bolls.csv``   boll_id,plant_id,boll,x_m,y_m,z_m,radius_m,diameter_m,state (world;
+  boll_id and state as ``farm.bolls.BollField``: ON_PLANT, HELD or IN_BIN);
 * ``lanes.csv``   lane,x_m,y_start_m,y_end_m (world);
 * ``route_world.csv`` / ``route_home.csv``  label,x_m,y_m,yaw_rad;
 * ``route_gps.txt``  one "lat lon" line per waypoint (hector convention);
-* ``farm.json``   all of the above plus the farm config.
+* ``farm.json``   all of the above plus the farm config ("bolls": one entry per
+  boll with the columns of bolls.csv).
 
 map_server conventions: PGM P5, 0 = occupied (black), 254 = free,
 205 = unknown; the YAML's origin is the pose [x, y, yaw] of the lower-left
@@ -35,6 +37,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.model import Farm, Pose2D, Primitive
 from cottonsim_world.geodesy import HectorGeodesy
 
@@ -341,13 +344,25 @@ def write_plants_csv(path: str, farm: Farm) -> None:
                         f"{p.yaw_rad:.5f}", f"{p.model.height_m:.4f}"])
 
 
-def write_bolls_csv(path: str, farm: Farm) -> None:
+def boll_rows(farm: Farm, field: Optional[BollField] = None) -> List[Dict]:
+    """One dict per boll (the columns of bolls.csv), from ``field`` (default: the farm's bolls, all on their
+    plants)."""
+    field = field if field is not None else BollField(farm)
+    return [{"boll_id": b.boll_id, "plant_id": b.plant_id, "boll": b.index_on_plant,
+             "x_m": round(b.position_m[0], 5), "y_m": round(b.position_m[1], 5), "z_m": round(b.position_m[2], 5),
+             "radius_m": round(b.diameter_m / 2.0, 5), "diameter_m": round(b.diameter_m, 5), "state": b.state.name}
+            for b in field.all()]
+
+
+def write_bolls_csv(path: str, farm: Farm, field: Optional[BollField] = None) -> None:
+    """bolls.csv (module docstring) of ``field`` (default: the farm's bolls, all on their plants)."""
+    rows = boll_rows(farm, field)
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["plant_id", "boll", "x_m", "y_m", "z_m", "radius_m"])
-        for p in farm.plants:
-            for k, (c, r) in enumerate(zip(p.boll_centres_world(), p.model.boll_radii)):
-                w.writerow([p.plant_id, k, f"{c[0]:.4f}", f"{c[1]:.4f}", f"{c[2]:.4f}", f"{r:.4f}"])
+        w.writerow(["boll_id", "plant_id", "boll", "x_m", "y_m", "z_m", "radius_m", "diameter_m", "state"])
+        for r in rows:
+            w.writerow([r["boll_id"], r["plant_id"], r["boll"], f"{r['x_m']:.4f}", f"{r['y_m']:.4f}",
+                        f"{r['z_m']:.4f}", f"{r['radius_m']:.4f}", f"{r['diameter_m']:.4f}", r["state"]])
 
 
 def write_lanes_csv(path: str, farm: Farm) -> None:
@@ -406,6 +421,7 @@ def farm_to_dict(farm: Farm, geodesy: Optional[HectorGeodesy] = None) -> Dict:
                     "bolls": [[round(float(v), 5) for v in c] + [round(float(rad), 5)]
                               for c, rad in zip(p.boll_centres_world(), p.model.boll_radii)]}
                    for p in farm.plants],
+        "bolls": boll_rows(farm),
     }
 
 

@@ -26,6 +26,8 @@ Publications
   /sim/stats                               cottonsim_msgs/SimStats  achieved real-time factor, cost per sensor
   /sim/faults/active                       cottonsim_msgs/SensorFaults  latched: the sensor faults active now,
                                                                     republished whenever one starts or ends
+  /sim/bolls                               cottonsim_msgs/BollArray latched: every boll's id, plant, position,
+                                                                    state (ros/boll_topics.py)
 Subscriptions
   /cmd_vel                                 geometry_msgs/Twist      Husky velocity command (0.25 s time-out)
   /arm_controller/command                  trajectory_msgs/JointTrajectory  UR5e targets (last point's positions)
@@ -38,6 +40,7 @@ Services
                                            kind's keys, config/sim.yaml 'faults'); success false + message when
                                            refused (unknown kind or key, bad value, camera not simulated)
   /sim/clear_faults                        cottonsim_msgs/ClearFaults  end every fault, scheduled or injected
+  /sim/set_boll_state                      cottonsim_msgs/SetBollState  detach / carry / bin one boll (ros/boll_topics.py)
 TF
   odom -> base_link (from the EKF, ~publish_tf); the robot's own frames come from
   robot_state_publisher (URDF + /joint_states).
@@ -55,6 +58,7 @@ Parameters (private)
                       NavSatFix conventions: status NO_FIX (-1) with NaN position and covariance type
                       UNKNOWN, degraded fixes the fix type's status and their true variance (DIAGONAL_KNOWN)
   ~seed (int, 0): seed of every random process
+  ~bolls_min_period_s (float, 0.1): /sim/bolls pacing while only held bolls move [s] (ros/boll_topics.py)
   ~sim/sensor_workers (int, 0): threads that render the cameras and scan the LiDAR beside the physics
                                (SimulatorConfig.sensor_workers, 0 = serial); the readings and their
                                stamps stay the same, /clock then follows the last complete stamp
@@ -89,6 +93,7 @@ from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.ros import conversions as conv
+from cottonsim_world.ros.boll_topics import BollTopics
 from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
                                        GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
                                        OdometryReading, Simulator)
@@ -151,6 +156,7 @@ class SimBridgeNode:
         self._published_faults: Optional[Tuple] = None
         rospy.Service("/sim/inject_fault", InjectFault, self._on_inject_fault)
         rospy.Service("/sim/clear_faults", ClearFaults, self._on_clear_faults)
+        self.boll_topics = BollTopics(self.sim.bolls)
 
     # ------------------------------------------------------------------ setup
     def _make_publishers(self):
@@ -319,6 +325,7 @@ class SimBridgeNode:
                 self._update_demand()
                 next_demand = now_wall + demand_every_s
             self._apply_inputs()
+            self.boll_topics.update(self.sim.delivered_time_s)
             readings = self.sim.step()
             step += 1
             delivered_s = self.sim.delivered_time_s

@@ -38,7 +38,7 @@ import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.fast.raster import _compose, _draw_plants, _fill_cloud_xyzrgb, tile_texture
-from cottonsim_world.sensors.scene import SensorScene, check_pose
+from cottonsim_world.sensors.scene import BollVisibility, SensorScene, check_pose
 
 _RENDERERS = ("numba", "tiny", "egl")
 
@@ -240,17 +240,21 @@ class CameraModel:
         view = np.linalg.inv(world_T_gl)
         return view.T.ravel().tolist()
 
-    def render(self, world_T_optical: np.ndarray) -> CameraFrame:
-        """Render RGB, metric depth and semantics from a world_T_optical pose."""
+    def render(self, world_T_optical: np.ndarray, visibility: Optional[BollVisibility] = None) -> CameraFrame:
+        """Render RGB, metric depth and semantics from a world_T_optical pose.
+
+        visibility: which bolls to leave out (default: the scene's snapshot now).
+        """
         pose = check_pose("world_T_optical", world_T_optical)
         cfg, scene = self.config, self.scene
+        hidden = (visibility or scene.visibility).hidden
         tan_h = math.tan(cfg.horizontal_fov_rad / 2.0)
         tan_v = math.tan(cfg.vertical_fov_rad / 2.0)
         if self._fast is not None:
             visible, z_near = scene.plants_in_view_depth(pose, tan_h, tan_v, min(cfg.cull_distance_m, cfg.far_m))
-            return self._render_numba(pose, visible, z_near)
+            return self._render_numba(pose, visible, z_near, hidden)
         wanted = scene.plants_in_view(pose, tan_h, tan_v, min(cfg.cull_distance_m, cfg.far_m))
-        added, removed = self._client.sync(wanted)
+        added, removed = self._client.sync(wanted, hidden)
         self.last_render_stats = {"plants": len(wanted), "added": added, "removed": removed}
         sc = scene.config
         light = scene.config.sun_direction * 100.0
@@ -301,13 +305,21 @@ class CameraModel:
         level = np.zeros(len(visible), dtype=np.int64)
         for k in range(1, inst.LEVELS):
             level = np.where(inst.level_error_m[k, model] <= allowed_m, k, level)
-        self.last_render_stats["simplified"] = int(np.count_nonzero(level == inst.LEVELS - 1))
-        self.last_render_stats["middle"] = int(np.count_nonzero((level > 0) & (level < inst.LEVELS - 1)))
+        n_plants = self.last_render_stats["plants"]        # counted over the plants, not their bolls
+        self.last_render_stats["simplified"] = int(np.count_nonzero(level[:n_plants] == inst.LEVELS - 1))
+        self.last_render_stats["middle"] = int(np.count_nonzero((level[:n_plants] > 0)
+                                                                & (level[:n_plants] < inst.LEVELS - 1)))
         return level * inst.model_count + model, inst.level_gbase[level, visible]
 
-    def _render_numba(self, pose: np.ndarray, visible: np.ndarray, z_near: np.ndarray) -> CameraFrame:
+    def _render_numba(self, pose: np.ndarray, visible: np.ndarray, z_near: np.ndarray,
+                      hidden: np.ndarray) -> CameraFrame:
         cfg, fb = self.config, self._fast
-        self.last_render_stats = {"plants": len(visible), "added": 0, "removed": 0, "simplified": 0, "middle": 0}
+        # the visible plants' bolls that are still on them, as instances after the plants (each at its plant's depth)
+        bolls, owner = self.scene.visible_bolls(visible, hidden)
+        self.last_render_stats = {"plants": len(visible), "bolls": len(bolls), "added": 0, "removed": 0,
+                                  "simplified": 0, "middle": 0}
+        visible = np.concatenate([visible, self.scene.split.plant_count + bolls])
+        z_near = np.concatenate([z_near, z_near[owner]])
         inst = fb.plants
         slot, gbase = self._levels_of_detail(visible, z_near)
         rot = pose[:3, :3].T                                  # optical_R_world

@@ -18,19 +18,23 @@ Frame: the sensor frame ``velodyne`` (x forward, y left, z up). Rings are
 numbered from the lowest beam (ring 0 at -15 deg) up, as the velodyne
 driver does. The whole 360 deg sweep is taken at one instant (no motion
 skew; at 0.5 m/s the robot moves 5 cm during a real 0.1 s sweep).
+
+Bolls that have left their plant (``SensorScene.visibility``) return no
+rays: the numba caster passes through their triangles, the pybullet world
+removes their bodies.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Tuple
+from typing import Optional, Tuple
 
 import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.fast.raycast import HIT_GROUND, cast_rays, gather_returns
-from cottonsim_world.sensors.scene import SensorScene, check_pose
+from cottonsim_world.sensors.scene import BollVisibility, SensorScene, check_pose
 
 LIDAR_BACKENDS = ("numba", "pybullet")
 _MAX_RAYS_PER_BATCH = 16000   # pybullet documents 16384 but returns only 16383 results for 16384 rays
@@ -152,7 +156,7 @@ class Vlp16Model:
             self._hit = np.empty(len(self._dirs), np.int32)
             self._noise = np.empty(len(self._dirs))          # range noise of one scan [m]
             # compile or load the kernels now, not at the first scan (no noise drawn: the stream stays as it was)
-            self._cast_into_buffers(np.eye(4))
+            self._cast_into_buffers(np.eye(4), scene.visibility)
             gather_returns(self._range, self._hit, np.zeros(0), 0.0, 1.0, self._dirs, self._ring, self._azimuth,
                            self._plants.g_semantic, self._plants.g_plant, 1, 2, self._reflect)
 
@@ -160,10 +164,10 @@ class Vlp16Model:
     def ray_count(self) -> int:
         return len(self._dirs)
 
-    def _scan_numba(self, pose: np.ndarray) -> LidarScan:
+    def _scan_numba(self, pose: np.ndarray, visibility: BollVisibility) -> LidarScan:
         """``scan`` with the numba caster: the returns packed by one compiled pass (same result)."""
         cfg = self.config
-        self._cast_into_buffers(pose)
+        self._cast_into_buffers(pose, visibility)
         if cfg.noise_std_m > 0.0:
             # Generator.normal(0, std, n) is 0 + std * standard_normal() per draw: the same stream and values
             # (bar the sign of a zero), drawn into a reused buffer without normal()'s per-draw wrapper
@@ -178,24 +182,27 @@ class Vlp16Model:
             int(SemanticClass.SKY), self._reflect)
         return LidarScan(points=pts, ring=ring, intensity=intensity, azimuth_rad=az, semantic=sem, plant_id=pid)
 
-    def _cast_into_buffers(self, pose: np.ndarray) -> None:
+    def _cast_into_buffers(self, pose: np.ndarray, visibility: BollVisibility) -> None:
         """Run the numba caster from a checked pose into self._range / self._hit."""
         import numba
         b, cfg = self._bvh, self.config
+        hidden = visibility.triangle_hidden
+        if len(hidden) != len(b.tri):        # a snapshot taken before the tree was built
+            hidden = self.scene.triangle_mask(visibility.hidden)
         before = numba.get_num_threads()
         if cfg.num_threads > 0:
             numba.set_num_threads(min(cfg.num_threads, numba.config.NUMBA_NUM_THREADS))
         try:
             cast_rays(np.ascontiguousarray(pose[:3, 3]), np.ascontiguousarray(pose[:3, :3]), self._dirs,
-                      float(cfg.max_range_m), b.tri, b.tri_id, b.root_box, b.anchor, b.wide_record_f,
+                      float(cfg.max_range_m), b.tri, b.tri_id, hidden, b.root_box, b.anchor, b.wide_record_f,
                       b.wide_record,
                       self._range, self._hit)
         finally:
             numba.set_num_threads(before)
 
-    def _cast_numba(self, pose: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _cast_numba(self, pose: np.ndarray, visibility: BollVisibility) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Ranges [m] (inf = no hit), semantic and plant id per ray with the numba caster."""
-        self._cast_into_buffers(pose)
+        self._cast_into_buffers(pose, visibility)
         hit = self._hit
         on_plant = hit >= 0
         safe = np.where(on_plant, hit, 0)
@@ -204,9 +211,12 @@ class Vlp16Model:
         pid = np.where(on_plant, self._plants.g_plant[safe] if len(self._plants.g_plant) else -1, -1).astype(np.int32)
         return self._range.copy(), sem, pid
 
-    def _cast_pybullet(self, pose: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _cast_pybullet(self, pose: np.ndarray, visibility: BollVisibility
+                       ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Ranges [m] (inf = no hit), semantic and plant id per ray with rayTestBatch."""
         cfg = self.config
+        world = self.scene.ray_world
+        world.sync(visibility.hidden)
         origin = pose[:3, 3]
         dirs_w = self._dirs @ pose[:3, :3].T
         to = origin + dirs_w * cfg.max_range_m
@@ -214,7 +224,7 @@ class Vlp16Model:
         n = len(to)
         fraction = np.empty(n)
         body = np.empty(n, dtype=np.int64)
-        cid = self.scene.ray_client
+        cid = world.client
         for s in range(0, n, _MAX_RAYS_PER_BATCH):
             e = min(n, s + _MAX_RAYS_PER_BATCH)
             res = pb.rayTestBatch(frm[s:e].tolist(), to[s:e].tolist(), numThreads=cfg.num_threads,
@@ -224,28 +234,31 @@ class Vlp16Model:
             body[s:e] = np.fromiter((r[0] for r in res), dtype=np.int64, count=e - s)
             fraction[s:e] = np.fromiter((r[2] for r in res), dtype=float, count=e - s)
         rng_m = np.where(body >= 0, fraction * cfg.max_range_m, np.inf)
-        b = np.clip(body, 0, len(self.scene.semantic_of_ray_body) - 1)
-        sem = np.where(body >= 0, self.scene.semantic_of_ray_body[b], int(SemanticClass.SKY)).astype(np.uint8)
-        pid = np.where(body >= 0, self.scene.plant_of_ray_body[b], -1).astype(np.int32)
+        b = np.clip(body, 0, len(world.semantic_of_body) - 1)
+        sem = np.where(body >= 0, world.semantic_of_body[b], int(SemanticClass.SKY)).astype(np.uint8)
+        pid = np.where(body >= 0, world.plant_of_body[b], -1).astype(np.int32)
         return rng_m, sem, pid
 
-    def ranges(self, world_T_sensor: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def ranges(self, world_T_sensor: np.ndarray, visibility: Optional[BollVisibility] = None
+               ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Noise-free range per ray [m] (inf = no return), semantic and plant id, in ray order.
 
         Ray i is ring ``i // samples_per_ring``, azimuth sample
         ``i % samples_per_ring``. For comparing backends and for tests.
+        visibility: which bolls to leave out (default: the scene's snapshot now).
         """
         pose = check_pose("world_T_sensor", world_T_sensor)
+        visibility = visibility or self.scene.visibility
         if self.config.backend == "numba":
-            return self._cast_numba(pose)
-        return self._cast_pybullet(pose)
+            return self._cast_numba(pose, visibility)
+        return self._cast_pybullet(pose, visibility)
 
-    def scan(self, world_T_sensor: np.ndarray) -> LidarScan:
-        """One revolution from the given pose of the 'velodyne' frame."""
+    def scan(self, world_T_sensor: np.ndarray, visibility: Optional[BollVisibility] = None) -> LidarScan:
+        """One revolution from the given pose of the 'velodyne' frame (``visibility`` as in ``ranges``)."""
         cfg = self.config
         if cfg.backend == "numba":
-            return self._scan_numba(check_pose("world_T_sensor", world_T_sensor))
-        rng_m, sem_all, pid_all = self.ranges(world_T_sensor)
+            return self._scan_numba(check_pose("world_T_sensor", world_T_sensor), visibility or self.scene.visibility)
+        rng_m, sem_all, pid_all = self.ranges(world_T_sensor, visibility)
         hit = np.isfinite(rng_m)
         n = len(rng_m)
         if cfg.noise_std_m > 0.0:

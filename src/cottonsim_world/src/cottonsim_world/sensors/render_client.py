@@ -3,7 +3,9 @@
 Why: the TinyRenderer's cost grows with every triangle it is given, on
 screen or not, so each camera keeps its own small client and adds or
 removes plant bodies as its view moves (``SensorScene.new_render_client``).
-The ground and sky are not rendered here (see ``sensors.scene``).
+The ground and sky are not rendered here (see ``sensors.scene``). Bolls are
+bodies of their own (``sensors.boll_instances``): those of the plants in
+view, less the hidden ones.
 """
 from __future__ import annotations
 
@@ -26,7 +28,10 @@ class RenderClient:
     empty visual where a plant lacks that material). With the segmentation
     flag OBJECT_AND_LINKINDEX a pixel value is ``body + ((link + 1) << 24)``,
     so ``link_semantic_lut[value >> 24]`` gives the SemanticClass and
-    ``plant_of_body[value & 0xFFFFFF]`` the plant id.
+    ``plant_of_body[value & 0xFFFFFF]`` the plant id. A boll is a body of
+    the same build whose only visual is on the boll material's link.
+    Bodies are keyed by instance index (``SensorScene.split.instances``:
+    plants first, then bolls).
     """
 
     def __init__(self, scene: "SensorScene", renderer: str = "tiny") -> None:
@@ -37,7 +42,7 @@ class RenderClient:
         if renderer == "egl":
             self._try_egl()
         self._visuals: Dict[int, List[int]] = {}        # id(plant model) -> visual id per material
-        self._bodies: Dict[int, int] = {}               # plant index -> body id
+        self._bodies: Dict[int, int] = {}               # instance index -> body id
         self.plant_of_body = np.full(1, -1, dtype=np.int32)
 
     def _try_egl(self) -> None:
@@ -59,10 +64,10 @@ class RenderClient:
     @property
     def loaded_plants(self) -> Set[int]:
         """Indices (into farm.plants) of the plants currently in this client."""
-        return set(self._bodies)
+        return {i for i in self._bodies if i < self.scene.split.plant_count}
 
     def _visual_ids(self, idx: int) -> List[int]:
-        plant = self.scene.farm.plants[idx]
+        plant = self.scene.split.instances[idx]
         key = id(plant.model)            # plants sharing a model variant share its visual shapes
         if key not in self._visuals:
             ids = []
@@ -79,17 +84,22 @@ class RenderClient:
             self._visuals[key] = ids
         return self._visuals[key]
 
-    def sync(self, wanted: Set[int]) -> Tuple[int, int]:
-        """Add the plants in ``wanted`` that are missing, remove the others.
+    def sync(self, wanted_plants: Set[int], hidden_bolls: np.ndarray) -> Tuple[int, int]:
+        """Hold the plants in ``wanted_plants`` and their bolls not marked in ``hidden_bolls`` (B,) bool:
+        add the bodies that are missing, remove the others.
 
-        Returns (added, removed) counts.
+        Returns (added, removed) counts of bodies.
         """
+        split = self.scene.split
+        plants = np.array(sorted(wanted_plants), dtype=np.int64)
+        bolls, _ = self.scene.visible_bolls(plants, hidden_bolls)
+        wanted = set(wanted_plants) | set((split.plant_count + bolls).tolist())
         current = set(self._bodies)
         remove, add = current - wanted, wanted - current
         for idx in remove:
             pb.removeBody(self._bodies.pop(idx), physicsClientId=self.client)
         for idx in sorted(add):
-            plant = self.scene.farm.plants[idx]
+            plant = split.instances[idx]
             vis = self._visual_ids(idx)
             n = len(vis)
             body = pb.createMultiBody(

@@ -12,10 +12,10 @@ each on first use (so that only the backends in use pay for them):
 * the pybullet structures below (the ray-cast world takes 4-6 s to build
   on the default farm).
 
-* a **ray-cast client** (``ray_client``): an infinite ground plane plus, per plant, one body
-  for the plant parts (stem, leaves, ...) and one for its bolls, made of
-  collision shapes (the models' triangle meshes, or their collision
-  primitives). ``body_info`` maps each body id to (SemanticClass, plant_id).
+* a **ray-cast world** (``ray_world``, ``sensors.ray_world``): an infinite
+  ground plane plus, per plant, one body for the plant parts (stem,
+  leaves, ...) and one body per boll, made of collision shapes (the models'
+  triangle meshes, or their collision primitives).
 * **render clients** (``RenderClient``), one per camera, that hold only the
   plants a camera can currently see (frustum and distance culling). The
   TinyRenderer's cost grows with every triangle it is given, whether on
@@ -31,20 +31,26 @@ each on first use (so that only the backends in use pay for them):
   lie above z = 0 and the camera is above ground), so the ground/sky layer
   is painted exactly where pybullet drew nothing.
 
+Bolls: every boll is drawn and ray cast as an instance of its own
+(``sensors.boll_instances``), so that one that leaves its plant can be left
+out. ``set_hidden_bolls`` replaces the immutable ``visibility`` snapshot;
+each camera render and LiDAR scan uses the snapshot current when it starts
+(or the one it is given), so pipelined sensor jobs stay deterministic.
+
 Frames: world z up, ground at z = 0 [m]; plant-local as in ``farm.model``.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Dict, List, Optional, Sequence, Set, Tuple
+from typing import TYPE_CHECKING, List, Optional, Sequence, Set, Tuple
 
 import cv2
 import numpy as np
-import pybullet as pb
 
-from cottonsim_world.farm.model import Farm, Plant, SemanticClass, TriangleMesh
-from cottonsim_world.transforms import quaternion_from_yaw
+from cottonsim_world.farm.model import Farm, Plant, SemanticClass
+from cottonsim_world.sensors.boll_instances import SplitFarm
+from cottonsim_world.sensors.ray_world import PybulletRayWorld, merge_meshes
 
 if TYPE_CHECKING:                       # pragma: no cover
     from cottonsim_world.sensors.render_client import RenderClient
@@ -115,6 +121,26 @@ class SceneConfig:
                          math.sin(self.sun_elevation_rad)])
 
 
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class BollVisibility:
+    """Which bolls the sensors leave out: one immutable snapshot (``SensorScene.set_hidden_bolls``).
+
+    revision: the label it was set with; hidden (B,) bool per boll id;
+    triangle_hidden (T,) uint8 per triangle of ``SensorScene.fast_bvh`` in
+    the tree's (sorted) order (1 = a hidden boll's; what the numba LiDAR
+    skips, reading it in step with the triangles), empty until the tree exists.
+    """
+
+    revision: int
+    hidden: np.ndarray
+    triangle_hidden: np.ndarray
+
+
 def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
     """Validate a 4x4 rigid transform; return it as float64 (raises ValueError)."""
     m = np.asarray(pose, dtype=float)
@@ -126,18 +152,6 @@ def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
     if not np.allclose(r @ r.T, np.eye(3), atol=1e-4) or np.linalg.det(r) < 0.0:
         raise ValueError(f"{name} rotation part is not a proper rotation matrix")
     return m
-
-
-def _merge(meshes: Sequence[TriangleMesh]) -> Tuple[np.ndarray, np.ndarray]:
-    """Concatenate meshes into one (vertices, faces) pair."""
-    verts, faces, offset = [], [], 0
-    for m in meshes:
-        verts.append(np.asarray(m.vertices, dtype=float))
-        faces.append(np.asarray(m.faces, dtype=np.int64) + offset)
-        offset += len(m.vertices)
-    if not verts:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-    return np.concatenate(verts), np.concatenate(faces)
 
 
 def _validate_model(plant: Plant) -> None:
@@ -183,8 +197,10 @@ class SensorScene:
         self._render_clients: List["RenderClient"] = []
         self._build_soil_texture()
         # built on first use: only the backends in use pay for their structures
-        self._ray_client: Optional[int] = None
-        self._body_info: Dict[int, Tuple[SemanticClass, int]] = {}
+        self.split = SplitFarm(farm.plants)
+        self._visibility = BollVisibility(0, _read_only(np.zeros(self.split.boll_total, bool)),
+                                          _read_only(np.zeros(0, np.uint8)))
+        self._ray_world: Optional[PybulletRayWorld] = None
         self._fast_plants = None
         self._fast_bvh = None
         self._closed = False
@@ -195,29 +211,57 @@ class SensorScene:
             raise RuntimeError("SensorScene is closed")
 
     @property
-    def ray_client(self) -> int:
-        """pybullet client with the ground plane and plant collision shapes (built on first use, 4-6 s)."""
+    def ray_world(self) -> PybulletRayWorld:
+        """The pybullet ray-cast world (``sensors.ray_world``; built on first use, 4-6 s)."""
         self._require_open()
-        if self._ray_client is None:
-            self._ray_client = pb.connect(pb.DIRECT)
-            self._build_ray_world()
-        return self._ray_client
+        if self._ray_world is None:
+            self._ray_world = PybulletRayWorld(self.split, self.config.collision_source)
+        return self._ray_world
 
     @property
-    def body_info(self) -> Dict[int, Tuple[SemanticClass, int]]:
-        """Ray-cast body id -> (SemanticClass, plant id) of ``ray_client``."""
-        _ = self.ray_client
-        return self._body_info
+    def ray_client(self) -> int:
+        """pybullet client of ``ray_world``: ground plane, plant and boll collision shapes."""
+        return self.ray_world.client
 
+    # ------------------------------------------------------------ boll visibility
     @property
-    def semantic_of_ray_body(self) -> np.ndarray:
-        _ = self.ray_client
-        return self._semantic_of_ray_body
+    def visibility(self) -> "BollVisibility":
+        """The bolls the sensors leave out now: an immutable snapshot (``set_hidden_bolls`` replaces it)."""
+        return self._visibility
 
-    @property
-    def plant_of_ray_body(self) -> np.ndarray:
-        _ = self.ray_client
-        return self._plant_of_ray_body
+    def set_hidden_bolls(self, hidden: np.ndarray, revision: int = 0) -> "BollVisibility":
+        """Hide the bolls ``hidden`` (B,) bool marks (boll ids as ``farm.bolls.BollField``), show the rest.
+
+        Takes effect for every render and scan that starts afterwards (a sensor
+        job given an older snapshot keeps it). ``revision`` labels the snapshot
+        (the BollField's). Returns the new snapshot.
+        """
+        mask = np.asarray(hidden)
+        if mask.shape != (self.split.boll_total,) or mask.dtype != bool:
+            raise ValueError(f"hidden must be a bool array of shape ({self.split.boll_total},), one per boll, "
+                             f"got {mask.dtype} {mask.shape}")
+        mask = _read_only(mask.copy())
+        self._visibility = BollVisibility(int(revision), mask, self.triangle_mask(mask))
+        return self._visibility
+
+    def triangle_mask(self, hidden: np.ndarray) -> np.ndarray:
+        """``BollVisibility.triangle_hidden`` of ``hidden`` (empty while the LiDAR's tree is not built)."""
+        if self._fast_bvh is None:
+            return _read_only(np.zeros(0, np.uint8))
+        inst = self._fast_plants
+        by_id = np.zeros(inst.triangle_count, np.uint8)       # per full-detail global triangle id
+        p = self.split.plant_count
+        for j in np.nonzero(hidden)[0]:
+            first = int(inst.plant_gbase[p + j])
+            by_id[first:first + int(inst.model_fcount[inst.plant_model[p + j]])] = 1
+        return _read_only(np.ascontiguousarray(by_id[self._fast_bvh.tri_id]))
+
+    def visible_bolls(self, plant_index: np.ndarray, hidden: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Boll ids on the plants ``plant_index`` (n,) not marked in ``hidden``, and each one's position in
+        ``plant_index``."""
+        ids, owner = self.split.bolls_of(plant_index)
+        keep = ~hidden[ids]
+        return ids[keep], owner[keep]
 
     @property
     def fast_plants(self):
@@ -226,7 +270,7 @@ class SensorScene:
         if self._fast_plants is None:
             from cottonsim_world.sensors.fast.instanced_plants import InstancedPlants
             cfg = self.config
-            self._fast_plants = InstancedPlants(self.farm.plants, cfg.sun_direction, cfg.ambient_coeff,
+            self._fast_plants = InstancedPlants(self.split.instances, cfg.sun_direction, cfg.ambient_coeff,
                                                 cfg.diffuse_coeff, cfg.light_rgb)
         return self._fast_plants
 
@@ -238,6 +282,8 @@ class SensorScene:
             from cottonsim_world.sensors.fast.bvh import TriangleBVH
             triangles, ids = self.fast_plants.world_triangles(one_sided_duplicates=True)
             self._fast_bvh = TriangleBVH(triangles, ids)
+            v = self._visibility
+            self._visibility = BollVisibility(v.revision, v.hidden, self.triangle_mask(v.hidden))
         return self._fast_bvh
 
     def background_layer(self) -> Tuple[np.ndarray, float, float, float, float, np.ndarray]:
@@ -256,7 +302,7 @@ class SensorScene:
         """(P, 4): bounding sphere centre x, y, z and radius per plant [m]."""
         out = np.zeros((len(self.farm.plants), 4))
         for i, plant in enumerate(self.farm.plants):
-            v, _ = _merge(list(plant.model.meshes.values()))
+            v, _ = merge_meshes(list(plant.model.meshes.values()))
             if len(v) == 0:
                 out[i] = (plant.x_m, plant.y_m, 0.0, 0.0)
                 continue
@@ -310,63 +356,6 @@ class SensorScene:
         rc = RenderClient(self, renderer)
         self._render_clients.append(rc)
         return rc
-
-    def _build_ray_world(self) -> None:
-        cid = self._ray_client
-        plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=cid)
-        ground = pb.createMultiBody(0.0, plane, -1, [0.0, 0.0, 0.0], physicsClientId=cid)
-        self._body_info[ground] = (SemanticClass.GROUND, -1)
-        for plant in self.farm.plants:
-            pos, orn = [plant.x_m, plant.y_m, 0.0], quaternion_from_yaw(plant.yaw_rad)
-            for sem in (SemanticClass.PLANT, SemanticClass.BOLL):
-                shape = self._collision_shape(plant, sem)
-                if shape < 0:
-                    continue
-                body = pb.createMultiBody(0.0, shape, -1, pos, orn, physicsClientId=cid)
-                self._body_info[body] = (sem, plant.plant_id)
-        n = max(self._body_info) + 1
-        self._semantic_of_ray_body = np.full(n + 1, int(SemanticClass.SKY), dtype=np.uint8)
-        self._plant_of_ray_body = np.full(n + 1, -1, dtype=np.int32)
-        for body, (sem, pid) in self._body_info.items():
-            self._semantic_of_ray_body[body] = int(sem)
-            self._plant_of_ray_body[body] = pid
-
-    def _collision_shape(self, plant: Plant, sem: SemanticClass) -> int:
-        cid = self._ray_client
-        model = plant.model
-        use_meshes = self.config.collision_source == "meshes" or (
-            sem == SemanticClass.PLANT and not model.collision)
-        if sem == SemanticClass.BOLL and not use_meshes:
-            if len(model.boll_radii) == 0:
-                return -1
-            radii = np.asarray(model.boll_radii, float)
-            centres = np.asarray(model.boll_centres, float).reshape(-1, 3)
-            return pb.createCollisionShapeArray(
-                shapeTypes=[pb.GEOM_SPHERE] * len(radii), radii=radii.tolist(),
-                collisionFramePositions=centres.tolist(), physicsClientId=cid)
-        if use_meshes:
-            parts = [m for m in model.meshes.values() if (m.semantic == SemanticClass.BOLL) == (sem == SemanticClass.BOLL)]
-            v, f = _merge(parts)
-            if len(f) == 0:
-                return -1
-            return pb.createCollisionShape(pb.GEOM_MESH, vertices=v.tolist(), indices=f.ravel().tolist(),
-                                           flags=pb.GEOM_FORCE_CONCAVE_TRIMESH, physicsClientId=cid)
-        types, radii, half, lengths, pos, orn = [], [], [], [], [], []
-        for prim in model.collision:
-            s = prim.size
-            if prim.shape == "box":
-                types.append(pb.GEOM_BOX); half.append(list(s[:3])); radii.append(0.0); lengths.append(0.0)
-            elif prim.shape in ("cylinder", "capsule"):
-                types.append(pb.GEOM_CYLINDER if prim.shape == "cylinder" else pb.GEOM_CAPSULE)
-                radii.append(float(s[0])); lengths.append(float(s[1])); half.append([0.0, 0.0, 0.0])
-            elif prim.shape == "sphere":
-                types.append(pb.GEOM_SPHERE); radii.append(float(s[0])); lengths.append(0.0); half.append([0.0, 0.0, 0.0])
-            else:
-                raise ValueError(f"plant {plant.plant_id}: unknown collision primitive shape {prim.shape!r}")
-            pos.append(list(prim.position)); orn.append(list(prim.orientation))
-        return pb.createCollisionShapeArray(shapeTypes=types, radii=radii, halfExtents=half, lengths=lengths,
-                                            collisionFramePositions=pos, collisionFrameOrientations=orn,
-                                            physicsClientId=cid)
 
     # ------------------------------------------------------------ ground & sky
     def _build_soil_texture(self) -> None:
@@ -448,9 +437,9 @@ class SensorScene:
         for rc in self._render_clients:
             rc.close()
         self._render_clients = []
-        if self._ray_client is not None and pb.isConnected(self._ray_client):
-            pb.disconnect(self._ray_client)
-        self._ray_client = None
+        if self._ray_world is not None:
+            self._ray_world.close()
+        self._ray_world = None
         self._fast_plants = None
         self._fast_bvh = None
         self._closed = True

@@ -121,12 +121,14 @@ def _box_limit32(t):  # pragma: no cover
 
 
 @njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, record_f, record_i, out_range,
-              out_hit):  # pragma: no cover
+def cast_rays(origin, rot, dirs, max_range, tri, tri_id, tri_hidden, root_box, anchor, record_f, record_i,
+              out_range, out_hit):  # pragma: no cover
     """Cast rays from ``origin`` along ``rot @ dirs[i]`` (unit) up to max_range [m].
 
     tri (G, 9) float32: corner, edge, edge per sorted triangle; tri_id maps
-    the sorted index to the global id; root_box (6,) [m]; anchor (3,) [m]:
+    the sorted index to the global id; tri_hidden (G,) uint8 per sorted
+    triangle: 1 = rays pass through it (a hidden boll's,
+    ``SensorScene.visibility.triangle_hidden``); root_box (6,) [m]; anchor (3,) [m]:
     the point the records' boxes are relative to; record_f / record_i:
     float32 and int32 views of ``bvh.TriangleBVH.wide_record`` (the 4-wide
     tree, one 128-byte record per node, see ``bvh.pack_records``).
@@ -227,6 +229,8 @@ def cast_rays(origin, rot, dirs, max_range, tri, tri_id, root_box, anchor, recor
                     leaf = -1 - node
                     first = leaf >> LEAF_COUNT_BITS
                     for g in range(first, first + (leaf & _LEAF_COUNT_MASK)):
+                        if tri_hidden[g] != 0:
+                            continue
                         ax, ay, az = tri[g, 0], tri[g, 1], tri[g, 2]
                         e1x, e1y, e1z = tri[g, 3], tri[g, 4], tri[g, 5]
                         e2x, e2y, e2z = tri[g, 6], tri[g, 7], tri[g, 8]
