@@ -229,7 +229,7 @@ def test_pybullet_loads_the_urdf():
         # Every link but the root carries its own inertial: pybullet's total mass of the
         # links equals the URDF's (a link without one would silently weigh 1 kg in pybullet;
         # the massless root gets that default, so it is left out here).
-        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 28)]
+        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 30)]
         model = UrdfModel.from_file(URDF_PATH)
         assert sum(masses) == pytest.approx(sum(link.mass_kg for link in model.links.values()))
         assert 80.0 < sum(masses) < 95.0  # Husky ~50 kg + UR5e ~21 kg + control box and sensors
