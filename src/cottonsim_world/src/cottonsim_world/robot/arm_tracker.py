@@ -203,7 +203,7 @@ class ArmTrajectoryTracker:
                     self._goal = None
                 self._hold, self._stop, self._stop_outcome = q_d, None, None
         elif np.all(np.abs(q - q_d) <= SETTLED_RAD) and np.all(np.abs(v) <= SETTLED_RAD_S):
-            self.arm.command(q_d)       # at rest: the position follower holds it from here
+            self.arm.come_to_rest()     # the position follower holds it from here
             self._hold = None
 
     def _check_trajectory(self, now_s: float, q_d: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:

@@ -142,6 +142,11 @@ class Ur5eArm:
         self._targets = np.clip(np.asarray(desired_rad, dtype=float), self._lower, self._upper)
         return self._positions.copy()
 
+    def come_to_rest(self) -> None:
+        """Stop: velocities zero, the target the current positions (the servos have settled)."""
+        self._velocities = np.zeros(NUM_JOINTS)
+        self._targets = self._positions.copy()
+
     def at_target(self, tolerance_rad: float = 1e-9) -> bool:
         """True when every joint is within tolerance_rad of its target."""
         return bool(np.all(np.abs(self._targets - self._positions) <= tolerance_rad))
