@@ -125,6 +125,5 @@ class FarmBollStore(BollStore):
         self._set(boll_id, IN_BIN)
 
     def drop(self, boll_id: int, centre_m: Sequence[float]) -> None:
-        self._check(boll_id, HELD)
-        self.centres_m[boll_id] = np.asarray(centre_m, dtype=float).reshape(3)
+        self.carry(boll_id, centre_m)          # (checks that it is held)
         self._set(boll_id, DROPPED)
