@@ -11,6 +11,7 @@ import actionlib
 import numpy as np
 import rospy
 import rostest
+import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from cottonsim_msgs.msg import FollowJointTrajectoryAction, FollowJointTrajectoryGoal, FollowJointTrajectoryResult
 from sensor_msgs.msg import JointState
@@ -109,7 +110,7 @@ class ArmTrajectoryActionTest(unittest.TestCase):
             self.assertIn(words, result.error_string)
             self.assertIn(words, self.client.get_goal_status_text())
         rospy.sleep(0.2)
-        self.assertLess(np.max(np.abs(self.current()[1] - q)), 1e-6)      # the arm did not move
+        self.assertLess(np.max(np.abs(self.current()[1] - q)), 1e-3)      # the arm did not move (it may settle)
 
     def test_a_cancelled_goal_leaves_the_arm_stopped_where_it_was(self):
         start = self.current()[1]
@@ -131,6 +132,14 @@ class ArmTrajectoryActionTest(unittest.TestCase):
             self.assertLess(np.max(np.abs(q - q_rest)), 1e-3)
         self.assertLess(np.max(np.abs(q_rest - moving[1])), 0.3)             # near where it was cancelled
         self.assertGreater(np.max(np.abs(q_rest - target)), 0.2)              # not at the goal
+
+    def test_the_nozzle_tip_frame_is_in_tf(self):
+        buffer = tf2_ros.Buffer()
+        tf2_ros.TransformListener(buffer)
+        tip = buffer.lookup_transform("ur5e_tool0", "ur5e_nozzle_tip", rospy.Time(0), rospy.Duration(30.0))
+        t = tip.transform.translation
+        self.assertTrue(np.allclose([t.x, t.y, t.z], [0.0, 0.0, 0.15], atol=1e-9))
+        buffer.lookup_transform("base_link", "ur5e_nozzle_tip", rospy.Time(0), rospy.Duration(30.0))
 
     def test_vacuum_service_switches_the_nozzle(self):
         holding = []
