@@ -39,7 +39,8 @@ from typing import Optional, Sequence
 # the generator's own modules sit beside it (also when a test loads this file by its path)
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from urdf_end_effector import add_vacuum_nozzle  # noqa: E402
-from urdf_writer import ArmJoint, Inertial, UrdfWriter, Vec3, box, box_inertia, cyl, cyl_z, cylinder_inertia  # noqa: E402
+from urdf_writer import (ArmJoint, Inertial, UrdfWriter, Vec3, box, box_inertia, cyl, cyl_z,  # noqa: E402
+                         cylinder_inertia)
 
 # ---------------------------------------------------------------------------
 # Clearpath Husky A200 (husky_description)
