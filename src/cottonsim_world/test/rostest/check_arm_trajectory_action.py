@@ -19,6 +19,15 @@ from std_msgs.msg import Bool
 from std_srvs.srv import SetBool
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from cottonsim_common.kinematics.ur5e import inverse_kinematics
+from cottonsim_msgs.srv import SetRobotPose
+from cottonsim_world.config_io import simulator_config_from_dict
+from cottonsim_world.farm.generator import generate_farm
+from cottonsim_world.robot.urdf_model import UrdfModel
+from cottonsim_world.robot.vacuum import VacuumConfig
+from cottonsim_world.transforms import pose_matrix
+from nav_msgs.msg import Odometry
+
 ARM = ["ur5e_shoulder_pan_joint", "ur5e_shoulder_lift_joint", "ur5e_elbow_joint", "ur5e_wrist_1_joint",
        "ur5e_wrist_2_joint", "ur5e_wrist_3_joint"]
 MOVE = np.array([0.6, 0.3, -0.4, 0.2, 0.3, -0.5])      # a move from wherever the arm is [rad]
@@ -132,6 +141,65 @@ class ArmTrajectoryActionTest(unittest.TestCase):
             self.assertLess(np.max(np.abs(q - q_rest)), 1e-3)
         self.assertLess(np.max(np.abs(q_rest - moving[1])), 0.3)             # near where it was cancelled
         self.assertGreater(np.max(np.abs(q_rest - target)), 0.2)              # not at the goal
+
+    def _tip_pose(self, position, z_axis):
+        z = np.asarray(z_axis, dtype=float) / np.linalg.norm(z_axis)
+        x = np.cross([0.0, 0.0, 1.0], z) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        x /= np.linalg.norm(x)
+        pose = np.eye(4)
+        pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = x, np.cross(z, x), z, position
+        return pose
+
+    def _joints_for(self, world_T_base, world_T_tip, reference):
+        """Joints that put the nozzle tip at world_T_tip (IK of the flange pose), or None."""
+        arm_T_tool0 = np.linalg.inv(world_T_base @ self.base_T_arm) @ world_T_tip @ np.linalg.inv(self.tool0_T_tip)
+        result = inverse_kinematics(arm_T_tool0, reference)
+        return result.best if result.ok and abs(result.best[2]) < 3.0 else None
+
+    def test_picking_a_boll_through_the_ros_api(self):
+        """Beside a plant: a goal puts the nozzle on a boll (the truth), the vacuum takes it, a goal to the bin,
+        vacuum off: into the bin."""
+        urdf = UrdfModel.from_string(rospy.get_param("/robot_description"))
+        self.base_T_arm = urdf.fixed_transform("base_link", "ur5e_base")
+        self.tool0_T_tip = urdf.fixed_transform("ur5e_tool0", "ur5e_nozzle_tip")
+        farm = generate_farm(simulator_config_from_dict(rospy.get_param("/sim_bridge/sim")).farm)
+        lane = farm.lanes[0]
+        plant = min((p for p in farm.plants if len(p.model.boll_centres)),
+                    key=lambda p: (abs(p.x_m - lane.x_m), abs(p.y_m - 0.5 * (lane.y_start_m + lane.y_end_m))))
+        teleport = rospy.ServiceProxy("/sim/set_robot_pose", SetRobotPose)
+        self.assertTrue(teleport(lane.x_m, plant.y_m - 0.345, math.pi / 2).success)   # arm base beside the stem
+        rospy.sleep(0.5)
+        odom = rospy.wait_for_message("/ground_truth/odom", Odometry, 10.0)
+        p, o = odom.pose.pose.position, odom.pose.pose.orientation
+        world_T_base = pose_matrix((p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
+        q_now = self.current()[1]
+        picks = []
+        for centre in plant.boll_centres_world():
+            outward = centre - [plant.x_m, plant.y_m, centre[2]]
+            q = self._joints_for(world_T_base, self._tip_pose(centre, -outward), q_now)
+            if q is not None:
+                picks.append((np.max(np.abs(q - q_now)), q, centre))
+        self.assertTrue(picks, "no boll of the plant is reachable")
+        _, q_pick, centre = min(picks, key=lambda c: c[0])
+        vacuum = rospy.ServiceProxy("/arm_controller/vacuum", SetBool)
+        self.assertTrue(vacuum(True).success)
+        duration = max(2.0, 2.0 * np.max(np.abs(q_pick - q_now)) / math.pi)
+        self.client.send_goal(self.goal(q_pick, duration, velocities=[0.0] * 6))
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(60.0)))
+        self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        rospy.sleep(0.3)
+        self.assertTrue(rospy.wait_for_message("/arm_controller/vacuum/holding", Bool, 5.0).data)
+        bin_tip = world_T_base @ self._tip_pose(VacuumConfig().bin_centre_m, [0.0, 0.0, -1.0])
+        q_bin = self._joints_for(world_T_base, bin_tip, q_pick)
+        self.assertIsNotNone(q_bin)
+        duration = max(2.0, 2.0 * np.max(np.abs(q_bin - q_pick)) / math.pi)
+        self.client.send_goal(self.goal(q_bin, duration, velocities=[0.0] * 6))
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(60.0)))
+        self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        answer = vacuum(False)
+        self.assertIn("into the bin", answer.message)
+        rospy.sleep(0.3)
+        self.assertFalse(rospy.wait_for_message("/arm_controller/vacuum/holding", Bool, 5.0).data)
 
     def test_the_nozzle_tip_frame_is_in_tf(self):
         buffer = tf2_ros.Buffer()
