@@ -20,6 +20,7 @@ from std_srvs.srv import SetBool
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 from cottonsim_common.kinematics.ur5e import inverse_kinematics
+from cottonsim_manipulation.planning.approach import tool_rotations
 from cottonsim_msgs.srv import SetRobotPose
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.farm.generator import generate_farm
@@ -143,11 +144,8 @@ class ArmTrajectoryActionTest(unittest.TestCase):
         self.assertGreater(np.max(np.abs(q_rest - target)), 0.2)              # not at the goal
 
     def _tip_pose(self, position, z_axis):
-        z = np.asarray(z_axis, dtype=float) / np.linalg.norm(z_axis)
-        x = np.cross([0.0, 0.0, 1.0], z) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-        x /= np.linalg.norm(x)
         pose = np.eye(4)
-        pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = x, np.cross(z, x), z, position
+        pose[:3, :3], pose[:3, 3] = tool_rotations(np.asarray(z_axis, dtype=float), np.zeros(1))[0], position
         return pose
 
     def _joints_for(self, world_T_base, world_T_tip, reference):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from cottonsim_common.kinematics.ur5e import inverse_kinematics
+from cottonsim_manipulation.planning.approach import tool_rotations
 from cottonsim_world.farm.model import Plant, PlantModel
 from cottonsim_world.robot.arm_goal import TrajectoryGoal, TrajectoryPoint
 from cottonsim_world.robot.arm_tracker import ArmControllerConfig
@@ -30,11 +31,8 @@ def plant(x, y, bolls_local, plant_id=0):
 
 def pose(position, z_axis):
     """A 4x4 pose at position whose z axis is z_axis."""
-    z = np.asarray(z_axis, dtype=float) / np.linalg.norm(z_axis)
-    x = np.cross([0.0, 0.0, 1.0], z) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    x /= np.linalg.norm(x)
     t = np.eye(4)
-    t[:3, 0], t[:3, 1], t[:3, 2], t[:3, 3] = x, np.cross(z, x), z, position
+    t[:3, :3], t[:3, 3] = tool_rotations(np.asarray(z_axis, dtype=float), np.zeros(1))[0], position
     return t
 
 
