@@ -33,6 +33,7 @@ APT_PACKAGES=(
   ros-robot-state-publisher joint-state-publisher rviz python3-pyode python3-venv
   python3-trajectory-msgs python3-rosgraph-msgs python3-matplotlib python3-rospkg
   python3-std-srvs ros-std-srvs
+  ros-trajectory-msgs libtrajectory-msgs-dev
   xvfb imagemagick
 )
 

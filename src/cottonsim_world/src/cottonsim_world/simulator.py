@@ -2,7 +2,8 @@
 
 ``Simulator`` owns the farm, the ODE dynamics of the Husky, the pybullet
 sensor scene, the sensor and noise models, the wheel odometry with the
-Husky's EKF and the UR5e arm. Each ``step()`` advances the physics by one
+Husky's EKF and the UR5e arm with its trajectory controller and vacuum
+nozzle (``arm_system``, robot/sim_arm.py). Each ``step()`` advances the physics by one
 step and returns the sensor readings that fell due, as plain dataclasses;
 the ROS bridge (``ros/bridge_node.py``) only converts and publishes them, and
 scripts, benchmarks and tests can drive the same object directly::
@@ -70,7 +71,8 @@ from cottonsim_world.physics.imu_model import ImuMeasurement, ImuModel
 from cottonsim_world.physics.ode_world import OdeWorld
 from cottonsim_world.physics.physics_config import ContactEvent, RobotState
 from cottonsim_world.physics.wheel_odometry import WheelOdometry, WheelOdometryConfig
-from cottonsim_world.robot.ur5e import Ur5eArm
+from cottonsim_world.robot.boll_store import BollFieldStore
+from cottonsim_world.robot.sim_arm import SimulatedArm
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.sensors.camera import CameraModel
 from cottonsim_world.sensors.cloud_filters import cloud_to_laserscans, original_passthrough
@@ -108,8 +110,11 @@ class Simulator:
         self.imu = ImuModel(cfg.imu)
         self.wheel_odometry = WheelOdometry(WheelOdometryConfig.from_husky(cfg.husky, cfg.drive_limits))
         self.ekf = OdometryEkf(cfg.ekf)
-        self.arm = Ur5eArm.from_urdf(urdf, ARM_PREFIX, initial_positions=cfg.arm_initial_positions_rad)
+        # every boll with its state; the vacuum nozzle acts on it, the sensors hide what left the plants
         self.bolls = BollField(self.farm, cfg.bolls)
+        self.arm_system = SimulatedArm(urdf, ARM_PREFIX, cfg.arm_initial_positions_rad, cfg.arm_controller,
+                                       cfg.vacuum, BollFieldStore(self.bolls), BASE_FRAME)
+        self.arm = self.arm_system.arm
 
         self.sensor_scene: Optional[SensorScene] = None
         self.cameras: Dict[str, CameraModel] = {}
@@ -154,8 +159,6 @@ class Simulator:
         self._physics_wall_s = 0.0
         self._contacts: List[ContactEvent] = []
         self._next_due_s = 0.0      # earliest next_s of all schedules: steps before it skip the scan
-        self._arm_dt_s = 0.0
-        self._arm_idle = False      # at target and still: skip the 100 Hz arm update until command_arm
         # pipelined sensors (sensor_workers > 0): the worker pool and the readings not yet returned
         self._workers: Optional[ThreadPoolExecutor] = None
         self._saved_switch_interval_s: Optional[float] = None     # Python's, while we changed it
@@ -180,10 +183,9 @@ class Simulator:
         return self.physics.set_command(linear_x_m_s, angular_z_rad_s, self.time_s)
 
     def command_arm(self, positions_rad: Sequence[float]) -> np.ndarray:
-        """UR5e joint position targets [rad]; clamped to the URDF limits (returned)."""
-        clamped = self.arm.command(positions_rad)
-        self._arm_idle = False
-        return clamped
+        """UR5e joint position targets [rad]; clamped to the URDF limits (returned). Trajectory goals:
+        ``arm_system`` (robot/sim_arm.py)."""
+        return self.arm_system.command_positions(positions_rad)
 
     def teleport_robot(self, x_m: float, y_m: float, yaw_rad: float) -> None:
         """Move the robot (ground truth) to (x_m, y_m, yaw_rad) in the world frame, at rest: a kidnap.
@@ -292,14 +294,7 @@ class Simulator:
         t0 = time.perf_counter()
         self.physics.step()
         self._physics_wall_s += time.perf_counter() - t0
-        self._arm_dt_s += self.step_s
-        if self._arm_dt_s >= ARM_PERIOD_S - 1e-12:
-            if not self._arm_idle:
-                if not self.arm.at_target() or np.any(self.arm.velocities):
-                    self.arm.step(self._arm_dt_s)
-                else:
-                    self._arm_idle = True     # stays so until the next command_arm
-            self._arm_dt_s = 0.0
+        self.arm_system.step(self.time_s, self.step_s, self.world_T_base)
         self._contacts.extend(self.physics.contacts_since_last_call())
         now = self.time_s
         readings: List[object] = []

@@ -20,7 +20,9 @@ from cottonsim_world.geodesy import GpsNoiseConfig
 from cottonsim_world.physics.husky_params import DriveLimits, HuskyParams
 from cottonsim_world.physics.imu_model import ImuConfig
 from cottonsim_world.physics.physics_config import PhysicsConfig
+from cottonsim_world.robot.arm_tracker import ArmControllerConfig
 from cottonsim_world.robot.ur5e import JOINT_NAMES as ARM_JOINTS
+from cottonsim_world.robot.vacuum import VacuumConfig
 from cottonsim_world.sensors.camera import CameraConfig
 from cottonsim_world.sensors.cloud_filters import LaserScanConfig, PassThroughConfig
 from cottonsim_world.sensors.lidar import LidarConfig
@@ -31,7 +33,7 @@ WHEEL_JOINTS = ("front_left_wheel_joint", "front_right_wheel_joint", "rear_left_
                 "rear_right_wheel_joint")
 ARM_PREFIX = "ur5e_"
 ARM_JOINT_NAMES = tuple(ARM_PREFIX + name for name in ARM_JOINTS)
-ARM_PERIOD_S = 0.01          # the kinematic UR5e follower runs at 100 Hz
+ARM_PERIOD_S = 0.01          # the UR5e's position follower (/arm_controller/command) runs at 100 Hz
 MAX_SENSOR_WORKERS = 8      # upper bound of SimulatorConfig.sensor_workers
 LIDAR_FRAME = "velodyne"
 IMU_FRAME = "imu_link"
@@ -107,6 +109,8 @@ class SimulatorConfig:
     ground_truth_rate_hz: float = 50.0
     contacts_rate_hz: float = 10.0
     arm_initial_positions_rad: Tuple[float, ...] = (0.0, -2.2, 2.4, -1.77, -1.57, 0.0)   # stowed over the base
+    arm_controller: ArmControllerConfig = ArmControllerConfig()
+    vacuum: VacuumConfig = VacuumConfig()
     seed: int = 0
     sensor_workers: int = 0
     sensor_switch_interval_s: float = 0.0

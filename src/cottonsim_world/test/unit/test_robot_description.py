@@ -55,6 +55,7 @@ FRAMES = [
     "velodyne_base_link", "velodyne", "imu_link", "gps_link", "ur5e_control_box_link",
     "ur5e_base_link", "ur5e_base", "ur5e_shoulder_link", "ur5e_upper_arm_link", "ur5e_forearm_link",
     "ur5e_wrist_1_link", "ur5e_wrist_2_link", "ur5e_wrist_3_link", "ur5e_flange", "ur5e_tool0",
+    "ur5e_vacuum_nozzle", "ur5e_nozzle_tip",
 ]
 
 
@@ -185,7 +186,7 @@ def test_camera_body_visual(model):
 def test_every_physical_link_has_a_visual(model):
     frames_only = {
         "base_footprint", "inertial_link", "velodyne", "ur5e_base", "ur5e_flange", "ur5e_tool0",
-        "realsense_p_color_optical_frame", "realsense_secondary_color_optical_frame",
+        "ur5e_nozzle_tip", "realsense_p_color_optical_frame", "realsense_secondary_color_optical_frame",
         "realsense_tertiary_color_optical_frame",
     }
     without = {name for name, link in model.links.items() if not link.visuals}
@@ -222,13 +223,13 @@ def test_pybullet_loads_the_urdf():
     client = p.connect(p.DIRECT)
     try:
         body = p.loadURDF(str(URDF_PATH), physicsClientId=client)
-        assert p.getNumJoints(body, physicsClientId=client) == 28
-        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(28)}
-        assert {"front_left_wheel_link", "realsense_p_color_optical_frame", "ur5e_tool0"} <= names
+        assert p.getNumJoints(body, physicsClientId=client) == 30
+        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(30)}
+        assert {"front_left_wheel_link", "realsense_p_color_optical_frame", "ur5e_tool0", "ur5e_nozzle_tip"} <= names
         # Every link but the root carries its own inertial: pybullet's total mass of the
         # links equals the URDF's (a link without one would silently weigh 1 kg in pybullet;
         # the massless root gets that default, so it is left out here).
-        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 28)]
+        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 30)]
         model = UrdfModel.from_file(URDF_PATH)
         assert sum(masses) == pytest.approx(sum(link.mass_kg for link in model.links.values()))
         assert 80.0 < sum(masses) < 95.0  # Husky ~50 kg + UR5e ~21 kg + control box and sensors
@@ -259,3 +260,14 @@ def test_rviz_config_has_the_displays():
     assert {"/points", "/scan", "/realsense_p/color/image_raw", "/map", "/move_base/NavfnROS/plan",
             "/odometry/filtered"} <= topics
     assert manager["Global Options"]["Fixed Frame"] == "odom"
+
+
+def test_nozzle_tip_is_the_collision_models_nozzle_end(model):
+    """The tip frame lies on tool0's z axis, as far out as the planner's nozzle capsule reaches, with tool0's axes."""
+    from cottonsim_manipulation.planning.collision import ArmCollisionConfig
+
+    tool0_T_tip = model.fixed_transform("ur5e_tool0", "ur5e_nozzle_tip")
+    assert np.allclose(tool0_T_tip[:3, :3], np.eye(3), atol=1e-12)
+    assert np.allclose(tool0_T_tip[:3, 3], [0.0, 0.0, ArmCollisionConfig().nozzle_length_m], atol=1e-12)
+    tube = max(model.links["ur5e_vacuum_nozzle"].visuals, key=lambda v: v.size[1])
+    assert tube.size[0] == pytest.approx(ArmCollisionConfig().nozzle_radius_m)

@@ -113,7 +113,7 @@ def test_shipped_config_files_parse():
     import yaml
     root = pathlib.Path(__file__).resolve().parents[2]
     for path in [root / "config" / "sim.yaml", root / "test" / "rostest" / "sim_ci.yaml",
-                 root / "test" / "rostest" / "sim_faults_ci.yaml"]:
+                 root / "test" / "rostest" / "sim_faults_ci.yaml", root / "test" / "rostest" / "arm_ci.yaml"]:
         config = simulator_config_from_dict(yaml.safe_load(path.read_text()) or {})
         assert isinstance(config, SimulatorConfig), path
 

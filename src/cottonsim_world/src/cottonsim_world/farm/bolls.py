@@ -18,6 +18,7 @@ States and transitions (anything else raises ValueError naming the boll):
 * ON_PLANT -> HELD      ``detach(boll_id, holder)``: an end effector takes it;
 * HELD -> HELD          ``move_held(holder, position_m)``: it travels with the tool;
 * HELD -> IN_BIN        ``drop_in_bin(boll_id)``: released over the bin;
+* HELD -> DROPPED       ``drop(boll_id, position_m)``: let go away from the bin;
 * ON_PLANT -> IN_BIN    ``drop_in_bin(boll_id)`` too: a vacuum tube that carries
                         the boll straight to the bin.
 
@@ -42,6 +43,7 @@ class BollState(enum.IntEnum):
     ON_PLANT = 0
     HELD = 1
     IN_BIN = 2
+    DROPPED = 3
 
 
 @dataclass(frozen=True)
@@ -228,6 +230,17 @@ class BollField:
         self.revision += 1
         return self.get(i)
 
+    def drop(self, boll_id: int, position_m: Sequence[float]) -> Boll:
+        """A held boll is let go away from the bin (HELD -> DROPPED): it lies at ``position_m`` (world [m])."""
+        i = self._check_id(boll_id)
+        if self._state[i] != BollState.HELD:
+            raise ValueError(f"boll {i} cannot be dropped: it is {BollState(int(self._state[i])).name}, not HELD")
+        self._position_m[i] = _check_point("position_m", position_m)
+        self._state[i] = BollState.DROPPED
+        self._holder.pop(i, None)
+        self.revision += 1
+        return self.get(i)
+
     def set_state(self, boll_id: int, state: BollState, holder: str = "",
                   position_m: Optional[Sequence[float]] = None) -> Boll:
         """One transition by the target state (what /sim/set_boll_state asks): HELD = ``detach``
@@ -237,7 +250,7 @@ class BollField:
         try:
             target = BollState(int(state))
         except ValueError:
-            raise ValueError(f"unknown boll state {state!r} (0 ON_PLANT, 1 HELD, 2 IN_BIN)") from None
+            raise ValueError(f"unknown boll state {state!r} (0 ON_PLANT, 1 HELD, 2 IN_BIN, 3 DROPPED)") from None
         now = BollState(int(self._state[i]))
         if target == BollState.ON_PLANT:
             if now != BollState.ON_PLANT:
@@ -251,4 +264,6 @@ class BollField:
                     self.move_held(self._holder[i], position_m)
                 return self.get(i)
             return self.detach(i, holder, position_m)
+        if target == BollState.DROPPED:
+            return self.drop(i, self._position_m[i] if position_m is None else position_m)
         return self.drop_in_bin(i, position_m)

@@ -5,7 +5,10 @@ poses (e.g. a stow pose) and reported on /joint_states. The simulator does not
 need the arm's dynamics, so the arm is modelled as six joints that each move
 towards their commanded target at no more than the joint's velocity limit and
 never leave its position limits, like a position-controlled trajectory
-follower with infinite acceleration.
+follower with infinite acceleration (``command`` / ``step``, the
+/arm_controller/command topic). The trajectory action drives it with
+``track``: joint servos with a velocity feed-forward, a position gain and an
+acceleration limit (robot/arm_tracker.py).
 
 The kinematics (the UR5e's DH table, forward and inverse kinematics) live in
 cottonsim_common.kinematics.ur5e, shared with the robot-side arm code; the
@@ -120,6 +123,29 @@ class Ur5eArm:
         self._positions = np.clip(self._positions + move, self._lower, self._upper)
         self._velocities = move / dt
         return self._positions.copy()
+
+    def track(self, desired_rad: np.ndarray, desired_velocity_rad_s: np.ndarray, dt_s: float, gain_1_s: float,
+              max_acceleration_rad_s2: float) -> np.ndarray:
+        """One step of the joint servos following a trajectory [rad, rad/s]: velocity = desired velocity +
+        gain_1_s * position error, within the velocity limits and max_acceleration_rad_s2 of the last
+        step's velocity; the target becomes the desired positions. Returns the new positions [rad]."""
+        dt = float(dt_s)
+        if not math.isfinite(dt) or dt <= 0.0:
+            raise ValueError(f"dt_s must be a positive finite time step, got {dt_s!r}")
+        velocity = np.asarray(desired_velocity_rad_s, dtype=float) + gain_1_s * (desired_rad - self._positions)
+        velocity = np.clip(velocity, -self._max_speed, self._max_speed)
+        change = max_acceleration_rad_s2 * dt
+        velocity = np.clip(velocity, self._velocities - change, self._velocities + change)
+        new = np.clip(self._positions + velocity * dt, self._lower, self._upper)
+        self._velocities = (new - self._positions) / dt
+        self._positions = new
+        self._targets = np.clip(np.asarray(desired_rad, dtype=float), self._lower, self._upper)
+        return self._positions.copy()
+
+    def come_to_rest(self) -> None:
+        """Stop: velocities zero, the target the current positions (the servos have settled)."""
+        self._velocities = np.zeros(NUM_JOINTS)
+        self._targets = self._positions.copy()
 
     def at_target(self, tolerance_rad: float = 1e-9) -> bool:
         """True when every joint is within tolerance_rad of its target."""

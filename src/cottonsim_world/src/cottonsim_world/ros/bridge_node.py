@@ -30,7 +30,12 @@ Publications
                                                                     state (ros/boll_topics.py)
 Subscriptions
   /cmd_vel                                 geometry_msgs/Twist      Husky velocity command (0.25 s time-out)
-  /arm_controller/command                  trajectory_msgs/JointTrajectory  UR5e targets (last point's positions)
+  /arm_controller/command                  trajectory_msgs/JointTrajectory  UR5e targets (last point's positions);
+                                           aborts a running trajectory goal
+Action, service and topic of the arm (ros/arm_interface.py)
+  /arm_controller/follow_joint_trajectory  cottonsim_msgs/FollowJointTrajectory (control_msgs' fields)
+  /arm_controller/vacuum                   std_srvs/SetBool   the vacuum nozzle on / off
+  /arm_controller/vacuum/holding           std_msgs/Bool      latched: the nozzle holds a boll
 Services
   /sim/set_robot_pose                      cottonsim_msgs/SetRobotPose  teleport the robot (world frame, at rest)
                                            between two physics steps; wheel odometry / EKF do not see it (a
@@ -94,6 +99,7 @@ from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.ros import conversions as conv
 from cottonsim_world.ros.boll_topics import BollTopics
+from cottonsim_world.ros.arm_interface import ArmRosInterface
 from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
                                        GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
                                        OdometryReading, Simulator)
@@ -157,6 +163,7 @@ class SimBridgeNode:
         rospy.Service("/sim/inject_fault", InjectFault, self._on_inject_fault)
         rospy.Service("/sim/clear_faults", ClearFaults, self._on_clear_faults)
         self.boll_topics = BollTopics(self.sim.bolls)
+        self.arm_ros = ArmRosInterface(self.sim)     # /arm_controller/follow_joint_trajectory, vacuum
 
     # ------------------------------------------------------------------ setup
     def _make_publishers(self):
@@ -326,7 +333,9 @@ class SimBridgeNode:
                 next_demand = now_wall + demand_every_s
             self._apply_inputs()
             self.boll_topics.update(self.sim.delivered_time_s)
+            self.arm_ros.apply_inputs()
             readings = self.sim.step()
+            self.arm_ros.after_step()
             step += 1
             delivered_s = self.sim.delivered_time_s
             if (readings or step % clock_steps == 0) and delivered_s > clock_s:

@@ -1,0 +1,94 @@
+"""The simulated UR5e with its controller and vacuum nozzle, as the Simulator steps it.
+
+``SimulatedArm`` puts together the joints (``Ur5eArm``), the trajectory
+controller (``ArmTrajectoryTracker``, run at every physics step while it has
+something to do), the plain position follower of /arm_controller/command
+(run every ARM_PERIOD_S until at rest) and the vacuum nozzle (its capture
+rule applied at every physics step while the vacuum is on or a boll is held).
+The nozzle tip's pose comes from the robot's pose in the world, the URDF's
+fixed transforms base_link -> ur5e_base and ur5e_tool0 -> ur5e_nozzle_tip and
+the UR5e's forward kinematics.
+"""
+from __future__ import annotations
+
+from typing import Callable, Hashable, Optional, Sequence
+
+import numpy as np
+
+from cottonsim_world.robot.arm_goal import ArmLimits, TrajectoryGoal, ValidTrajectory, validate_goal
+from cottonsim_world.robot.arm_tracker import ArmControllerConfig, ArmTrajectoryTracker
+from cottonsim_world.robot.boll_store import BollStore
+from cottonsim_world.robot.ur5e import JOINT_NAMES, Ur5eArm, forward_kinematics
+from cottonsim_world.robot.urdf_model import UrdfModel
+from cottonsim_world.robot.vacuum import VacuumConfig, VacuumNozzle
+from cottonsim_world.simulator_config import ARM_PERIOD_S
+
+NOZZLE_TIP_LINK = "nozzle_tip"   # after the arm's prefix: ur5e_nozzle_tip
+
+
+class SimulatedArm:
+    """The arm, its controller and its nozzle (see the module docstring)."""
+
+    def __init__(self, urdf: UrdfModel, prefix: str, initial_positions_rad: Sequence[float],
+                 controller: ArmControllerConfig, vacuum: VacuumConfig, bolls: BollStore,
+                 base_frame: str = "base_link"):
+        self.arm = Ur5eArm.from_urdf(urdf, prefix, initial_positions=initial_positions_rad)
+        self.joint_names = tuple(prefix + name for name in JOINT_NAMES)
+        self.tracker = ArmTrajectoryTracker(self.arm, controller, self.joint_names)
+        self.limits = ArmLimits(self.joint_names,
+                                np.array([lim.lower for lim in self.arm.limits]),
+                                np.array([lim.upper for lim in self.arm.limits]),
+                                np.array([lim.velocity for lim in self.arm.limits]))
+        self.base_T_arm = urdf.fixed_transform(base_frame, prefix + "base")
+        self.tool0_T_tip = urdf.fixed_transform(prefix + "tool0", prefix + NOZZLE_TIP_LINK)
+        self.nozzle = VacuumNozzle(bolls, vacuum)
+        self._follower_dt_s = 0.0
+        self._follower_idle = False     # at target and still: skip the follower until the next command
+
+    # ------------------------------------------------------------------ commands
+    def command_positions(self, positions_rad: Sequence[float]) -> np.ndarray:
+        """/arm_controller/command: position targets for the follower; a running goal is aborted."""
+        self.tracker.supersede("aborted: a position command on /arm_controller/command took the arm over")
+        clamped = self.arm.command(positions_rad)
+        self._follower_idle = False
+        return clamped
+
+    def accept_goal(self, goal_id: Hashable, goal: TrajectoryGoal, now_s: float) -> ValidTrajectory:
+        """Validate the goal against the arm's state now and track it; GoalRejected with the reason."""
+        trajectory = validate_goal(goal, self.limits, now_s, self.arm.positions, self.arm.velocities,
+                                   self.tracker.config.goal_defaults())
+        self.tracker.accept(goal_id, trajectory)
+        return trajectory
+
+    def cancel_goal(self, goal_id: Hashable, now_s: float) -> bool:
+        """Brake to rest; the goal ends 'canceled' at rest. False when goal_id is not the running goal."""
+        return self.tracker.cancel(goal_id, now_s)
+
+    def switch_vacuum(self, on: bool, world_T_base: np.ndarray) -> str:
+        return self.nozzle.switch(on, self.tip_pose(world_T_base), world_T_base)
+
+    # ------------------------------------------------------------------ state
+    def tip_pose(self, world_T_base: np.ndarray) -> np.ndarray:
+        """4x4 pose of the nozzle tip in the world at the current joints."""
+        return world_T_base @ self.base_T_arm @ forward_kinematics(self.arm.positions) @ self.tool0_T_tip
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, now_s: float, dt_s: float, world_T_base: Callable[[], np.ndarray]) -> Optional[int]:
+        """One physics step of dt_s ending at now_s; the id of a boll captured in it, if any."""
+        if self.tracker.busy:
+            self.tracker.step(now_s, dt_s)
+            self._follower_dt_s = 0.0
+            self._follower_idle = False
+        else:
+            self._follower_dt_s += dt_s
+            if self._follower_dt_s >= ARM_PERIOD_S - 1e-12:
+                if not self._follower_idle:
+                    if not self.arm.at_target() or np.any(self.arm.velocities):
+                        self.arm.step(self._follower_dt_s)
+                    else:
+                        self._follower_idle = True
+                self._follower_dt_s = 0.0
+        nozzle = self.nozzle
+        if nozzle.on or nozzle.held_id is not None:
+            return nozzle.step(self.tip_pose(world_T_base()))
+        return None
