@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
 
-from cottonsim_navigation.core.geometry import Pose2D  # noqa: E402
+from cottonsim_common.pose import Pose2D  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.navigation.move_base import MoveBase, MoveBaseConfig  # noqa: E402
 from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402

@@ -31,7 +31,8 @@ from std_msgs.msg import Bool
 from cottonsim_msgs.srv import SetRobotPose
 
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy, world_to_frame
+from cottonsim_common.pose import world_to_frame
+from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
 from wall_wait import wait_until
 

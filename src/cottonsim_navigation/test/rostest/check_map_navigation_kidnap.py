@@ -24,7 +24,7 @@ from std_msgs.msg import Bool
 
 from cottonsim_msgs.srv import SetRobotPose
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import world_to_frame
+from cottonsim_common.pose import world_to_frame
 from cottonsim_world.farm.generator import generate_farm
 
 from navigator_watch import NavigatorWatch

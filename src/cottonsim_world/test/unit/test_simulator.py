@@ -11,7 +11,7 @@ from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.simulator import (CameraReading, GpsReading, GroundTruthReading, ImuReading, LidarReading,
                                        OdometryReading, Simulator, SimulatorConfig)
-from cottonsim_world.transforms import quaternion_to_matrix
+from cottonsim_common.transforms import quaternion_to_matrix
 
 URDF = pathlib.Path(__file__).resolve().parents[3] / "cottonsim_description" / "urdf" / "cottonsim_robot.urdf"
 

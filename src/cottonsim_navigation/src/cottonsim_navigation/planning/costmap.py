@@ -37,7 +37,7 @@ from scipy import ndimage
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
                                             NO_INFORMATION, GridSpec)
-from cottonsim_navigation.core.raytrace import clear_rays
+from cottonsim_common.raytrace import clear_rays
 
 # The original's footprint (0.8 x 0.4 m). NOTE: the real Husky A200 body is
 # 0.99 x 0.67 m; the original's smaller footprint is kept as the default so the

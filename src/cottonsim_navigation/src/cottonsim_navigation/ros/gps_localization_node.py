@@ -21,7 +21,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Bool
 
-from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
+from cottonsim_common.pose import Pose2D
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.localization.gps_localization import (REJECTED_JUMP, REJECTED_VARIANCE,
                                                                 STATE_DEAD_RECKONING, STATE_GPS, STATE_GPS_LOST,
                                                                 STATE_WAITING, GpsLocalizationConfig, GpsLocalizer,

@@ -2,7 +2,7 @@
 
 Like ROS map_saver (not packaged for Debian): trinary thresholds on the
 OccupancyGrid values, the YAML map_server reads back. The conversion and the
-file writing are ``cottonsim_navigation.core.map_files.save_map``.
+file writing are ``cottonsim_common.map_files.save_map``.
 """
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ import numpy as np
 import rospy
 from nav_msgs.msg import OccupancyGrid
 
-from cottonsim_navigation.core.geometry import quaternion_to_yaw
-from cottonsim_navigation.core.map_files import MapSaverConfig, save_map
+from cottonsim_common.transforms import quaternion_to_yaw
+from cottonsim_common.map_files import MapSaverConfig, save_map
 from cottonsim_navigation.ros.params import config_from_params, typed_param
 
 

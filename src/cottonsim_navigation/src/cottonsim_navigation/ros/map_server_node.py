@@ -1,9 +1,9 @@
 """map_server: serve an occupancy map from a map_server YAML + image, or an empty map.
 
 The ROS map_server is not packaged for Debian; this node does its job. The
-file is read by ``cottonsim_world.farm.export.load_map_yaml`` (PGM or any
+file is read by ``cottonsim_common.map_files.load_map_yaml`` (PGM or any
 OpenCV image, trinary / scale modes); the empty map comes from
-``cottonsim_navigation.core.map_files.empty_map``.
+``cottonsim_common.map_files.empty_map``.
 """
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import rospy
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap, GetMapResponse
 
-from cottonsim_navigation.core.geometry import yaw_to_quaternion
-from cottonsim_navigation.core.map_files import EmptyMapConfig, empty_map
+from cottonsim_common.transforms import yaw_to_quaternion
+from cottonsim_common.map_files import EmptyMapConfig, empty_map
 from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.farm.export import load_map_yaml
+from cottonsim_common.map_files import load_map_yaml
 
 
 def occupancy_grid_msg(grid, resolution_m: float, origin, frame_id: str, stamp: rospy.Time) -> OccupancyGrid:

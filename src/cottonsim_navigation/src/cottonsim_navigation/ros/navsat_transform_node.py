@@ -21,7 +21,7 @@ import tf2_ros
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
-from cottonsim_navigation.core.geometry import Pose2D, compose
+from cottonsim_common.pose import Pose2D, compose
 from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.localization.gps_localization import enu_yaw, robot_yaw_from_imu
 from cottonsim_navigation.ros.params import config_from_params, typed_param

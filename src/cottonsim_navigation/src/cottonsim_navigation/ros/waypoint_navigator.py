@@ -44,7 +44,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Bool, String
 
-from cottonsim_navigation.core.geometry import yaw_to_quaternion
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
 from cottonsim_navigation.waypoints.goals import pass_through_flags
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import GridSpec, LETHAL_OBSTACLE
 from cottonsim_navigation.navigation.move_base import (MoveBase, MoveBaseConfig, MoveBaseState, Outcome,
                                                        RecoveryTrigger, VisionBiasConfig, blend_vision,

@@ -46,13 +46,12 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 from numba import njit
 
+from cottonsim_common.angles import wrap_angle_scalar
+
 X, Y, YAW, VX, VYAW = range(5)
 
 
-@njit(cache=True)
-def _wrap(angle: float) -> float:
-    """angle [rad] wrapped to [-pi, pi) (Python's float %, in Python and in the compiled kernels alike)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+_wrap = njit(cache=True)(wrap_angle_scalar)   # compiled so the kernels below can call it
 
 
 @dataclass(frozen=True)

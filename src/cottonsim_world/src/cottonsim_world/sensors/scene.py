@@ -44,7 +44,7 @@ import numpy as np
 import pybullet as pb
 
 from cottonsim_world.farm.model import Farm, Plant, SemanticClass, TriangleMesh
-from cottonsim_world.transforms import quaternion_from_yaw
+from cottonsim_common.transforms import yaw_to_quaternion
 
 if TYPE_CHECKING:                       # pragma: no cover
     from cottonsim_world.sensors.render_client import RenderClient
@@ -317,7 +317,7 @@ class SensorScene:
         ground = pb.createMultiBody(0.0, plane, -1, [0.0, 0.0, 0.0], physicsClientId=cid)
         self._body_info[ground] = (SemanticClass.GROUND, -1)
         for plant in self.farm.plants:
-            pos, orn = [plant.x_m, plant.y_m, 0.0], quaternion_from_yaw(plant.yaw_rad)
+            pos, orn = [plant.x_m, plant.y_m, 0.0], yaw_to_quaternion(plant.yaw_rad)
             for sem in (SemanticClass.PLANT, SemanticClass.BOLL):
                 shape = self._collision_shape(plant, sem)
                 if shape < 0:
