@@ -15,7 +15,7 @@ from nav_msgs.msg import OccupancyGrid
 
 from cottonsim_common.transforms import quaternion_to_yaw
 from cottonsim_common.map_files import MapSaverConfig, save_map
-from cottonsim_navigation.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.params import config_from_params, typed_param
 
 
 def occupancy_grid_to_array(msg: OccupancyGrid):
@@ -105,13 +105,3 @@ class MapSaverNode:
                 rospy.loginfo("map_saver: still waiting for a map on %s", self.topic)
                 next_note = now + 5.0
         return 0 if self.ok else 1
-
-
-def main():
-    rospy.init_node("map_saver")
-    try:
-        node = MapSaverNode(rospy.myargv())
-    except ValueError as exc:
-        rospy.logfatal(f"map_saver: {exc}")
-        raise SystemExit(2)
-    raise SystemExit(node.wait())

@@ -13,7 +13,7 @@ from nav_msgs.srv import GetMap, GetMapResponse
 
 from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_common.map_files import EmptyMapConfig, empty_map
-from cottonsim_navigation.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.map_files import load_map_yaml
 
 
@@ -82,13 +82,3 @@ class MapServerNode:
 
     def _on_static_map(self, _request):
         return GetMapResponse(map=self.map_msg)
-
-
-def main():
-    rospy.init_node("map_server")
-    try:
-        MapServerNode(rospy.myargv())
-    except (ValueError, OSError) as exc:
-        rospy.logfatal(f"map_server: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -21,7 +21,7 @@ from std_msgs.msg import Bool, String
 from cottonsim_common.map_files import MapSaverConfig, save_map
 from cottonsim_navigation.mapping.map_crop import crop_to_known
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
-from cottonsim_navigation.ros.params import typed_param
+from cottonsim_common.ros.params import typed_param
 
 
 class MappingSupervisorNode:
@@ -113,13 +113,3 @@ class MappingSupervisorNode:
         else:
             rospy.spin()      # stay up (a required node): the launch goes on and ~saved stays latched
         return 0 if ok else 1
-
-
-def main():
-    rospy.init_node("mapping_supervisor")
-    try:
-        node = MappingSupervisorNode()
-    except ValueError as exc:
-        rospy.logfatal(f"mapping_supervisor: {exc}")
-        raise SystemExit(2)
-    raise SystemExit(node.spin())

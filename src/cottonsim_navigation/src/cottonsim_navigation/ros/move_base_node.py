@@ -33,8 +33,8 @@ from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, Inf
                                                    StaticLayerConfig)
 from cottonsim_navigation.planning.global_planners.navfn import NavfnConfig
 from cottonsim_navigation.planning.local_planners.dwa import DWAConfig
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_common.ros import conversions as conv
 
 _LAYER_CONFIGS = {"static_layer": StaticLayerConfig, "obstacle_layer": ObstacleLayerConfig,
                   "inflation_layer": InflationLayerConfig}
@@ -474,13 +474,3 @@ class MoveBaseNode:
         fb.base_position.pose.orientation = conv.quaternion_msg(geo.yaw_to_quaternion(gpose.yaw_rad))
         self.server.publish_feedback(fb)
         return True
-
-
-def main():
-    rospy.init_node("move_base")
-    try:
-        MoveBaseNode()
-    except ValueError as exc:
-        rospy.logfatal(f"move_base: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -88,7 +88,7 @@ from trajectory_msgs.msg import JointTrajectory
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
                                        GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
                                        OdometryReading, Simulator)
@@ -467,13 +467,3 @@ def fault_spec_from_request(kind: str, target: str, duration_s: float, parameter
 
 def _yaw_quaternion(yaw: float):
     return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
-
-
-def main():
-    rospy.init_node("sim_bridge")
-    try:
-        node = SimBridgeNode()
-    except (ValueError, FileNotFoundError) as exc:
-        rospy.logfatal(f"sim_bridge: {exc}")
-        raise SystemExit(2)
-    node.spin()

@@ -6,7 +6,7 @@ import pytest
 
 from cottonsim_navigation.geodesy.navsat import NavsatConfig
 from cottonsim_navigation.power.battery import BatteryConfig
-from cottonsim_navigation.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.params import config_from_params, typed_param
 
 
 def server(values):
