@@ -4,8 +4,6 @@ from typing import Optional, Tuple
 
 import pytest
 
-from cottonsim_navigation.geodesy.navsat import NavsatConfig
-from cottonsim_navigation.power.battery import BatteryConfig
 from cottonsim_common.ros.params import config_from_params, typed_param
 
 
@@ -74,18 +72,6 @@ def test_bad_values_name_the_parameter(values, named):
     get, has = server(values)
     with pytest.raises(ValueError, match=named):
         config_from_params(Sample, get_param=get, has_param=has)
-
-
-def test_real_configs_from_yaml_like_values():
-    get, has = server({"~frequency": 10, "~delay": 0, "~zero_altitude": False, "~datum": [49.9, 8.9, 0.1]})
-    cfg = config_from_params(NavsatConfig, get_param=get, has_param=has)
-    assert (cfg.frequency, cfg.delay, cfg.zero_altitude, cfg.datum) == (10.0, 0.0, False, (49.9, 8.9, 0.1))
-    get, has = server({"~initial_percentage": 1.5})
-    with pytest.raises(ValueError, match="~initial_percentage"):
-        config_from_params(BatteryConfig, get_param=get, has_param=has)
-    get, has = server({"~frequency": 0.0})
-    with pytest.raises(ValueError, match="~frequency"):
-        config_from_params(NavsatConfig, get_param=get, has_param=has)
 
 
 def test_not_a_dataclass_is_refused():

@@ -31,7 +31,7 @@ from cottonsim_navigation.evaluation.gps_outages import (GpsOutageConfig, estima
 from cottonsim_navigation.evaluation.localization_error import localization_errors, localization_summary
 from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.waypoints.files import WaypointFileError, load_gps_waypoints, load_map_waypoints
-from cottonsim_world.farm.model import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 
 
