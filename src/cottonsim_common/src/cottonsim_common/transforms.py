@@ -58,13 +58,6 @@ def pose_matrix(position: Sequence[float], q_xyzw: Sequence[float]) -> np.ndarra
     return t
 
 
-def planar_pose_matrix(x_m: float, y_m: float, yaw_rad: float, z_m: float = 0.0) -> np.ndarray:
-    """A pose in the plane (rotation about z only) as a 4x4 transform."""
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    t = np.eye(4)
-    t[:2, :2] = [[c, -s], [s, c]]
-    t[:3, 3] = (x_m, y_m, z_m)
-    return t
 
 
 def invert(transform: np.ndarray) -> np.ndarray:

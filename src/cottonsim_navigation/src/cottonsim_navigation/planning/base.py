@@ -126,8 +126,3 @@ def make_local_planner(name: str, config=None) -> LocalPlanner:
     if name not in _LOCAL:
         raise ValueError(f"unknown local planner {name!r}; known: {', '.join(sorted(_LOCAL))}")
     return _LOCAL[name](config) if config is not None else _LOCAL[name]()
-
-
-def known_planners() -> Tuple[List[str], List[str]]:
-    _ensure_builtin()
-    return sorted(_GLOBAL), sorted(_LOCAL)

@@ -189,11 +189,6 @@ def load_map_waypoints(path) -> List[MapWaypoint]:
     return out
 
 
-def save_gps_waypoints(path, waypoints: Sequence[GpsWaypoint]) -> None:
-    """Write 'lat lon' lines with full precision (the original's format)."""
-    with open(path, "w", encoding="utf-8") as f:
-        for w in waypoints:
-            f.write(f"{w.lat!r} {w.lon!r}\n")
 
 
 def load_gps_lanes(path) -> List[tuple]:
