@@ -4,21 +4,7 @@ from typing import Optional, Tuple
 
 import pytest
 
-from cottonsim_common.ros.params import config_from_params, typed_param
-
-
-def server(values):
-    """A fake parameter server: get_param(name[, default]) and has_param(name) over a dict."""
-    missing = object()
-
-    def get(name, default=missing):
-        if name in values:
-            return values[name]
-        if default is missing:
-            raise KeyError(name)
-        return default
-
-    return get, (lambda name: name in values)
+from cottonsim_common.ros.params import config_from_params, dict_parameter_server, typed_param
 
 
 @dataclass(frozen=True)
@@ -37,12 +23,12 @@ class Sample:
 
 
 def test_unset_parameters_keep_the_defaults():
-    get, has = server({})
+    get, has = dict_parameter_server({})
     assert config_from_params(Sample, get_param=get, has_param=has) == Sample()
 
 
 def test_values_are_converted_to_the_field_types():
-    get, has = server({"~rate_hz": 5, "~count": 7.0, "~enabled": "true", "~name": "b",
+    get, has = dict_parameter_server({"~rate_hz": 5, "~count": 7.0, "~enabled": "true", "~name": "b",
                        "~pair": [1, 2], "~many": [1, 2.5, 3], "~maybe": [49.9, 8.9, 0]})
     cfg = config_from_params(Sample, get_param=get, has_param=has)
     assert cfg.rate_hz == 5.0 and isinstance(cfg.rate_hz, float)
@@ -52,7 +38,7 @@ def test_values_are_converted_to_the_field_types():
 
 
 def test_prefix_and_overrides():
-    get, has = server({"/ns/rate_hz": 4.0, "/ns/count": 9})
+    get, has = dict_parameter_server({"/ns/rate_hz": 4.0, "/ns/count": 9})
     cfg = config_from_params(Sample, prefix="/ns/", overrides={"count": 1}, get_param=get, has_param=has)
     assert cfg.rate_hz == 4.0 and cfg.count == 1
 
@@ -69,19 +55,19 @@ def test_prefix_and_overrides():
     ({"~rate_hz": float("nan")}, "~rate_hz"),
 ])
 def test_bad_values_name_the_parameter(values, named):
-    get, has = server(values)
+    get, has = dict_parameter_server(values)
     with pytest.raises(ValueError, match=named):
         config_from_params(Sample, get_param=get, has_param=has)
 
 
 def test_not_a_dataclass_is_refused():
-    get, has = server({})
+    get, has = dict_parameter_server({})
     with pytest.raises(ValueError, match="dataclass"):
         config_from_params(dict, get_param=get, has_param=has)
 
 
 def test_typed_param():
-    get, _ = server({"~rate": 3, "~frame": "map", "~flag": "false", "~origin": [1, 2, 0], "~bad": "x"})
+    get, _ = dict_parameter_server({"~rate": 3, "~frame": "map", "~flag": "false", "~origin": [1, 2, 0], "~bad": "x"})
     assert typed_param("~rate", 1.0, get_param=get) == 3.0
     assert typed_param("~missing", 1.5, get_param=get) == 1.5
     assert typed_param("~frame", "odom", get_param=get) == "map"

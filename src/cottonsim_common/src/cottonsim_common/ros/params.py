@@ -28,11 +28,29 @@ import dataclasses
 import math
 import re
 import typing
-from typing import Any, Callable, Dict, Optional, Type, TypeVar
+from typing import Any, Callable, Dict, Optional, Tuple, Type, TypeVar
 
 T = TypeVar("T")
 
 _MISSING = object()
+
+
+def dict_parameter_server(values: Dict[str, Any]) -> Tuple[Callable[..., Any], Callable[[str], bool]]:
+    """(get_param, has_param) over a dict of full parameter names, for configs built without a master.
+
+    ``get_param(name)`` raises KeyError for a missing name, like rospy; ``get_param(name, default)``
+    returns the default.
+    """
+    missing = object()
+
+    def get_param(name: str, default: Any = missing) -> Any:
+        if name in values:
+            return values[name]
+        if default is missing:
+            raise KeyError(name)
+        return default
+
+    return get_param, (lambda name: name in values)
 
 
 def _rospy_access():

@@ -34,24 +34,16 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 from scipy import ndimage
 
+from cottonsim_common.raytrace import clear_rays
+from cottonsim_common.validation import require_positive
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
                                             NO_INFORMATION, GridSpec)
-from cottonsim_common.raytrace import clear_rays
 
 # The original's footprint (0.8 x 0.4 m). NOTE: the real Husky A200 body is
 # 0.99 x 0.67 m; the original's smaller footprint is kept as the default so the
 # robot fits its narrow lanes the way the paper's runs did.
 DEFAULT_FOOTPRINT = ((0.4, 0.2), (-0.4, 0.2), (-0.4, -0.2), (0.4, -0.2))
-
-
-def _finite_positive(name: str, value: float, allow_zero: bool = False) -> None:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} must be a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -82,9 +74,9 @@ class CostmapConfig:
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "resolution"):
-            _finite_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         for name in ("update_frequency", "publish_frequency", "footprint_padding", "transform_tolerance"):
-            _finite_positive(name, getattr(self, name), allow_zero=True)
+            require_positive(name, getattr(self, name), allow_zero=True)
         for name in ("origin_x", "origin_y"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
@@ -210,8 +202,8 @@ class ObstacleLayerConfig:
     footprint_clearing_enabled: bool = True
 
     def __post_init__(self) -> None:
-        _finite_positive("obstacle_range", self.obstacle_range)
-        _finite_positive("raytrace_range", self.raytrace_range)
+        require_positive("obstacle_range", self.obstacle_range)
+        require_positive("raytrace_range", self.raytrace_range)
         for name in ("min_obstacle_height", "max_obstacle_height"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
@@ -309,8 +301,8 @@ class InflationLayerConfig:
     inflate_unknown: bool = False
 
     def __post_init__(self) -> None:
-        _finite_positive("inflation_radius", self.inflation_radius, allow_zero=True)
-        _finite_positive("cost_scaling_factor", self.cost_scaling_factor, allow_zero=True)
+        require_positive("inflation_radius", self.inflation_radius, allow_zero=True)
+        require_positive("cost_scaling_factor", self.cost_scaling_factor, allow_zero=True)
 
 
 def inflation_cost(distance_m, inscribed_radius_m: float, cost_scaling_factor: float) -> np.ndarray:
