@@ -11,27 +11,9 @@ import rospy
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap, GetMapResponse
 
-from cottonsim_common.transforms import yaw_to_quaternion
-from cottonsim_common.map_files import EmptyMapConfig, empty_map
+from cottonsim_common.map_files import EmptyMapConfig, empty_map, load_map_yaml
+from cottonsim_common.ros.conversions import occupancy_grid_msg
 from cottonsim_common.ros.params import config_from_params, typed_param
-from cottonsim_common.map_files import load_map_yaml
-
-
-def occupancy_grid_msg(grid, resolution_m: float, origin, frame_id: str, stamp: rospy.Time) -> OccupancyGrid:
-    """int8 grid [iy, ix] (row 0 = smallest y) + resolution + origin (x, y, yaw) -> OccupancyGrid."""
-    msg = OccupancyGrid()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
-    info = msg.info
-    info.map_load_time = stamp
-    info.resolution = float(resolution_m)
-    info.height, info.width = int(grid.shape[0]), int(grid.shape[1])
-    info.origin.position.x, info.origin.position.y = float(origin[0]), float(origin[1])
-    q = yaw_to_quaternion(float(origin[2]))
-    info.origin.orientation.x, info.origin.orientation.y = q[0], q[1]
-    info.origin.orientation.z, info.origin.orientation.w = q[2], q[3]
-    msg.data = grid.reshape(-1).astype("int8").tolist()
-    return msg
 
 
 class MapServerNode:

@@ -26,7 +26,7 @@ from cottonsim_common.transforms import quaternion_to_matrix, yaw_to_quaternion
 from cottonsim_navigation.mapping.scan_matcher import ScanMatcherConfig
 from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig
 from cottonsim_navigation.ros.amcl_node import TfPoseReader, scan_from_msg
-from cottonsim_navigation.ros.map_server_node import occupancy_grid_msg
+from cottonsim_common.ros.conversions import occupancy_grid_msg
 from cottonsim_common.ros.tf import PlanarTransformBroadcaster
 from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
