@@ -30,9 +30,9 @@ from std_msgs.msg import Bool
 
 from cottonsim_msgs.srv import SetRobotPose
 
-from cottonsim_world.farm.config import FarmConfig
 from cottonsim_common.pose import world_to_frame
 from cottonsim_common.ros.conversions import occupancy_grid_msg
+from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
 from wall_wait import wait_until

@@ -20,9 +20,9 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionResult, MoveBaseGoa
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.srv import GetPlan, GetPlanRequest
 
-from cottonsim_world.farm.config import FarmConfig
 from cottonsim_common.pose import world_to_frame
 from cottonsim_common.ros.conversions import occupancy_grid_msg
+from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
 from wall_wait import wait_until

@@ -7,9 +7,9 @@ import os
 import numpy as np
 import pytest
 
-from cottonsim_world.farm.config import FarmConfig
 from cottonsim_common.map_files import load_map_yaml, save_map
 from cottonsim_common.pose import frame_to_world, world_to_frame
+from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, export_all, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Pose2D

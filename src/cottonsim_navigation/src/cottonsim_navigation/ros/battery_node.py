@@ -16,9 +16,9 @@ import rospy
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState
 
-from cottonsim_navigation.power.battery import BatteryConfig, BatteryModel, BatteryReading
-from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.ros.conversions import finite_or_none
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_navigation.power.battery import BatteryConfig, BatteryModel, BatteryReading
 
 # Odometry older than this [s of sim time] counts as "robot at rest".
 _STALE_ODOMETRY_S = 1.0

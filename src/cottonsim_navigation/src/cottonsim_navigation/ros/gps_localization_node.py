@@ -27,10 +27,10 @@ from cottonsim_navigation.localization.gps_localization import (REJECTED_JUMP, R
                                                                 STATE_DEAD_RECKONING, STATE_GPS, STATE_GPS_LOST,
                                                                 STATE_WAITING, GpsLocalizationConfig, GpsLocalizer,
                                                                 enu_yaw)
-from cottonsim_navigation.ros.navsat_transform_node import ImuYawReader
-from cottonsim_common.ros.tf import PlanarTransformBroadcaster
-from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.ros.conversions import finite_or_none, yaw_from_quaternion_msg
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.tf import PlanarTransformBroadcaster
+from cottonsim_navigation.ros.navsat_transform_node import ImuYawReader
 
 _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 

@@ -19,9 +19,9 @@ from nav_msgs.srv import GetMap
 from std_msgs.msg import Bool, String
 
 from cottonsim_common.map_files import MapSaverConfig, save_map
-from cottonsim_navigation.mapping.map_crop import crop_to_known
 from cottonsim_common.ros.conversions import occupancy_grid_to_array
 from cottonsim_common.ros.params import typed_param
+from cottonsim_navigation.mapping.map_crop import crop_to_known
 
 
 class MappingSupervisorNode:

@@ -23,6 +23,9 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Empty, EmptyResponse
 
+from cottonsim_common.ros import conversions as conv
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_common.transforms import pose_matrix
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.navigation.move_base import MoveBase, MoveBaseConfig, Outcome, VisionBiasConfig
@@ -33,8 +36,6 @@ from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, Inf
                                                    StaticLayerConfig)
 from cottonsim_navigation.planning.global_planners.navfn import NavfnConfig
 from cottonsim_navigation.planning.local_planners.dwa import DWAConfig
-from cottonsim_common.ros.params import config_from_params, typed_param
-from cottonsim_common.ros import conversions as conv
 
 _LAYER_CONFIGS = {"static_layer": StaticLayerConfig, "obstacle_layer": ObstacleLayerConfig,
                   "inflation_layer": InflationLayerConfig}
@@ -49,15 +50,7 @@ def transform_to_pose2d(t) -> geo.Pose2D:
 def transform_matrix(t) -> np.ndarray:
     """geometry_msgs/Transform -> 4 x 4 homogeneous matrix."""
     q = t.rotation
-    x, y, z, w = q.x, q.y, q.z, q.w
-    n = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
-    x, y, z, w = x / n, y / n, z / n, w / n
-    m = np.eye(4)
-    m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-    m[:3, 3] = (t.translation.x, t.translation.y, t.translation.z)
-    return m
+    return pose_matrix((t.translation.x, t.translation.y, t.translation.z), (q.x, q.y, q.z, q.w))
 
 
 def pose_msg_is_valid(pose) -> Tuple[bool, str]:

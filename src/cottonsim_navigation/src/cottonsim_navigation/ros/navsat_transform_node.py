@@ -22,10 +22,10 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
 from cottonsim_common.pose import Pose2D, compose
+from cottonsim_common.ros.conversions import finite_or_none, yaw_from_quaternion_msg
+from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.localization.gps_localization import enu_yaw, robot_yaw_from_imu
-from cottonsim_common.ros.params import config_from_params, typed_param
-from cottonsim_common.ros.conversions import finite_or_none, yaw_from_quaternion_msg
 
 
 def _stamp_s(stamp) -> float:

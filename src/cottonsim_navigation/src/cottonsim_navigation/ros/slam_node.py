@@ -22,14 +22,14 @@ from sensor_msgs.msg import Imu, LaserScan
 from std_msgs.msg import Float64
 
 from cottonsim_common.pose import Pose2D, compose
+from cottonsim_common.ros.conversions import occupancy_grid_msg
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.tf import PlanarTransformBroadcaster
 from cottonsim_common.transforms import quaternion_to_matrix, yaw_to_quaternion
 from cottonsim_navigation.mapping.scan_matcher import ScanMatcherConfig
 from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig
 from cottonsim_navigation.ros.amcl_node import TfPoseReader, scan_from_msg
-from cottonsim_common.ros.conversions import occupancy_grid_msg
-from cottonsim_common.ros.tf import PlanarTransformBroadcaster
-from cottonsim_common.ros.params import config_from_params, typed_param
-from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 
 
 def base_yaw_from_imu(q_world_imu, r_base_imu: np.ndarray) -> Optional[float]:

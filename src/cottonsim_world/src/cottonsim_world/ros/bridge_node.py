@@ -85,10 +85,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, NavSatFix, PointCloud2, PointField
 from trajectory_msgs.msg import JointTrajectory
 
+from cottonsim_common.ros import conversions as conv
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
-from cottonsim_common.ros import conversions as conv
 from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
                                        GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
                                        OdometryReading, Simulator)

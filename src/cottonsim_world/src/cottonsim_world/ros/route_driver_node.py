@@ -37,11 +37,11 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool
 
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 from cottonsim_world.driving.pure_pursuit import PurePursuit, PurePursuitConfig
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import route_in_frame
 from cottonsim_world.farm.generator import generate_farm
-from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 
 
 def in_row_cross_track(farm, xy: np.ndarray) -> np.ndarray:

@@ -43,8 +43,8 @@ import cv2
 import numpy as np
 import pybullet as pb
 
-from cottonsim_world.farm.model import Farm, Plant, SemanticClass, TriangleMesh
 from cottonsim_common.transforms import yaw_to_quaternion
+from cottonsim_world.farm.model import Farm, Plant, SemanticClass, TriangleMesh
 
 if TYPE_CHECKING:                       # pragma: no cover
     from cottonsim_world.sensors.render_client import RenderClient
