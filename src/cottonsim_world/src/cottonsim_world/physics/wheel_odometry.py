@@ -82,6 +82,10 @@ class OdometryEstimate:
     def orientation_xyzw(self) -> Tuple[float, float, float, float]:
         return yaw_to_quaternion(self.yaw_rad)
 
+    def transform_odom_to_base_link(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]:
+        """(translation [m], rotation (x, y, z, w)) of the odom -> base_link TF."""
+        return (self.x_m, self.y_m, 0.0), self.orientation_xyzw
+
 
 def _four_floats(values) -> Tuple[float, float, float, float]:
     """FL, FR, RL, RR as Python floats (50 Hz on 4 numbers: plain floats beat numpy here)."""
