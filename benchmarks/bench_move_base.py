@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
 
-from cottonsim_navigation.core.geometry import Pose2D  # noqa: E402
+from cottonsim_common.pose import Pose2D  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.move_base.config import MoveBaseConfig  # noqa: E402
 from cottonsim_navigation.move_base.state_machine import MoveBase  # noqa: E402

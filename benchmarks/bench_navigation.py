@@ -20,7 +20,7 @@ for _pkg in ("cottonsim_navigation", "cottonsim_common"):
 
 from cottonsim_common.config.yaml_files import load_yaml_file  # noqa: E402
 
-from cottonsim_navigation.core.geometry import Pose2D  # noqa: E402
+from cottonsim_common.pose import Pose2D  # noqa: E402
 from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402
 from cottonsim_navigation.planning.global_planners.navfn import NavfnPlanner  # noqa: E402

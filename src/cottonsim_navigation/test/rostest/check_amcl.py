@@ -30,8 +30,10 @@ from std_msgs.msg import Bool
 
 from cottonsim_msgs.srv import SetRobotPose
 
+from cottonsim_common.pose import world_to_frame
+from cottonsim_common.ros.conversions import occupancy_grid_msg
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy, world_to_frame
+from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
 from wall_wait import wait_until
 
@@ -53,15 +55,8 @@ class AmclTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         grid, res, origin = rasterize_occupancy(FARM, OccupancyMapConfig(), frame=HOME)
-        m = OccupancyGrid()
-        m.header.frame_id = "map"
-        m.info.resolution = res
-        m.info.height, m.info.width = grid.shape
-        m.info.origin.position.x, m.info.origin.position.y = origin[0], origin[1]
-        m.info.origin.orientation.w = 1.0
-        m.data = grid.ravel().tolist()
         cls.map_pub = rospy.Publisher("/map", OccupancyGrid, queue_size=1, latch=True)
-        cls.map_pub.publish(m)
+        cls.map_pub.publish(occupancy_grid_msg(grid, res, origin, "map", rospy.Time.now()))
         cls.truth = None
         cls.localized = None
         cls.localized_history = []

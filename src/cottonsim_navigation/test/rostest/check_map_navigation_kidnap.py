@@ -22,9 +22,9 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool
 
+from cottonsim_common.pose import world_to_frame
 from cottonsim_msgs.srv import SetRobotPose
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import world_to_frame
 from cottonsim_world.farm.generator import generate_farm
 
 from navigator_watch import NavigatorWatch

@@ -11,7 +11,7 @@ import rostest
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap
 
-from cottonsim_world.farm.export import load_map_yaml
+from cottonsim_common.map_files import load_map_yaml
 
 
 def wait_for_message(topic, msg_type, timeout_s=30.0):

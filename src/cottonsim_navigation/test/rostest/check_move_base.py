@@ -20,8 +20,10 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionResult, MoveBaseGoa
 from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.srv import GetPlan, GetPlanRequest
 
+from cottonsim_common.pose import world_to_frame
+from cottonsim_common.ros.conversions import occupancy_grid_msg
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy, world_to_frame
+from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
 from wall_wait import wait_until
 
@@ -44,15 +46,8 @@ class MoveBaseTest(unittest.TestCase):
     def setUpClass(cls):
         grid, res, origin = rasterize_occupancy(FARM, OccupancyMapConfig(), frame=HOME)
         cls.grid, cls.res, cls.origin = grid, res, origin
-        m = OccupancyGrid()
-        m.header.frame_id = "map"
-        m.info.resolution = res
-        m.info.height, m.info.width = grid.shape
-        m.info.origin.position.x, m.info.origin.position.y = origin[0], origin[1]
-        m.info.origin.orientation.w = 1.0
-        m.data = grid.ravel().tolist()
         cls.map_pub = rospy.Publisher("/map", OccupancyGrid, queue_size=1, latch=True)
-        cls.map_pub.publish(m)
+        cls.map_pub.publish(occupancy_grid_msg(grid, res, origin, "map", rospy.Time.now()))
         cls.tf_pub = tf2_ros.StaticTransformBroadcaster()
         t = TransformStamped()
         t.header.frame_id, t.child_frame_id = "map", "odom"

@@ -19,7 +19,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image
 from std_msgs.msg import Bool, Float32, Float64MultiArray, Int16, String
 
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 
 ROW_X = {"realsense_secondary": -4.13, "realsense_tertiary": -2.33}    # the near rows, left and right [m]
 ROW_SPACING_M = 1.8

@@ -32,20 +32,12 @@ from typing import Tuple, Union
 
 import numpy as np
 
+from cottonsim_common.validation import require_finite_array
+
 WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
 
 ArrayLike = Union[float, np.ndarray]
-
-
-def _finite_array(name: str, value) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numeric, got {value!r}") from None
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains NaN or infinite values")
-    return arr
 
 
 def _out(*arrays: np.ndarray, scalar: bool):
@@ -108,9 +100,9 @@ class HectorGeodesy:
             return (self.reference_latitude_deg + math.degrees(north / self.radius_north_m), lon,
                     self.reference_altitude_m + float(z_m))
         scalar = all(np.ndim(v) == 0 for v in (x_m, y_m, z_m))
-        x = _finite_array("x_m", x_m)
-        y = _finite_array("y_m", y_m)
-        z = _finite_array("z_m", z_m)
+        x = require_finite_array("x_m", x_m)
+        y = require_finite_array("y_m", y_m)
+        z = require_finite_array("z_m", z_m)
         north = self._cos_h * x + self._sin_h * y
         west = -self._sin_h * x + self._cos_h * y
         lat = self.reference_latitude_deg + np.degrees(north / self.radius_north_m)
@@ -123,9 +115,9 @@ class HectorGeodesy:
     def geodetic_to_world(self, latitude_deg: ArrayLike, longitude_deg: ArrayLike, altitude_m: ArrayLike = 0.0):
         """(latitude [deg], longitude [deg], altitude [m]) -> world (x, y, z) [m]."""
         scalar = all(np.ndim(v) == 0 for v in (latitude_deg, longitude_deg, altitude_m))
-        lat = _finite_array("latitude_deg", latitude_deg)
-        lon = _finite_array("longitude_deg", longitude_deg)
-        alt = _finite_array("altitude_m", altitude_m)
+        lat = require_finite_array("latitude_deg", latitude_deg)
+        lon = require_finite_array("longitude_deg", longitude_deg)
+        alt = require_finite_array("altitude_m", altitude_m)
         if np.any(np.abs(lat) > 90.0):
             raise ValueError("latitude_deg must be within [-90, 90]")
         north = np.radians(lat - self.reference_latitude_deg) * self.radius_north_m
@@ -245,7 +237,7 @@ class GpsNoiseModel:
             if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)):
                 raise ValueError("position_m contains NaN or infinite values")
         else:
-            p = _finite_array("position_m", position_m)
+            p = require_finite_array("position_m", position_m)
             if p.shape != (3,):
                 raise ValueError(f"position_m must have shape (3,), got {p.shape}")
             px, py, pz = p.tolist()

@@ -6,7 +6,6 @@ from typing import List, Optional
 
 import numpy as np
 
-from cottonsim_world.estimation.odometry_ekf import FilteredOdometry
 from cottonsim_world.faults import GPS_STATUS_FIX
 from cottonsim_world.physics.imu_model import ImuMeasurement
 from cottonsim_world.physics.physics_config import ContactEvent, RobotState
@@ -64,7 +63,7 @@ class GpsReading:
 class OdometryReading:
     stamp_s: float
     wheel: OdometryEstimate
-    filtered: FilteredOdometry
+    filtered: OdometryEstimate
 
 
 @dataclass

@@ -61,6 +61,7 @@ from typing import Callable, Deque, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from cottonsim_common.transforms import matrix_to_quaternion, pose_matrix
 from cottonsim_world.estimation.odometry_ekf import OdometryEkf
 from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.generator import generate_farm
@@ -78,7 +79,6 @@ from cottonsim_world.sensors.camera import CameraModel
 from cottonsim_world.sensors.cloud_filters import cloud_to_laserscans, original_passthrough
 from cottonsim_world.sensors.lidar import Vlp16Model
 from cottonsim_world.sensors.scene import BollVisibility, SensorScene
-from cottonsim_world.transforms import matrix_to_quaternion, pose_matrix
 # the simulator's public names, importable from here as before the config and readings had modules of their own
 from cottonsim_world.simulator_config import (ARM_JOINT_NAMES, ARM_PERIOD_S, ARM_PREFIX, BASE_FRAME,  # noqa: F401
                                               CAMERA_NAMES, IMU_FRAME, LIDAR_FRAME, MAX_SENSOR_WORKERS,

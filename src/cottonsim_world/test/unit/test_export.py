@@ -7,10 +7,11 @@ import os
 import numpy as np
 import pytest
 
+from cottonsim_common.map_files import load_map_yaml, save_map
+from cottonsim_common.pose import frame_to_world, world_to_frame
 from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.farm.export import (OccupancyMapConfig, export_all, frame_to_world, load_map_yaml,
-                                         rasterize_occupancy, world_to_frame, write_bolls_csv, write_map_yaml)
+from cottonsim_world.farm.export import OccupancyMapConfig, export_all, rasterize_occupancy, write_bolls_csv
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Pose2D
 from cottonsim_world.geodesy import HectorGeodesy
@@ -91,7 +92,7 @@ def test_write_load_unknown_and_orientation(tmp_path):
     grid[0, 0] = 100         # bottom-left cell = origin
     grid[3, 5] = 0
     path = str(tmp_path / "m.yaml")
-    write_map_yaml(path, grid, 0.1, (1.0, 2.0, 0.0))
+    save_map(path, grid, 0.1, (1.0, 2.0, 0.0))
     g, res, origin = load_map_yaml(path)
     np.testing.assert_array_equal(g, grid)
     assert res == pytest.approx(0.1) and origin == pytest.approx((1.0, 2.0, 0.0))

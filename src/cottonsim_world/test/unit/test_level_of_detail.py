@@ -265,7 +265,7 @@ def test_lidar_scan_packs_what_ranges_reports(farm_scene):
 
 def test_packed_cloud_and_its_message_match_the_unpacked_ones(farm_scene):
     import rospy
-    from cottonsim_world.ros import conversions as conv
+    from cottonsim_common.ros import conversions as conv
     from cottonsim_world.ros.bridge_node import packed_xyzrgb_cloud_msg
 
     cam = CameraModel(farm_scene, CameraConfig(width=160, height=120, cloud_stride=2))

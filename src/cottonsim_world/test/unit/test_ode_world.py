@@ -173,7 +173,7 @@ def test_bad_inputs_give_clear_errors():
         world.add_static_obstacles(1, [Primitive("sphere", (0, 0, 0), (0, 0, 0, 1), (math.nan,))])
     with pytest.raises(ValueError, match="position"):
         world.add_static_obstacles(1, [Primitive("sphere", (0, math.inf, 0), (0, 0, 0, 1), (0.1,))])
-    with pytest.raises(ValueError, match="spawn pose"):
+    with pytest.raises(ValueError, match="Pose2D.x_m must be a finite number"):   # no spawn pose can hold NaN
         world.spawn_robot(Pose2D(math.nan, 0.0, 0.0))
     with pytest.raises(ValueError, match="step_s"):
         PhysicsConfig(step_s=0.0)

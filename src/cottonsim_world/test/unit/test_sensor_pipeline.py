@@ -1,7 +1,6 @@
 """Pipelined sensors (SimulatorConfig.sensor_workers > 0): same readings as serial, bounded lag."""
 import dataclasses
 import math
-import pathlib
 import sys
 import time
 
@@ -9,10 +8,7 @@ import numpy as np
 import pytest
 
 from cottonsim_world.config_io import simulator_config_from_dict
-from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.simulator import CameraReading, LidarReading, Simulator, SimulatorConfig
-
-URDF = pathlib.Path(__file__).resolve().parents[3] / "cottonsim_description" / "urdf" / "cottonsim_robot.urdf"
 
 
 def config(workers, seed=5):
@@ -27,11 +23,6 @@ def config(workers, seed=5):
         "lidar": {"samples_per_ring": 90},
         "gps_noise": {"gaussian_noise_m": [0.05, 0.05, 0.0]},
     })
-
-
-@pytest.fixture(scope="module")
-def urdf():
-    return UrdfModel.from_file(URDF)
 
 
 def drive(sim, seconds, on_step=None):

@@ -8,12 +8,9 @@ import pytest
 
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.simulator import (CameraReading, GpsReading, GroundTruthReading, ImuReading, LidarReading,
                                        OdometryReading, Simulator, SimulatorConfig)
-from cottonsim_world.transforms import quaternion_to_matrix
-
-URDF = pathlib.Path(__file__).resolve().parents[3] / "cottonsim_description" / "urdf" / "cottonsim_robot.urdf"
+from cottonsim_common.transforms import quaternion_to_matrix
 
 
 def small_config(seed=0):
@@ -26,11 +23,6 @@ def small_config(seed=0):
         "lidar": {"samples_per_ring": 90},
         "gps_noise": {"gaussian_noise_m": [0.05, 0.05, 0.0]},
     })
-
-
-@pytest.fixture(scope="module")
-def urdf():
-    return UrdfModel.from_file(URDF)
 
 
 def run(sim, seconds=1.0):

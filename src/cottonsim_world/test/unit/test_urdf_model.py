@@ -8,11 +8,12 @@ import math
 import numpy as np
 import pytest
 
+from cottonsim_common.transforms import invert
+
 from cottonsim_world.robot.urdf_model import (
     JointLimits,
     UrdfModel,
     axis_angle_matrix,
-    invert_transform,
     pose_matrix,
     rpy_matrix,
 )
@@ -107,7 +108,7 @@ def test_fixed_transform_and_inverse(toy):
 def test_transform_between_siblings_goes_through_common_ancestor(toy):
     q = -0.9
     t = toy.transform("cam", "hand", {"arm_joint": q})
-    expected = invert_transform(toy.fixed_transform("base", "cam")) @ toy.transform("base", "hand", {"arm_joint": q})
+    expected = invert(toy.fixed_transform("base", "cam")) @ toy.transform("base", "hand", {"arm_joint": q})
     np.testing.assert_allclose(t, expected, atol=1e-12)
     # Hand-computed: the hand in base is (0.5 cos q, 0.5 sin q, 1); the cam sits
     # at (0, 0.2, 0) yawed +90 deg, so cam x = base y - 0.2, cam y = -base x.
@@ -188,5 +189,5 @@ def test_from_file_errors_name_the_file(tmp_path):
 
 def test_pose_matrix_and_inverse_roundtrip():
     t = pose_matrix((1.0, -2.0, 0.5), (0.2, 0.3, -1.1))
-    np.testing.assert_allclose(invert_transform(t) @ t, np.eye(4), atol=1e-12)
+    np.testing.assert_allclose(invert(t) @ t, np.eye(4), atol=1e-12)
     np.testing.assert_allclose(np.linalg.det(t[:3, :3]), 1.0)

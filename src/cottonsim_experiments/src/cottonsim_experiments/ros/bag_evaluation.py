@@ -45,7 +45,7 @@ def main(argv=None):
                                                             sim_world_from_settings, summary_line,
                                                             write_experiment)
     from cottonsim_navigation.waypoints.files import WaypointFileError, load_gps_waypoints, load_map_waypoints
-    from cottonsim_world.farm.model import Pose2D
+    from cottonsim_common.pose import Pose2D
 
     def fail(text):
         print(f"evaluate_bag: {text}", file=sys.stderr)
@@ -78,7 +78,7 @@ def main(argv=None):
         return fail(f"bag not found: {args.bag}")
 
     import rosbag
-    from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
+    from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 
     contacts_first = contacts_last = None
     start_s = end_s = None

@@ -28,11 +28,11 @@ from cottonsim_experiments.recording.experiment import (MODES, TrajectoryLog, Tr
                                                         sim_world_from_settings, summary_line, write_experiment)
 from cottonsim_navigation.evaluation.gps_outages import (GpsOutageConfig, estimates_in_world, fix_outages,
                                                          gps_outage_report, paused_intervals, position_errors)
+from cottonsim_common.pose import Pose2D
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 from cottonsim_navigation.evaluation.localization_error import localization_errors, localization_summary
 from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.waypoints.files import WaypointFileError, load_gps_waypoints, load_map_waypoints
-from cottonsim_world.farm.model import Pose2D
-from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
 
 
 class RecorderStartError(RuntimeError):
@@ -296,13 +296,3 @@ def _warm_up_matplotlib():
         import matplotlib.pyplot  # noqa: F401
     except ImportError:
         pass                      # plot_trajectory reports it when the figure is due
-
-
-def main():
-    rospy.init_node("experiment_recorder")
-    try:
-        node = ExperimentRecorderNode()
-    except RecorderStartError as exc:
-        rospy.logfatal(f"experiment_recorder: {exc}")
-        raise SystemExit(1)
-    node.spin()

@@ -1,115 +1,23 @@
-"""Planar geometry used by costmaps and planners.
+"""Robot footprints on a grid, for costmaps and planners.
 
-Angles in radians, positions in metres. Poses are :class:`Pose2D` (x, y, yaw)
-in some fixed frame; footprints are (N, 2) polygons in the robot frame
-(base_link: x forward, y left), given counter-clockwise or clockwise.
-Functions accept numpy arrays wherever a scalar angle makes sense.
+Angles in radians, positions in metres. Footprints are (N, 2) polygons in the
+robot frame (base_link: x forward, y left), given counter-clockwise or
+clockwise. The pose algebra, angle wrap and quaternions live in
+cottonsim_common (``pose``, ``angles``, ``transforms``); this module re-exports
+them under their former names for the callers in ``navigation/`` and
+``ros/amcl_node.py`` until those import cottonsim_common themselves.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Iterable, Sequence, Tuple
+from typing import Tuple
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Pose2D:
-    """A planar pose: position [m] and heading [rad] (counter-clockwise from +x).
-
-    Field names match ``cottonsim_world.farm.model.Pose2D`` so either can be
-    passed to the planners (they only read x_m, y_m, yaw_rad).
-    """
-
-    x_m: float
-    y_m: float
-    yaw_rad: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("x_m", "y_m", "yaw_rad"):
-            value = getattr(self, name)
-            try:
-                ok = math.isfinite(float(value))
-            except (TypeError, ValueError):
-                ok = False
-            if not ok:
-                raise ValueError(f"Pose2D.{name} must be a finite number, got {value!r}")
-
-    def as_array(self) -> np.ndarray:
-        return np.array([self.x_m, self.y_m, self.yaw_rad], dtype=float)
-
-
-def as_pose(p) -> Pose2D:
-    """Any object with x_m/y_m/yaw_rad (or a 3-sequence) -> Pose2D (validated)."""
-    if isinstance(p, Pose2D):
-        return p
-    if hasattr(p, "x_m") and hasattr(p, "y_m"):
-        return Pose2D(float(p.x_m), float(p.y_m), float(getattr(p, "yaw_rad", 0.0)))
-    seq = list(p)
-    if len(seq) not in (2, 3):
-        raise ValueError(f"a pose needs (x, y[, yaw]), got {len(seq)} values")
-    return Pose2D(float(seq[0]), float(seq[1]), float(seq[2]) if len(seq) == 3 else 0.0)
-
-
-# --- angles -------------------------------------------------------------------
-def normalize_angle(a):
-    """Wrap angles [rad] to [-pi, pi); scalars stay floats, arrays stay arrays."""
-    if np.ndim(a) == 0:
-        return (float(a) + math.pi) % (2.0 * math.pi) - math.pi
-    return (np.asarray(a, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def shortest_angular_distance(from_rad, to_rad):
-    """Signed smallest rotation [rad] taking ``from_rad`` to ``to_rad`` (like angles::)."""
-    if np.ndim(from_rad) == 0 and np.ndim(to_rad) == 0:
-        return normalize_angle(float(to_rad) - float(from_rad))
-    return normalize_angle(np.asarray(to_rad, dtype=float) - np.asarray(from_rad, dtype=float))
-
-
-def yaw_to_quaternion(yaw_rad: float) -> Tuple[float, float, float, float]:
-    """A rotation about z as a quaternion (x, y, z, w)."""
-    h = 0.5 * float(yaw_rad)
-    return (0.0, 0.0, math.sin(h), math.cos(h))
-
-
-def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
-    """Yaw [rad] of a quaternion (x, y, z, w); roll and pitch are ignored.
-
-    Raises ValueError for a zero-length or non-finite quaternion.
-    """
-    vals = (x, y, z, w)
-    if not all(math.isfinite(v) for v in vals):
-        raise ValueError(f"quaternion has non-finite components: {vals}")
-    n = math.sqrt(sum(v * v for v in vals))
-    if n < 1e-12:
-        raise ValueError("quaternion has zero length")
-    x, y, z, w = (v / n for v in vals)
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-# --- pose algebra -------------------------------------------------------------
-def compose(a: Pose2D, b: Pose2D) -> Pose2D:
-    """a (+) b: pose b given in frame a, expressed in a's parent frame."""
-    c, s = math.cos(a.yaw_rad), math.sin(a.yaw_rad)
-    return Pose2D(a.x_m + c * b.x_m - s * b.y_m, a.y_m + s * b.x_m + c * b.y_m,
-                  normalize_angle(a.yaw_rad + b.yaw_rad))
-
-
-def inverse(a: Pose2D) -> Pose2D:
-    """The pose p with compose(a, p) == identity."""
-    c, s = math.cos(a.yaw_rad), math.sin(a.yaw_rad)
-    return Pose2D(-c * a.x_m - s * a.y_m, s * a.x_m - c * a.y_m, normalize_angle(-a.yaw_rad))
-
-
-def transform_points(pose: Pose2D, points: np.ndarray) -> np.ndarray:
-    """(N, 2) points in the pose's frame -> parent frame."""
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    out = np.empty_like(pts)
-    out[:, 0] = pose.x_m + c * pts[:, 0] - s * pts[:, 1]
-    out[:, 1] = pose.y_m + s * pts[:, 0] + c * pts[:, 1]
-    return out
+from cottonsim_common.angles import shortest_angular_distance  # noqa: F401  (re-export)
+from cottonsim_common.angles import wrap_angle as normalize_angle  # noqa: F401  (re-export)
+from cottonsim_common.pose import Pose2D, as_pose, compose, inverse, transform_points  # noqa: F401
+from cottonsim_common.transforms import quaternion_to_yaw, yaw_to_quaternion  # noqa: F401  (re-export)
 
 
 # --- footprints ----------------------------------------------------------------

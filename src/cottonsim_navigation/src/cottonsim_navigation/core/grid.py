@@ -187,23 +187,3 @@ def occupancy_to_cost(occupancy: np.ndarray, thresholds: OccupancyThresholds = O
     out[lethal] = LETHAL_OBSTACLE
     out[unknown] = NO_INFORMATION if track_unknown_space else FREE_SPACE
     return out
-
-
-def image_to_occupancy(pixels: np.ndarray, negate: bool = False) -> np.ndarray:
-    """map_server's 'trinary' reading of a greyscale map image (uint8, row 0 at the top).
-
-    Returns occupancy values 0..100 / -1 in OccupancyGrid order (row 0 at the
-    bottom). ``p = (255 - v) / 255`` (or ``v / 255`` when negate), then the
-    probability is scaled to 0..100; grey 205 ('unknown' in saved maps) ->
-    -1. Threshold the result with :func:`occupancy_to_cost`.
-    """
-    img = np.asarray(pixels)
-    if img.ndim == 3:
-        img = img[..., :3].mean(axis=2)
-    if img.ndim != 2:
-        raise ValueError(f"map image must be 2-D greyscale, got shape {np.shape(pixels)}")
-    img = img.astype(float)
-    p = img / 255.0 if negate else (255.0 - img) / 255.0
-    occ = np.round(p * 100.0).astype(np.int16)
-    occ[np.isclose(img, 205.0)] = -1
-    return occ[::-1].copy()

@@ -83,6 +83,19 @@ def _transformers(zone: int, northern: bool):
     return fwd, inv
 
 
+def _checked_zone(zone) -> int:
+    if not 1 <= int(zone) <= 60:
+        raise ValueError(f"zone must lie in 1..60, got {zone}")
+    return int(zone)
+
+
+def _checked_position_and_zone(lat: float, lon: float, zone: Optional[int]) -> Tuple[float, float, int]:
+    """Validated (lat, lon) inside UTM's latitudes and the zone (default: the position's own)."""
+    lat, lon = check_latlon(lat, lon)
+    _check_utm_latitude(lat)
+    return lat, lon, _checked_zone(utm_zone(lat, lon) if zone is None else zone)
+
+
 def latlon_to_utm(lat: float, lon: float, zone: Optional[int] = None,
                   northern: Optional[bool] = None) -> Tuple[float, float, int, str]:
     """WGS84 lat/lon [deg] -> (easting m, northing m, zone, band letter).
@@ -90,12 +103,7 @@ def latlon_to_utm(lat: float, lon: float, zone: Optional[int] = None,
     ``zone`` / ``northern`` force a zone and hemisphere (used to keep one
     zone for a whole route); by default they follow the position.
     """
-    lat, lon = check_latlon(lat, lon)
-    _check_utm_latitude(lat)
-    if zone is None:
-        zone = utm_zone(lat, lon)
-    if not 1 <= int(zone) <= 60:
-        raise ValueError(f"zone must lie in 1..60, got {zone}")
+    lat, lon, zone = _checked_position_and_zone(lat, lon, zone)
     if northern is None:
         northern = lat >= 0.0
     e, n = _transformers(int(zone), bool(northern))[0].transform(lon, lat)
@@ -107,8 +115,7 @@ def utm_to_latlon(easting: float, northing: float, zone: int, northern: bool) ->
     for name, v in (("easting", easting), ("northing", northing)):
         if not math.isfinite(float(v)):
             raise ValueError(f"{name} must be finite, got {v!r}")
-    if not 1 <= int(zone) <= 60:
-        raise ValueError(f"zone must lie in 1..60, got {zone}")
+    zone = _checked_zone(zone)
     lon, lat = _transformers(int(zone), bool(northern))[1].transform(float(easting), float(northing))
     return float(lat), float(lon)
 
@@ -127,11 +134,6 @@ def utm_meridian_convergence_rad(lat: float, lon: float, zone: Optional[int] = N
     converts to ENU as enu_yaw = utm_yaw - gamma. Examples: 49.9 N 8.9 E
     (zone 32): -0.077 deg; 33.4 N 101 W (zone 14): -1.10 deg.
     """
-    lat, lon = check_latlon(lat, lon)
-    _check_utm_latitude(lat)
-    if zone is None:
-        zone = utm_zone(lat, lon)
-    if not 1 <= int(zone) <= 60:
-        raise ValueError(f"zone must lie in 1..60, got {zone}")
+    lat, lon, zone = _checked_position_and_zone(lat, lon, zone)
     factors = _projection(int(zone), lat >= 0.0).get_factors(lon, lat)
     return math.radians(float(factors.meridian_convergence))

@@ -63,7 +63,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from cottonsim_navigation.core.geometry import Pose2D, compose, inverse, normalize_angle
+from cottonsim_common.angles import wrap_angle
+from cottonsim_common.pose import Pose2D, compose, inverse
 
 
 @dataclass(frozen=True)
@@ -170,7 +171,7 @@ def robot_yaw_from_imu(q_world_imu: Sequence[float], q_base_imu: Sequence[float]
 
 def enu_yaw(imu_robot_yaw_rad: float, yaw_offset_rad: float, magnetic_declination_rad: float = 0.0) -> float:
     """Robot heading in ENU [rad, 0 = east] from the IMU's robot yaw plus the corrections."""
-    return float(normalize_angle(imu_robot_yaw_rad + yaw_offset_rad + magnetic_declination_rad))
+    return float(wrap_angle(imu_robot_yaw_rad + yaw_offset_rad + magnetic_declination_rad))
 
 
 # GpsLocalizer.state values
@@ -251,8 +252,8 @@ class GpsLocalizer:
         self._last_heading_s = max(stamp_s, self._last_heading_s or stamp_s)
         a = _blend_weight(dt, self.config.yaw_time_constant_s, self.config.max_dt_s)
         est = compose(self._map_to_odom, odom_pose)
-        new_yaw = est.yaw_rad + a * float(normalize_angle(map_yaw_rad - est.yaw_rad))
-        self._map_to_odom = compose(Pose2D(est.x_m, est.y_m, float(normalize_angle(new_yaw))), inverse(odom_pose))
+        new_yaw = est.yaw_rad + a * float(wrap_angle(map_yaw_rad - est.yaw_rad))
+        self._map_to_odom = compose(Pose2D(est.x_m, est.y_m, float(wrap_angle(new_yaw))), inverse(odom_pose))
 
     def seconds_since_fix(self, now_s: float) -> float:
         """Sim time [s] since the newest fix used (inf before the first)."""
@@ -297,7 +298,7 @@ class GpsLocalizer:
                 return False
             # the robot's map yaw now = heading measured + odometry turn since then
             yaw = self._heading + (odom_pose.yaw_rad - self._heading_odom_yaw)
-            est = Pose2D(float(x_m), float(y_m), float(normalize_angle(yaw)))
+            est = Pose2D(float(x_m), float(y_m), float(wrap_angle(yaw)))
             self._map_to_odom = compose(est, inverse(odom_pose))
             self._last_gps_s = stamp_s
             self.gps_updates += 1

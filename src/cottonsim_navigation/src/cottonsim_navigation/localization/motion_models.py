@@ -57,7 +57,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from ..core.geometry import normalize_angle
+from cottonsim_common.angles import wrap_angle
 
 # Below this translation [m] the heading of the step is not meaningful (ROS amcl: 0.01 m).
 MIN_TRANSLATION_FOR_HEADING_M = 0.01
@@ -132,8 +132,8 @@ def odometry_increment(odom_prev, odom_now) -> Tuple[float, float, float]:
     if trans < MIN_TRANSLATION_FOR_HEADING_M:
         rot1 = 0.0
     else:
-        rot1 = normalize_angle(math.atan2(dy, dx) - p0[2])
-    rot2 = normalize_angle(normalize_angle(p1[2] - p0[2]) - rot1)
+        rot1 = wrap_angle(math.atan2(dy, dx) - p0[2])
+    rot2 = wrap_angle(wrap_angle(p1[2] - p0[2]) - rot1)
     return rot1, trans, rot2
 
 
@@ -160,7 +160,7 @@ def _increment_twist(p0: np.ndarray, p1: np.ndarray) -> Tuple[float, float, floa
     """The twist (in p0's frame) of the constant-velocity arc from odometry pose p0 to p1."""
     c, s = math.cos(p0[2]), math.sin(p0[2])
     gx, gy = p1[0] - p0[0], p1[1] - p0[1]
-    return _se2_log(c * gx + s * gy, -s * gx + c * gy, float(normalize_angle(p1[2] - p0[2])))
+    return _se2_log(c * gx + s * gy, -s * gx + c * gy, float(wrap_angle(p1[2] - p0[2])))
 
 
 def _parts_for(twist: Tuple[float, float, float], max_step_m: float, max_step_rad: float) -> int:
@@ -198,7 +198,7 @@ def split_odometry_increment(odom_prev, odom_now, max_step_m: float, max_step_ra
     poses[0], poses[k] = p0, p1
     for i in range(1, k):
         dx, dy, dyaw = _se2_exp(*(v * i / k for v in twist))
-        poses[i] = (p0[0] + c * dx - s * dy, p0[1] + s * dx + c * dy, normalize_angle(p0[2] + dyaw))
+        poses[i] = (p0[0] + c * dx - s * dy, p0[1] + s * dx + c * dy, wrap_angle(p0[2] + dyaw))
     return poses
 
 
@@ -230,8 +230,8 @@ def _sample_one_increment(parts: np.ndarray, odom_prev, odom_now, config: Odomet
                           rng: np.random.Generator) -> np.ndarray:
     rot1, trans, rot2 = odometry_increment(odom_prev, odom_now)
     # A backwards step should not look like a half turn to the noise model.
-    rot1_noise = min(abs(normalize_angle(rot1)), abs(normalize_angle(rot1 - math.pi)))
-    rot2_noise = min(abs(normalize_angle(rot2)), abs(normalize_angle(rot2 - math.pi)))
+    rot1_noise = min(abs(wrap_angle(rot1)), abs(wrap_angle(rot1 - math.pi)))
+    rot2_noise = min(abs(wrap_angle(rot2)), abs(wrap_angle(rot2 - math.pi)))
     a = config
     sd_rot1 = a.noise_sd(a.alpha1 * rot1_noise ** 2 + a.alpha2 * trans ** 2)
     sd_trans = a.noise_sd(a.alpha3 * trans ** 2 + a.alpha4 * (rot1_noise ** 2 + rot2_noise ** 2))
@@ -244,5 +244,5 @@ def _sample_one_increment(parts: np.ndarray, odom_prev, odom_now, config: Odomet
     heading = parts[:, 2] + r1
     out[:, 0] = parts[:, 0] + tr * np.cos(heading)
     out[:, 1] = parts[:, 1] + tr * np.sin(heading)
-    out[:, 2] = normalize_angle(parts[:, 2] + r1 + r2)
+    out[:, 2] = wrap_angle(parts[:, 2] + r1 + r2)
     return out

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..core.geometry import normalize_angle
+from cottonsim_common.angles import wrap_angle
 from ..core.grid import GridSpec
 
 
@@ -159,7 +159,7 @@ class _BinIndex:
         b = np.empty((particles.shape[0], 3), dtype=np.int64)
         b[:, 0] = np.floor(particles[:, 0] / self.bin_xy)
         b[:, 1] = np.floor(particles[:, 1] / self.bin_xy)
-        b[:, 2] = np.floor((normalize_angle(particles[:, 2]) + math.pi) / self.bin_yaw)
+        b[:, 2] = np.floor((wrap_angle(particles[:, 2]) + math.pi) / self.bin_yaw)
         b[:, 2] %= self.n_yaw
         return b
 
@@ -241,7 +241,7 @@ class ParticleFilter:
         n = self.config.max_particles if n is None else int(n)
         z = self.rng.standard_normal((n, 3)) * np.sqrt(np.clip(evals, 0, None))
         parts = mu + z @ evecs.T
-        parts[:, 2] = normalize_angle(parts[:, 2])
+        parts[:, 2] = wrap_angle(parts[:, 2])
         self.set_particles(parts)
 
     def init_uniform(self, sampler: FreeSpaceSampler, n: Optional[int] = None) -> None:
@@ -278,7 +278,7 @@ class ParticleFilter:
             return
         noise = self.rng.standard_normal((self.n, 3)) * np.array([std_xy_m, std_xy_m, std_yaw_rad])
         parts = self.particles + noise
-        parts[:, 2] = normalize_angle(parts[:, 2])
+        parts[:, 2] = wrap_angle(parts[:, 2])
         self.particles = parts
 
     def redraw_fraction(self, mean, covariance, fraction: float) -> int:

@@ -43,7 +43,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..core.geometry import normalize_angle
+from cottonsim_common.angles import wrap_angle
 
 
 class HeadingFuser:
@@ -101,35 +101,35 @@ class HeadingFuser:
             self._last_raw = raw.copy()
             self._fused = raw.copy()
         if imu_yaw_rad is not None:
-            diff = normalize_angle(float(imu_yaw_rad) - raw[2])
+            diff = wrap_angle(float(imu_yaw_rad) - raw[2])
             gap = max(float(stamp_s) - self._last_imu_t, 0.0) if self._last_imu_t is not None else 0.0
             self._last_imu_t = float(stamp_s)
             if self._c is None or gap > self.tau_s:
                 self._c, self._n = diff, 1
             else:
                 self._n += 1
-                e = normalize_angle(diff - self._c)
+                e = wrap_angle(diff - self._c)
                 w = 1.0 / self.tau_s
                 if not self.track_rate:
-                    self._c = normalize_angle(self._c + max(min(gap * w, 1.0), 1.0 / self._n) * e)
+                    self._c = wrap_angle(self._c + max(min(gap * w, 1.0), 1.0 / self._n) * e)
                 elif 1.0 / self._n > 2.0 * w * gap:     # start: a running mean smooths more than the loop
-                    self._c = normalize_angle(self._c + e / self._n + self._r * gap)
+                    self._c = wrap_angle(self._c + e / self._n + self._r * gap)
                 else:
-                    self._c = normalize_angle(self._c + (self._r + 2.0 * w * e) * gap)
+                    self._c = wrap_angle(self._c + (self._r + 2.0 * w * e) * gap)
                     self._r += w * w * e * gap
         if not self._moved:
             d = raw - self._first
-            if math.hypot(d[0], d[1]) > self.still_m or abs(normalize_angle(d[2])) > self.still_rad:
+            if math.hypot(d[0], d[1]) > self.still_m or abs(wrap_angle(d[2])) > self.still_rad:
                 self._moved = True
             elif self._c is not None:
                 self._c_ref = self._c
                 self._r = 0.0
         k_prev = self._k
-        self._k = normalize_angle(self._c - self._c_ref) if self._c is not None else 0.0
-        k_mid = k_prev + 0.5 * normalize_angle(self._k - k_prev)
+        self._k = wrap_angle(self._c - self._c_ref) if self._c is not None else 0.0
+        k_mid = k_prev + 0.5 * wrap_angle(self._k - k_prev)
         c, s = math.cos(k_mid), math.sin(k_mid)
         dx, dy = raw[0] - self._last_raw[0], raw[1] - self._last_raw[1]
         self._fused = np.array([self._fused[0] + c * dx - s * dy, self._fused[1] + s * dx + c * dy,
-                                normalize_angle(raw[2] + self._k)])
+                                wrap_angle(raw[2] + self._k)])
         self._last_raw = raw.copy()
         return self._fused.copy()

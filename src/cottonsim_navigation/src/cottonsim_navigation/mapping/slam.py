@@ -44,7 +44,10 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from ..core.geometry import Pose2D, compose, inverse, normalize_angle
+from cottonsim_common.angles import wrap_angle
+from cottonsim_common.pose import Pose2D, compose, inverse
+from cottonsim_common.raytrace import longest_ray, trace_line
+
 from ..core.grid import GridSpec
 from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
 from ..localization.particle_filter import effective_sample_size, systematic_resample_indices, weight_entropy
@@ -222,28 +225,20 @@ class TiledLogOddsMap:
 def _integrate(grid, touched, x0, y0, ex, ey, hit, add_miss, add_hit, clamp):
     """Ray-trace beams from cell (x0, y0) to (ex[i], ey[i]) adding log-odds; marks touched tiles."""
     h, w = grid.shape
+    n_max = longest_ray(x0, y0, ex, ey)
+    cx = np.empty(n_max, dtype=np.int64)
+    cy = np.empty(n_max, dtype=np.int64)
     for i in range(ex.shape[0]):
         bx = ex[i]
         by = ey[i]
-        dx = abs(bx - x0)
-        dy = abs(by - y0)
-        sx = 1 if bx > x0 else -1
-        sy = 1 if by > y0 else -1
-        err = dx - dy
-        x = x0
-        y = y0
-        while not (x == bx and y == by):
+        n = trace_line(x0, y0, bx, by, cx, cy)
+        for k in range(n):
+            x = cx[k]
+            y = cy[k]
             if 0 <= x < w and 0 <= y < h:
                 v = grid[y, x] + add_miss
                 grid[y, x] = v if v > -clamp else -clamp
                 touched[y // 64, x // 64] = True
-            e2 = 2 * err
-            if e2 > -dy:
-                err -= dy
-                x += sx
-            if e2 < dx:
-                err += dx
-                y += sy
         if 0 <= bx < w and 0 <= by < h:
             if hit[i]:
                 v = grid[by, bx] + add_hit
@@ -335,7 +330,7 @@ class RbpfSlam:
         else:
             d = odom - self._last_odom
             moved = (math.hypot(d[0], d[1]) >= cfg.linear_update_m
-                     or abs(normalize_angle(d[2])) >= cfg.angular_update_rad)
+                     or abs(wrap_angle(d[2])) >= cfg.angular_update_rad)
             timed = cfg.temporal_update_s > 0 and stamp_s - self._last_time_s >= cfg.temporal_update_s
             if not (moved or timed):
                 return self._result(False, False, raw)

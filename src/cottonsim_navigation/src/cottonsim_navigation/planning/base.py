@@ -15,7 +15,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 
 
 @dataclass
@@ -126,8 +126,3 @@ def make_local_planner(name: str, config=None) -> LocalPlanner:
     if name not in _LOCAL:
         raise ValueError(f"unknown local planner {name!r}; known: {', '.join(sorted(_LOCAL))}")
     return _LOCAL[name](config) if config is not None else _LOCAL[name]()
-
-
-def known_planners() -> Tuple[List[str], List[str]]:
-    _ensure_builtin()
-    return sorted(_GLOBAL), sorted(_LOCAL)

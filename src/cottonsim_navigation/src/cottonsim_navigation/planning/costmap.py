@@ -37,10 +37,12 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 from scipy import ndimage
 
+from cottonsim_common.raytrace import clear_rays
+from cottonsim_common.validation import require_positive
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
                                             NO_INFORMATION, GridSpec)
-from cottonsim_navigation.planning.costmap_layer import CostmapLayer, check_finite_positive, shift_grid
+from cottonsim_navigation.planning.costmap_layer import CostmapLayer, shift_grid
 from cottonsim_navigation.planning.obstacle_layer import ObstacleLayer, ObstacleLayerConfig
 
 # The Husky A200's body, 0.99 x 0.67 m, centred on base_link (the original's
@@ -78,9 +80,9 @@ class CostmapConfig:
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "resolution"):
-            check_finite_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         for name in ("update_frequency", "publish_frequency", "footprint_padding", "transform_tolerance"):
-            check_finite_positive(name, getattr(self, name), allow_zero=True)
+            require_positive(name, getattr(self, name), allow_zero=True)
         for name in ("origin_x", "origin_y"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
@@ -183,8 +185,8 @@ class InflationLayerConfig:
     inflate_unknown: bool = False
 
     def __post_init__(self) -> None:
-        check_finite_positive("inflation_radius", self.inflation_radius, allow_zero=True)
-        check_finite_positive("cost_scaling_factor", self.cost_scaling_factor, allow_zero=True)
+        require_positive("inflation_radius", self.inflation_radius, allow_zero=True)
+        require_positive("cost_scaling_factor", self.cost_scaling_factor, allow_zero=True)
 
 
 def inflation_cost(distance_m, inscribed_radius_m: float, cost_scaling_factor: float) -> np.ndarray:
@@ -333,7 +335,7 @@ class Costmap2D:
         if self.config.rolling_window:
             self.update_origin(pose.x_m - 0.5 * self.spec.size_x_m, pose.y_m - 0.5 * self.spec.size_y_m)
         if window_m is not None and not self.config.rolling_window and not self._full_update_due:
-            check_finite_positive("window_m", window_m)
+            require_positive("window_m", window_m)
             self._update_window(pose, float(window_m))
             return self.costs
         master = np.full(self.spec.shape, self._default, dtype=np.uint8)

@@ -2,20 +2,10 @@
 from __future__ import annotations
 
 import abc
-import math
 
 import numpy as np
 
 from cottonsim_navigation.core import geometry as geo
-
-
-def check_finite_positive(name: str, value: float, allow_zero: bool = False) -> None:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} must be a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
 
 
 def shift_grid(grid: np.ndarray, dx: int, dy: int, fill: int) -> np.ndarray:

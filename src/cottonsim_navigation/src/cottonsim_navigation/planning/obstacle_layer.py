@@ -19,8 +19,9 @@ import numpy as np
 
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import FREE_SPACE, LETHAL_OBSTACLE, NO_INFORMATION, GridSpec
-from cottonsim_navigation.core.raytrace import clear_rays
-from cottonsim_navigation.planning.costmap_layer import CostmapLayer, check_finite_positive, shift_grid
+from cottonsim_common.raytrace import clear_rays
+from cottonsim_common.validation import require_positive
+from cottonsim_navigation.planning.costmap_layer import CostmapLayer, shift_grid
 
 
 @dataclass(frozen=True)
@@ -48,8 +49,8 @@ class ObstacleLayerConfig:
     clearing_miss_count: int = 1
 
     def __post_init__(self) -> None:
-        check_finite_positive("obstacle_range", self.obstacle_range)
-        check_finite_positive("raytrace_range", self.raytrace_range)
+        require_positive("obstacle_range", self.obstacle_range)
+        require_positive("raytrace_range", self.raytrace_range)
         for name in ("min_obstacle_height", "max_obstacle_height"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")

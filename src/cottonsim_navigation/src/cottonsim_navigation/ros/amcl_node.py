@@ -30,7 +30,7 @@ from cottonsim_navigation.localization.sensor_models import Scan
 from cottonsim_navigation.localization.supervisor import LocalizationSupervisor, SupervisorConfig
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
 from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
+from cottonsim_common.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 

@@ -16,9 +16,9 @@ import rospy
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState
 
+from cottonsim_common.ros.conversions import finite_or_none
+from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_navigation.power.battery import BatteryConfig, BatteryModel, BatteryReading
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros.conversions import finite_or_none
 
 # Odometry older than this [s of sim time] counts as "robot at rest".
 _STALE_ODOMETRY_S = 1.0
@@ -117,13 +117,3 @@ class BatteryNode:
             self._advance(now.to_sec())
             reading = self.model.reading()
         self.pub.publish(battery_state_msg(reading, now, self.frame_id))
-
-
-def main():
-    rospy.init_node("battery")
-    try:
-        BatteryNode()
-    except ValueError as exc:
-        rospy.logfatal(f"battery: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -21,14 +21,16 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Bool
 
-from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
+from cottonsim_common.pose import Pose2D
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.localization.gps_localization import (REJECTED_JUMP, REJECTED_VARIANCE,
                                                                 STATE_DEAD_RECKONING, STATE_GPS, STATE_GPS_LOST,
                                                                 STATE_WAITING, GpsLocalizationConfig, GpsLocalizer,
                                                                 enu_yaw)
+from cottonsim_common.ros.conversions import finite_or_none, yaw_from_quaternion_msg
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.tf import PlanarTransformBroadcaster
 from cottonsim_navigation.ros.navsat_transform_node import ImuYawReader
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
 
 _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
@@ -85,7 +87,7 @@ class GpsLocalizationNode:
         self._lock = threading.Lock()
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
-        self.tf_pub = tf2_ros.TransformBroadcaster()
+        self.map_to_odom_tf = PlanarTransformBroadcaster(self.map_frame, self.odom_frame)
         self.imu = ImuYawReader(self.tf_buffer, self.base_frame, "gps_localization")
         self.pose_pub = rospy.Publisher("~pose", Odometry, queue_size=10)
         self.localized_pub = rospy.Publisher("~localized", Bool, queue_size=2, latch=True)
@@ -94,7 +96,6 @@ class GpsLocalizationNode:
         self._localized: Optional[bool] = None
         self._last_fix_s = 0.0          # when dead reckoning began: the last fix used before it [s]
         self._last_status_s = -math.inf
-        self._last_published: Optional[rospy.Time] = None
         self._imu_queue: Deque[Tuple[rospy.Time, float]] = collections.deque(maxlen=64)
         rospy.Subscriber("/odometry/gps", Odometry, self._on_gps, queue_size=20)
         rospy.Subscriber("/imu/data", Imu, self._on_imu, queue_size=20)
@@ -207,12 +208,7 @@ class GpsLocalizationNode:
             self._publish_status(state, localized, since_fix)
         if t is None:
             return
-        stamp = now + rospy.Duration(self.config.transform_tolerance_s)
-        if self._last_published is not None and stamp <= self._last_published:
-            return                                            # sim time stood still: no duplicate stamp
-        self._last_published = stamp
-        self.tf_pub.sendTransform(transform_msg(self.map_frame, self.odom_frame, (t.x_m, t.y_m, 0.0),
-                                                yaw_to_quaternion(t.yaw_rad), stamp))
+        self.map_to_odom_tf.send(t, now + rospy.Duration(self.config.transform_tolerance_s))
 
 
     def _follow_state(self, state: str, localized: bool, since_fix_s: float, now_s: float):
@@ -255,13 +251,3 @@ class GpsLocalizationNode:
             msg.header.stamp = rospy.Time.now()
             msg.pose.x = msg.pose.y = msg.pose.theta = math.nan
         self.status_pub.publish(msg)
-
-
-def main():
-    rospy.init_node("gps_localization")
-    try:
-        GpsLocalizationNode()
-    except ValueError as exc:
-        rospy.logfatal(f"gps_localization: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -16,7 +16,7 @@ import rospy
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 
 from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
-from cottonsim_navigation.ros.waypoint_navigator import NavigatorStartError, WaypointNavigatorBase, run_node
+from cottonsim_navigation.ros.waypoint_navigator import NavigatorStartError, WaypointNavigatorBase
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError, load_gps_lanes, load_gps_waypoints
 from cottonsim_navigation.waypoints.goals import gps_goals_in_map, gps_lanes_in_map
 
@@ -160,7 +160,3 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
         rospy.loginfo("%s: %d of %d waypoints moved onto the lane centres of %s (by up to %.2f m)", self.NAME,
                       sum(m > 1e-6 for m in moved), len(goals), self.lanes_file, max(moved))
         return goals
-
-
-def main():
-    run_node(GpsWaypointNavigatorNode, "gps_waypoint_navigator")

@@ -2,46 +2,19 @@
 
 Like ROS map_saver (not packaged for Debian): trinary thresholds on the
 OccupancyGrid values, the YAML map_server reads back. The conversion and the
-file writing are ``cottonsim_navigation.core.map_files.save_map``.
+file writing are ``cottonsim_common.map_files.save_map``.
 """
 from __future__ import annotations
 
 import threading
 import time
 
-import numpy as np
 import rospy
 from nav_msgs.msg import OccupancyGrid
 
-from cottonsim_navigation.core.geometry import quaternion_to_yaw
-from cottonsim_navigation.core.map_files import MapSaverConfig, save_map
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-
-
-def occupancy_grid_to_array(msg: OccupancyGrid):
-    """OccupancyGrid -> (grid int8 [height, width], resolution [m], origin (x, y, yaw)).
-
-    Raises ValueError for a message whose data length does not match its size
-    or whose geometry holds NaN.
-    """
-    w, h = int(msg.info.width), int(msg.info.height)
-    if w <= 0 or h <= 0:
-        raise ValueError(f"map has no cells ({w} x {h})")
-    data = msg.data
-    if isinstance(data, (bytes, bytearray)):
-        grid = np.frombuffer(data, dtype=np.int8)
-    else:
-        grid = np.asarray(data, dtype=np.int16)
-    if grid.size != w * h:
-        raise ValueError(f"map data has {grid.size} cells, expected {w} x {h} = {w * h}")
-    o = msg.info.origin
-    q = o.orientation
-    if q.x == q.y == q.z == q.w == 0.0:
-        yaw = 0.0                                        # an unset quaternion: no rotation
-    else:
-        yaw = quaternion_to_yaw(q.x, q.y, q.z, q.w)
-    origin = (float(o.position.x), float(o.position.y), float(yaw))
-    return grid.reshape(h, w).astype(np.int8), float(msg.info.resolution), origin
+from cottonsim_common.map_files import MapSaverConfig, save_map
+from cottonsim_common.ros.conversions import occupancy_grid_to_array  # also imported from here by amcl_node
+from cottonsim_common.ros.params import config_from_params, typed_param
 
 
 class MapSaverNode:
@@ -105,13 +78,3 @@ class MapSaverNode:
                 rospy.loginfo("map_saver: still waiting for a map on %s", self.topic)
                 next_note = now + 5.0
         return 0 if self.ok else 1
-
-
-def main():
-    rospy.init_node("map_saver")
-    try:
-        node = MapSaverNode(rospy.myargv())
-    except ValueError as exc:
-        rospy.logfatal(f"map_saver: {exc}")
-        raise SystemExit(2)
-    raise SystemExit(node.wait())

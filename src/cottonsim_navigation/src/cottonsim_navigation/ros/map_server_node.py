@@ -1,9 +1,9 @@
 """map_server: serve an occupancy map from a map_server YAML + image, or an empty map.
 
 The ROS map_server is not packaged for Debian; this node does its job. The
-file is read by ``cottonsim_world.farm.export.load_map_yaml`` (PGM or any
+file is read by ``cottonsim_common.map_files.load_map_yaml`` (PGM or any
 OpenCV image, trinary / scale modes); the empty map comes from
-``cottonsim_navigation.core.map_files.empty_map``.
+``cottonsim_common.map_files.empty_map``.
 """
 from __future__ import annotations
 
@@ -11,27 +11,9 @@ import rospy
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap, GetMapResponse
 
-from cottonsim_navigation.core.geometry import yaw_to_quaternion
-from cottonsim_navigation.core.map_files import EmptyMapConfig, empty_map
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.farm.export import load_map_yaml
-
-
-def occupancy_grid_msg(grid, resolution_m: float, origin, frame_id: str, stamp: rospy.Time) -> OccupancyGrid:
-    """int8 grid [iy, ix] (row 0 = smallest y) + resolution + origin (x, y, yaw) -> OccupancyGrid."""
-    msg = OccupancyGrid()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
-    info = msg.info
-    info.map_load_time = stamp
-    info.resolution = float(resolution_m)
-    info.height, info.width = int(grid.shape[0]), int(grid.shape[1])
-    info.origin.position.x, info.origin.position.y = float(origin[0]), float(origin[1])
-    q = yaw_to_quaternion(float(origin[2]))
-    info.origin.orientation.x, info.origin.orientation.y = q[0], q[1]
-    info.origin.orientation.z, info.origin.orientation.w = q[2], q[3]
-    msg.data = grid.reshape(-1).astype("int8").tolist()
-    return msg
+from cottonsim_common.map_files import EmptyMapConfig, empty_map, load_map_yaml
+from cottonsim_common.ros.conversions import occupancy_grid_msg
+from cottonsim_common.ros.params import config_from_params, typed_param
 
 
 class MapServerNode:
@@ -82,13 +64,3 @@ class MapServerNode:
 
     def _on_static_map(self, _request):
         return GetMapResponse(map=self.map_msg)
-
-
-def main():
-    rospy.init_node("map_server")
-    try:
-        MapServerNode(rospy.myargv())
-    except (ValueError, OSError) as exc:
-        rospy.logfatal(f"map_server: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -10,7 +10,7 @@ from typing import List
 
 import rospy
 
-from cottonsim_navigation.ros.waypoint_navigator import NavigatorStartError, WaypointNavigatorBase, run_node
+from cottonsim_navigation.ros.waypoint_navigator import NavigatorStartError, WaypointNavigatorBase
 from cottonsim_navigation.waypoints.files import MapWaypoint, load_map_waypoints
 from cottonsim_navigation.waypoints.goals import GOAL_YAW_MODES, map_goals
 
@@ -45,7 +45,3 @@ class MapWaypointNavigatorNode(WaypointNavigatorBase):
 
     def make_goals(self, waypoints: list) -> List[MapWaypoint]:
         return map_goals(waypoints, self.goal_yaw)
-
-
-def main():
-    run_node(MapWaypointNavigatorNode, "map_waypoint_navigator")

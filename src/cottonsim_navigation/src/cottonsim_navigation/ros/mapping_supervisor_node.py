@@ -5,7 +5,7 @@ the map waypoint navigator on the map that slam_gmapping is building); when the
 driver reports done (route_driver: ~done true; navigator: state "finished") this
 node fetches the map from the SLAM node's dynamic_map service, crops it to the
 observed area plus a margin (cottonsim_navigation.mapping.map_crop), writes it
-like map_saver (cottonsim_navigation.core.map_files.save_map) and shuts down
+like map_saver (cottonsim_common.map_files.save_map) and shuts down
 (as a required node this ends the launch).
 """
 from __future__ import annotations
@@ -18,10 +18,10 @@ import rospy
 from nav_msgs.srv import GetMap
 from std_msgs.msg import Bool, String
 
-from cottonsim_navigation.core.map_files import MapSaverConfig, save_map
+from cottonsim_common.map_files import MapSaverConfig, save_map
+from cottonsim_common.ros.conversions import occupancy_grid_to_array
+from cottonsim_common.ros.params import typed_param
 from cottonsim_navigation.mapping.map_crop import crop_to_known
-from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
-from cottonsim_navigation.ros.params import typed_param
 
 
 class MappingSupervisorNode:
@@ -113,13 +113,3 @@ class MappingSupervisorNode:
         else:
             rospy.spin()      # stay up (a required node): the launch goes on and ~saved stays latched
         return 0 if ok else 1
-
-
-def main():
-    rospy.init_node("mapping_supervisor")
-    try:
-        node = MappingSupervisorNode()
-    except ValueError as exc:
-        rospy.logfatal(f"mapping_supervisor: {exc}")
-        raise SystemExit(2)
-    raise SystemExit(node.spin())

@@ -25,7 +25,7 @@ from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, Inf
 from cottonsim_navigation.planning.obstacle_layer import ObstacleLayer, ObstacleLayerConfig
 from cottonsim_navigation.ros.move_base_messages import costmap_msg, occupancy_from_msg, transform_matrix
 from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 
 _LAYERS = {"static_layer": (StaticLayerConfig, StaticLayer), "obstacle_layer": (ObstacleLayerConfig, ObstacleLayer),
            "inflation_layer": (InflationLayerConfig, InflationLayer)}

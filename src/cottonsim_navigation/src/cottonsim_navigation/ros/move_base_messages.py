@@ -11,7 +11,7 @@ from nav_msgs.msg import OccupancyGrid, Path
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.planning.costmap import Costmap2D
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 
 
 def transform_to_pose2d(t) -> geo.Pose2D:

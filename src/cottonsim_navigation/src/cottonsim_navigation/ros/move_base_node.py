@@ -21,6 +21,9 @@ from nav_msgs.srv import GetPlan, GetPlanResponse
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Empty, EmptyResponse
 
+from cottonsim_common.ros import conversions as conv
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_common.transforms import pose_matrix
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
 from cottonsim_navigation.move_base.recovery import RotateRecoveryConfig
@@ -31,7 +34,7 @@ from cottonsim_navigation.planning.local_planners.dwa import DWAConfig
 from cottonsim_navigation.ros.move_base_costmaps import MoveBaseCostmaps
 from cottonsim_navigation.ros.move_base_messages import path_msg, pose_msg_is_valid, transform_to_pose2d
 from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 
 
 
@@ -317,13 +320,3 @@ class MoveBaseNode:
         fb.base_position.pose.orientation = conv.quaternion_msg(geo.yaw_to_quaternion(gpose.yaw_rad))
         self.server.publish_feedback(fb)
         return True
-
-
-def main():
-    rospy.init_node("move_base")
-    try:
-        MoveBaseNode()
-    except ValueError as exc:
-        rospy.logfatal(f"move_base: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

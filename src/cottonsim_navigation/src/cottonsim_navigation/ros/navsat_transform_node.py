@@ -21,11 +21,11 @@ import tf2_ros
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
-from cottonsim_navigation.core.geometry import Pose2D, compose
+from cottonsim_common.pose import Pose2D, compose
+from cottonsim_common.ros.conversions import finite_or_none, yaw_from_quaternion_msg
+from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.localization.gps_localization import enu_yaw, robot_yaw_from_imu
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros.conversions import finite_or_none, yaw_from_quaternion_msg
 
 
 def _stamp_s(stamp) -> float:
@@ -240,13 +240,3 @@ class NavsatTransformNode:
         msg.status.service = NavSatStatus.SERVICE_GPS
         msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
         self.filtered_pub.publish(msg)
-
-
-def main():
-    rospy.init_node("navsat_transform")
-    try:
-        NavsatTransformNode()
-    except ValueError as exc:
-        rospy.logfatal(f"navsat_transform: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -21,14 +21,15 @@ from nav_msgs.srv import GetMap, GetMapResponse
 from sensor_msgs.msg import Imu, LaserScan
 from std_msgs.msg import Float64
 
-from cottonsim_navigation.core.geometry import Pose2D, compose, yaw_to_quaternion
+from cottonsim_common.pose import Pose2D, compose
+from cottonsim_common.ros.conversions import occupancy_grid_msg
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
+from cottonsim_common.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.tf import PlanarTransformBroadcaster
+from cottonsim_common.transforms import quaternion_to_matrix, yaw_to_quaternion
 from cottonsim_navigation.mapping.scan_matcher import ScanMatcherConfig
 from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig
 from cottonsim_navigation.ros.amcl_node import TfPoseReader, scan_from_msg
-from cottonsim_navigation.ros.map_server_node import occupancy_grid_msg
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_world.ros.conversions import transform_msg, yaw_from_quaternion_msg
-from cottonsim_world.transforms import quaternion_to_matrix
 
 
 def base_yaw_from_imu(q_world_imu, r_base_imu: np.ndarray) -> Optional[float]:
@@ -101,13 +102,12 @@ class SlamNode:
         self._map_dirty = False
         self._started = False
         self._map_msg: Optional[OccupancyGrid] = None
-        self._last_tf_stamp: Optional[rospy.Time] = None
         self.updates = 0
         self.update_wall_s = 0.0
 
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
-        self.tf_pub = tf2_ros.TransformBroadcaster()
+        self.map_to_odom_tf = PlanarTransformBroadcaster(self.map_frame, self.odom_frame)
         self.poses = TfPoseReader(self.tf_buffer, "slam_gmapping")
         self.map_pub = rospy.Publisher("map", OccupancyGrid, queue_size=1, latch=True)
         self.meta_pub = rospy.Publisher("map_metadata", MapMetaData, queue_size=1, latch=True)
@@ -227,20 +227,4 @@ class SlamNode:
     def _on_tf_timer(self, _event):
         if not self._started or self._tf_start is None or rospy.Time.now() < self._tf_start:
             return
-        stamp = rospy.Time.now() + rospy.Duration(self.tf_period_s)
-        if self._last_tf_stamp is not None and stamp <= self._last_tf_stamp:
-            return                                        # sim time stood still: no duplicate stamp
-        self._last_tf_stamp = stamp
-        t = self.slam.map_to_odom
-        self.tf_pub.sendTransform(transform_msg(self.map_frame, self.odom_frame, (t.x_m, t.y_m, 0.0),
-                                                yaw_to_quaternion(t.yaw_rad), stamp))
-
-
-def main():
-    rospy.init_node("slam_gmapping")
-    try:
-        SlamNode()
-    except ValueError as exc:
-        rospy.logfatal(f"slam_gmapping: {exc}")
-        raise SystemExit(2)
-    rospy.spin()
+        self.map_to_odom_tf.send(self.slam.map_to_odom, rospy.Time.now() + rospy.Duration(self.tf_period_s))

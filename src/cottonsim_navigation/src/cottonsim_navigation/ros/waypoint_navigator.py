@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import threading
 import time
 from typing import List, Optional
@@ -45,12 +44,12 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Bool, String
 
-from cottonsim_navigation.core.geometry import yaw_to_quaternion
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
 from cottonsim_navigation.waypoints.goals import pass_through_flags
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
                                                      LocalisationGate, WaypointFollower)
-from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 
 _STATUS_NAMES = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", "SUCCEEDED", "ABORTED",
                                                      "REJECTED", "PREEMPTING", "RECALLING", "RECALLED", "LOST")}
@@ -411,15 +410,9 @@ class WaypointNavigatorBase:
         self.publish_state("paused", reason=self.LOST_REASON, goal=goal)
 
 
-def run_node(node_class, name: str):
-    """init_node, build the navigator, run it and exit: non-zero on a start error (before the robot moves)."""
-    rospy.init_node(name)
-    try:
-        node = node_class()
-    except NavigatorStartError as exc:
-        rospy.logfatal("%s: %s", name, exc)
-        sys.exit(1)
+def run_route(node: "WaypointNavigatorBase") -> int:
+    """Drive the route, let the latched final state reach its subscribers, shut down; the exit status."""
     code = node.run()
-    rospy.rostime.wallsleep(1.0)     # let the latched final state reach its subscribers before we go
+    rospy.rostime.wallsleep(1.0)
     rospy.signal_shutdown("waypoint route finished")   # actionlib threads would keep the process alive
-    sys.exit(code)
+    return code

@@ -19,7 +19,7 @@ import io
 import math
 import os
 from dataclasses import dataclass
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 from cottonsim_common.config.yaml_files import DuplicateKeyError, YamlSyntaxError, load_yaml_text
 
@@ -108,6 +108,12 @@ def _split(line: str) -> List[str]:
     return line.replace(",", " ").split()
 
 
+def _data_lines(text: str) -> List[Tuple[int, str]]:
+    """(line number, content) of the lines that hold data: '#' comments and blank lines dropped."""
+    lines = [(n, raw.split("#", 1)[0].strip()) for n, raw in enumerate(text.splitlines(), start=1)]
+    return [(n, line) for n, line in lines if line]
+
+
 def load_gps_waypoints(path) -> List[GpsWaypoint]:
     """Read GPS waypoints (text 'lat lon' lines or YAML); see the module docstring."""
     text = _read_text(path)
@@ -129,10 +135,7 @@ def load_gps_waypoints(path) -> List[GpsWaypoint]:
                 raise WaypointFileError(path, f"{where}: {str(exc).split(': ', 1)[1]}") from None
             out.append(GpsWaypoint(lat, lon, str(item.get("label", ""))))
         return out
-    for n, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
+    for n, line in _data_lines(text):
         cols = _split(line)
         if len(cols) != 2:
             raise WaypointFileError(path, f"expected 2 columns 'lat lon', got {len(cols)}", n)
@@ -159,8 +162,7 @@ def load_map_waypoints(path) -> List[MapWaypoint]:
                                    _number(path, None, item["y"], f"{where} y"),
                                    _number(path, None, yaw, f"{where} yaw"), str(item.get("label", ""))))
         return out
-    lines = [(n, raw.split("#", 1)[0].strip()) for n, raw in enumerate(text.splitlines(), start=1)]
-    lines = [(n, l) for n, l in lines if l]
+    lines = _data_lines(text)
     if not lines:
         raise WaypointFileError(path, "no waypoints in file")
     first_n, first = lines[0]
@@ -189,13 +191,6 @@ def load_map_waypoints(path) -> List[MapWaypoint]:
     return out
 
 
-def save_gps_waypoints(path, waypoints: Sequence[GpsWaypoint]) -> None:
-    """Write 'lat lon' lines with full precision (the original's format)."""
-    with open(path, "w", encoding="utf-8") as f:
-        for w in waypoints:
-            f.write(f"{w.lat!r} {w.lon!r}\n")
-
-
 def load_gps_lanes(path) -> List[tuple]:
     """Read lane centre lines: 'lat lon lat lon' per line (start and end of one lane) [deg].
 
@@ -205,10 +200,7 @@ def load_gps_lanes(path) -> List[tuple]:
     """
     text = _read_text(path)
     out: List[tuple] = []
-    for n, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
+    for n, line in _data_lines(text):
         cols = _split(line)
         if len(cols) != 4:
             raise WaypointFileError(path, f"expected 4 columns 'lat lon lat lon' (a lane's two ends), "

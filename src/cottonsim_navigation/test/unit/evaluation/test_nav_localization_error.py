@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.evaluation.localization_error import localization_errors, localization_summary
-from cottonsim_world.farm.model import Pose2D
 
 HOME = Pose2D(-6.0, 1.0, math.pi / 2)
 

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from cottonsim_navigation.core.geometry import Pose2D, compose, inverse, normalize_angle
+from cottonsim_common.angles import wrap_angle
+from cottonsim_common.pose import Pose2D, compose, inverse
 from cottonsim_navigation.localization.gps_localization import (REJECTED_JUMP, REJECTED_VARIANCE,
                                                                 STATE_DEAD_RECKONING, STATE_GPS, STATE_GPS_LOST,
                                                                 STATE_WAITING, GpsLocalizationConfig, GpsLocalizer,
@@ -104,11 +105,11 @@ def test_tracks_a_drive_with_drifting_odometry():
         step = Pose2D(0.5 * dt, 0.0, w * dt)
         truth = compose(truth, step)
         odom = compose(odom, Pose2D(0.5 * dt * 1.03, 0.0, w * dt + 0.002 * dt))   # 3 % scale, yaw bias
-        f.update_heading(t, odom, float(normalize_angle(truth.yaw_rad + rng.normal(0, 0.005))))
+        f.update_heading(t, odom, float(wrap_angle(truth.yaw_rad + rng.normal(0, 0.005))))
         f.update_gps(t, odom, truth.x_m + rng.normal(0, 0.01), truth.y_m + rng.normal(0, 0.01))
         est = f.map_pose(odom)
         errors.append((math.hypot(est.x_m - truth.x_m, est.y_m - truth.y_m),
-                       abs(normalize_angle(est.yaw_rad - truth.yaw_rad))))
+                       abs(wrap_angle(est.yaw_rad - truth.yaw_rad))))
     errors = np.array(errors)
     # dead reckoning alone would be ~0.6 m off after 20 m at 3 % scale error
     assert errors[:, 0].max() < 0.05

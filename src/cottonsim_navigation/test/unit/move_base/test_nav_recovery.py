@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import FREE_SPACE, LETHAL_OBSTACLE
 from cottonsim_navigation.move_base.recovery import (ClearCostmapConfig, ClearCostmapRecovery, RotateRecovery,
                                                      RotateRecoveryConfig, clear_obstacles_outside, make_recovery)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.planning.base import LocalPlannerStatus
 from cottonsim_navigation.planning.costmap import make_local_costmap
 from cottonsim_navigation.planning.local_planners.dwa import DWAConfig, DWAPlanner

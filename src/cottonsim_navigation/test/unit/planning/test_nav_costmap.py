@@ -7,7 +7,7 @@ import pytest
 from cottonsim_navigation.core import geometry as geo
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
                                             NO_INFORMATION, GridSpec, occupancy_to_cost)
-from cottonsim_navigation.core.raytrace import bresenham_cells
+from cottonsim_common.raytrace import bresenham_cells
 from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, InflationLayer,
                                                    InflationLayerConfig, ObstacleLayer, ObstacleLayerConfig,
                                                    StaticLayer, inflation_cost, make_global_costmap,

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import GridSpec, LETHAL_OBSTACLE, INSCRIBED_INFLATED_OBSTACLE
 from cottonsim_navigation.planning.base import (LocalPlannerStatus, make_global_planner, make_local_planner)
 from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, make_local_costmap)

@@ -62,7 +62,7 @@ from geometry_msgs.msg import Point
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_msgs.msg import Bool
 
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter

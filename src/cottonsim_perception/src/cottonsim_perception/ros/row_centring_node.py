@@ -37,7 +37,7 @@ import rospy
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float64MultiArray, Int16, String
 
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 
 from cottonsim_perception.localization import GROUND, SKY, colorize_labels
 from cottonsim_perception.monitoring.rate_gate import check_rate_hz

@@ -53,7 +53,7 @@ import rospy
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32
 
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import RateGate, check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter

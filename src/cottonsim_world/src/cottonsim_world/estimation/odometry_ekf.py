@@ -46,13 +46,13 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 from numba import njit
 
+from cottonsim_common.angles import wrap_angle_scalar
+from cottonsim_world.physics.wheel_odometry import OdometryEstimate
+
 X, Y, YAW, VX, VYAW = range(5)
 
 
-@njit(cache=True)
-def _wrap(angle: float) -> float:
-    """angle [rad] wrapped to [-pi, pi) (Python's float %, in Python and in the compiled kernels alike)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+_wrap = njit(cache=True)(wrap_angle_scalar)   # compiled so the kernels below can call it
 
 
 @dataclass(frozen=True)
@@ -99,32 +99,6 @@ class OdometryEkfConfig:
             if len(values) != 5 or not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0
                                            for v in values):
                 raise ValueError(f"OdometryEkfConfig.{name} must be 5 finite numbers > 0, got {values!r}")
-
-
-@dataclass(frozen=True)
-class FilteredOdometry:
-    """One /odometry/filtered output (odom frame, child base_link).
-
-    pose_covariance / twist_covariance: 6x6 in (x, y, z, roll, pitch, yaw);
-    the unobserved 3D entries get a tiny variance (two_d_mode).
-    orientation_xyzw: quaternion of yaw.
-    """
-
-    x_m: float
-    y_m: float
-    yaw_rad: float
-    linear_x_m_s: float
-    angular_z_rad_s: float
-    pose_covariance: np.ndarray
-    twist_covariance: np.ndarray
-
-    @property
-    def orientation_xyzw(self) -> Tuple[float, float, float, float]:
-        return (0.0, 0.0, math.sin(self.yaw_rad / 2.0), math.cos(self.yaw_rad / 2.0))
-
-    def transform_odom_to_base_link(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]:
-        """(translation [m], rotation (x, y, z, w)) of the odom -> base_link TF."""
-        return (self.x_m, self.y_m, 0.0), self.orientation_xyzw
 
 
 _TWO_D_TINY_VARIANCE = 1e-9   # of the 3-D entries a planar filter does not observe (robot_localization's two_d_mode)
@@ -448,8 +422,8 @@ class OdometryEkf:
         return None
 
     # -------------------------------------------------------------- output
-    def output(self) -> FilteredOdometry:
+    def output(self) -> OdometryEstimate:
         """Current estimate as /odometry/filtered contents."""
         pose, twist = _covariances_6x6(self._p, _TWO_D_TINY_VARIANCE)
         x, y, yaw, vx, vyaw = self._s.tolist()
-        return FilteredOdometry(x, y, yaw, vx, vyaw, pose, twist)
+        return OdometryEstimate(x, y, yaw, vx, vyaw, pose, twist)

@@ -1,4 +1,4 @@
-"""Ground-truth exports of a generated farm, and a map_server map loader.
+"""Ground-truth exports of a generated farm.
 
 Why: navigation needs a ground-truth occupancy map (to compare SLAM maps
 with, or to run AMCL without mapping first), evaluation needs plant and boll
@@ -20,11 +20,8 @@ Files written by ``export_all(farm, out_dir)``:
 * ``farm.json``   all of the above plus the farm config ("bolls": one entry per
   boll with the columns of bolls.csv).
 
-map_server conventions: PGM P5, 0 = occupied (black), 254 = free,
-205 = unknown; the YAML's origin is the pose [x, y, yaw] of the lower-left
-pixel's lower-left corner; the image's first row is the map's top (largest y).
-Grids in memory follow nav_msgs/OccupancyGrid: ``grid[iy, ix]`` with row 0 at
-the origin (smallest y), values -1 unknown, 0 free, 100 occupied.
+Maps are written with :func:`cottonsim_common.map_files.save_map` (map_server
+conventions, described there); grids in memory follow nav_msgs/OccupancyGrid.
 """
 from __future__ import annotations
 
@@ -33,18 +30,17 @@ import json
 import math
 import os
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Optional
 
 import numpy as np
 
+from cottonsim_common.map_files import MapSaverConfig, save_map
+from cottonsim_common.map_files import load_map_yaml  # noqa: F401  (re-export for scripts/kidnap_relocalization_sim.py)
+from cottonsim_common.pose import Pose2D, world_to_frame
+from cottonsim_common.transforms import quaternion_to_matrix
 from cottonsim_world.farm.bolls import BollField
-from cottonsim_world.farm.model import Farm, Pose2D, Primitive
+from cottonsim_world.farm.model import Farm, Primitive
 from cottonsim_world.geodesy import HectorGeodesy
-
-PGM_OCCUPIED = 0
-PGM_FREE = 254
-PGM_UNKNOWN = 205
-
 
 @dataclass(frozen=True)
 class OccupancyMapConfig:
@@ -78,46 +74,7 @@ class OccupancyMapConfig:
             raise ValueError(f"need 0 < free_thresh < occupied_thresh < 1, got {self.free_thresh}, {self.occupied_thresh}")
 
 
-# ------------------------------------------------------------------- frames
-def world_to_frame(frame: Pose2D, x_m, y_m, yaw_rad=None):
-    """World coordinates -> coordinates in ``frame`` (a pose given in world).
-
-    Returns (x, y) or (x, y, yaw) when yaw_rad is given; yaw wrapped to (-pi, pi].
-    """
-    c, s = math.cos(frame.yaw_rad), math.sin(frame.yaw_rad)
-    dx, dy = np.asarray(x_m, float) - frame.x_m, np.asarray(y_m, float) - frame.y_m
-    xf, yf = c * dx + s * dy, -s * dx + c * dy
-    if yaw_rad is None:
-        return xf, yf
-    return xf, yf, _wrap(np.asarray(yaw_rad, float) - frame.yaw_rad)
-
-
-def frame_to_world(frame: Pose2D, x_m, y_m, yaw_rad=None):
-    """Coordinates in ``frame`` -> world (inverse of ``world_to_frame``)."""
-    c, s = math.cos(frame.yaw_rad), math.sin(frame.yaw_rad)
-    x, y = np.asarray(x_m, float), np.asarray(y_m, float)
-    xw, yw = frame.x_m + c * x - s * y, frame.y_m + s * x + c * y
-    if yaw_rad is None:
-        return xw, yw
-    return xw, yw, _wrap(np.asarray(yaw_rad, float) + frame.yaw_rad)
-
-
-def _wrap(a):
-    return np.arctan2(np.sin(a), np.cos(a))
-
-
 # ---------------------------------------------------------------- occupancy
-def _quat_matrix(q: Tuple[float, float, float, float]) -> np.ndarray:
-    x, y, z, w = q
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    if n == 0:
-        raise ValueError("primitive orientation quaternion has zero length")
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
 def _inside(prim: Primitive, q: np.ndarray) -> np.ndarray:
     """Points q (N, 3) in the primitive's own frame: inside mask (N,)."""
     if prim.shape == "box":
@@ -177,7 +134,7 @@ def rasterize_occupancy(farm: Farm, config: OccupancyMapConfig = OccupancyMapCon
     for plant in farm.plants:
         c_p, s_p = math.cos(plant.yaw_rad), math.sin(plant.yaw_rad)
         for prim in plant.model.collision:
-            rot = _quat_matrix(prim.orientation)
+            rot = quaternion_to_matrix(prim.orientation)
             px, py, pz = prim.position
             # primitive centre in world, then in the map frame
             cxw = plant.x_m + c_p * px - s_p * py
@@ -205,133 +162,6 @@ def rasterize_occupancy(farm: Farm, config: OccupancyMapConfig = OccupancyMapCon
             sub = grid[iy0:iy1, ix0:ix1]
             sub[hit.reshape(sub.shape)] = 100
     return grid, res, (float(x0), float(y0), 0.0)
-
-
-def write_map_yaml(yaml_path: str, grid: np.ndarray, resolution_m: float, origin: Tuple[float, float, float],
-                   occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> str:
-    """Write ``grid`` (int8 [iy, ix], -1/0/100, row 0 = smallest y) as map_server YAML + PGM.
-
-    The PGM gets the YAML's name with .pgm. Returns the PGM path.
-    """
-    grid = np.asarray(grid)
-    if grid.ndim != 2 or grid.size == 0:
-        raise ValueError(f"grid must be a non-empty 2-D array, got shape {grid.shape}")
-    pgm_path = os.path.splitext(yaml_path)[0] + ".pgm"
-    img = np.full(grid.shape, PGM_UNKNOWN, dtype=np.uint8)
-    img[grid == 0] = PGM_FREE
-    img[grid >= 50] = PGM_OCCUPIED
-    img = img[::-1]                                           # first image row = top of the map
-    with open(pgm_path, "wb") as fh:
-        fh.write(f"P5\n# CottonSim ground truth\n{img.shape[1]} {img.shape[0]}\n255\n".encode("ascii"))
-        fh.write(img.tobytes())
-    with open(yaml_path, "w") as fh:
-        fh.write(f"image: {os.path.basename(pgm_path)}\n")
-        fh.write(f"resolution: {resolution_m:.6g}\n")
-        fh.write(f"origin: [{origin[0]:.6f}, {origin[1]:.6f}, {origin[2]:.6f}]\n")
-        fh.write("negate: 0\n")
-        fh.write(f"occupied_thresh: {occupied_thresh:.6g}\n")
-        fh.write(f"free_thresh: {free_thresh:.6g}\n")
-        fh.write("mode: trinary\n")
-    return pgm_path
-
-
-# ------------------------------------------------------------------- loader
-def _read_pgm(path: str) -> np.ndarray:
-    with open(path, "rb") as fh:
-        data = fh.read()
-    if data[:2] not in (b"P5", b"P2"):
-        raise ValueError(f"{path}: not a PGM file (magic {data[:2]!r}, expected P5 or P2)")
-    # header: magic, width, height, maxval, separated by whitespace / comments
-    tokens: List[bytes] = []
-    pos = 2
-    while len(tokens) < 3:
-        while pos < len(data) and data[pos:pos + 1].isspace():
-            pos += 1
-        if pos >= len(data):
-            raise ValueError(f"{path}: truncated PGM header")
-        if data[pos:pos + 1] == b"#":
-            while pos < len(data) and data[pos:pos + 1] not in (b"\n", b"\r"):
-                pos += 1
-            continue
-        start = pos
-        while pos < len(data) and not data[pos:pos + 1].isspace():
-            pos += 1
-        tokens.append(data[start:pos])
-    try:
-        width, height, maxval = (int(t) for t in tokens)
-    except ValueError:
-        raise ValueError(f"{path}: bad PGM header {tokens!r}") from None
-    if width <= 0 or height <= 0 or not 0 < maxval < 65536:
-        raise ValueError(f"{path}: bad PGM size or maxval ({width}x{height}, maxval {maxval})")
-    if data[:2] == b"P5":
-        pos += 1                                              # single whitespace after maxval
-        dtype = np.uint8 if maxval < 256 else np.dtype(">u2")
-        need = width * height * np.dtype(dtype).itemsize
-        if len(data) - pos < need:
-            raise ValueError(f"{path}: PGM pixel data truncated ({len(data) - pos} of {need} bytes)")
-        img = np.frombuffer(data, dtype=dtype, count=width * height, offset=pos).reshape(height, width)
-    else:
-        values = data[pos:].split()
-        if len(values) < width * height:
-            raise ValueError(f"{path}: PGM pixel data truncated ({len(values)} of {width * height} values)")
-        img = np.array([int(v) for v in values[:width * height]]).reshape(height, width)
-    return (img.astype(float) * (255.0 / maxval)).round().astype(np.uint8)
-
-
-def load_map_yaml(path: str):
-    """Load a map_server map (YAML + image) into an occupancy grid.
-
-    Returns (grid int8 [iy, ix] with -1 unknown / 0 free / 100 occupied, row 0
-    at the origin i.e. the map's bottom; resolution_m; origin (x, y, yaw)).
-    Supports PGM (P5/P2) natively and other image formats through OpenCV;
-    modes trinary (default) and scale (intermediate values 1..99).
-    Raises ValueError naming the problem for a missing / malformed file.
-    """
-    from cottonsim_common.config.yaml_files import load_yaml_file
-
-    if not os.path.isfile(path):
-        raise ValueError(f"map YAML not found: {path}")
-    meta = load_yaml_file(path)
-    if not isinstance(meta, dict):
-        raise ValueError(f"{path}: expected a mapping with image, resolution, origin")
-    for key in ("image", "resolution", "origin"):
-        if key not in meta:
-            raise ValueError(f"{path}: missing key '{key}'")
-    try:
-        res = float(meta["resolution"])
-        origin = tuple(float(v) for v in meta["origin"])
-        negate = int(meta.get("negate", 0))
-        occ_t = float(meta.get("occupied_thresh", 0.65))
-        free_t = float(meta.get("free_thresh", 0.196))
-    except (TypeError, ValueError):
-        raise ValueError(f"{path}: resolution, origin, negate and thresholds must be numbers") from None
-    if not (math.isfinite(res) and res > 0):
-        raise ValueError(f"{path}: resolution must be > 0, got {meta['resolution']!r}")
-    if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
-        raise ValueError(f"{path}: origin must be [x, y, yaw], got {meta['origin']!r}")
-    mode = str(meta.get("mode", "trinary"))
-    if mode not in ("trinary", "scale"):
-        raise ValueError(f"{path}: unsupported mode {mode!r} (trinary or scale)")
-    image_path = str(meta["image"])
-    if not os.path.isabs(image_path):
-        image_path = os.path.join(os.path.dirname(os.path.abspath(path)), image_path)
-    if not os.path.isfile(image_path):
-        raise ValueError(f"{path}: image file not found: {image_path}")
-    if image_path.lower().endswith(".pgm"):
-        img = _read_pgm(image_path)
-    else:
-        import cv2
-        img = cv2.imread(image_path, cv2.IMREAD_GRAYSCALE)
-        if img is None:
-            raise ValueError(f"{path}: cannot read image {image_path}")
-    p = img.astype(float) / 255.0 if negate else (255.0 - img.astype(float)) / 255.0
-    grid = np.full(img.shape, -1, dtype=np.int8)
-    grid[p > occ_t] = 100
-    grid[p < free_t] = 0
-    if mode == "scale":
-        mid = (p >= free_t) & (p <= occ_t)
-        grid[mid] = np.clip(np.round(99.0 * (p[mid] - free_t) / (occ_t - free_t)), 1, 99).astype(np.int8)
-    return grid[::-1].copy(), res, origin
 
 
 # -------------------------------------------------------------- tabular data
@@ -433,9 +263,10 @@ def export_all(farm: Farm, out_dir: str, geodesy: Optional[HectorGeodesy] = None
     paths: Dict[str, str] = {}
     for name, frame in (("map_world", None), ("map_home", farm.spawn)):
         grid, res, origin = rasterize_occupancy(farm, map_config, frame)
-        yaml_path = os.path.join(out_dir, name + ".yaml")
-        write_map_yaml(yaml_path, grid, res, origin, map_config.occupied_thresh, map_config.free_thresh)
-        paths[name] = yaml_path
+        thresholds = MapSaverConfig(occupied_thresh=100.0 * map_config.occupied_thresh,
+                                    free_thresh=100.0 * map_config.free_thresh)
+        _, paths[name] = save_map(os.path.join(out_dir, name), grid, res, origin, thresholds,
+                                  creator="cottonsim ground truth")
     for name, fn in (("plants", write_plants_csv), ("bolls", write_bolls_csv), ("lanes", write_lanes_csv)):
         paths[name] = os.path.join(out_dir, name + ".csv")
         fn(paths[name], farm)

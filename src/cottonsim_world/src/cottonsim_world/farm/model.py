@@ -20,6 +20,8 @@ from typing import Dict, List, Tuple
 
 import numpy as np
 
+from cottonsim_common.pose import Pose2D  # noqa: F401  (the farm's poses; imported from here by the simulator)
+
 
 class SemanticClass(enum.IntEnum):
     """Per-pixel ground-truth classes.
@@ -120,13 +122,6 @@ class Lane:
     x_m: float             # centre line, world x [m]
     y_start_m: float       # south end of the plants beside the lane [m]
     y_end_m: float         # north end [m]
-
-
-@dataclass(frozen=True)
-class Pose2D:
-    x_m: float
-    y_m: float
-    yaw_rad: float
 
 
 @dataclass

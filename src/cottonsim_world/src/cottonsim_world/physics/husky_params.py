@@ -25,10 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import Tuple
 
-
-def _require_positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+from cottonsim_common.validation import require_positive
 
 
 @dataclass(frozen=True)
@@ -74,13 +71,13 @@ class HuskyParams:
         for name in ("overall_length_m", "overall_width_m", "overall_height_m",
                      "chassis_mass_kg", "wheel_radius_m", "wheel_width_m",
                      "wheel_mass_kg", "wheelbase_m", "track_m", "base_link_height_m"):
-            _require_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         for name in ("chassis_inertia_kg_m2", "lower_box_size_m", "upper_box_size_m"):
             values = getattr(self, name)
             if len(values) != 3:
                 raise ValueError(f"{name} must have 3 entries, got {values!r}")
             for v in values:
-                _require_positive(name, v)
+                require_positive(name, v)
         for name in ("lower_box_centre_m", "upper_box_centre_m"):
             values = getattr(self, name)
             if len(values) != 3 or not all(math.isfinite(v) for v in values):
@@ -140,7 +137,7 @@ class DriveLimits:
         for name in ("max_linear_m_s", "max_linear_acc_m_s2", "max_angular_rad_s",
                      "max_angular_acc_rad_s2", "cmd_timeout_s", "control_rate_hz",
                      "wheel_separation_multiplier", "wheel_radius_multiplier"):
-            _require_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         for name in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
             values = getattr(self, name)
             if len(values) != 6 or not all(math.isfinite(v) and v >= 0.0 for v in values):

@@ -22,6 +22,8 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from cottonsim_common.transforms import yaw_to_quaternion
+
 from .husky_params import DriveLimits, HuskyParams
 
 
@@ -62,7 +64,7 @@ class WheelOdometryConfig:
 
 @dataclass(frozen=True)
 class OdometryEstimate:
-    """Odometry in the odom frame (starts at 0, 0, 0).
+    """Odometry in the odom frame, from the wheels or from the EKF (/odometry/filtered).
 
     x_m, y_m, yaw_rad: pose; linear_x_m_s, angular_z_rad_s: body twist;
     pose_covariance / twist_covariance: 6x6 (x, y, z, roll, pitch, yaw).
@@ -75,6 +77,14 @@ class OdometryEstimate:
     angular_z_rad_s: float
     pose_covariance: np.ndarray
     twist_covariance: np.ndarray
+
+    @property
+    def orientation_xyzw(self) -> Tuple[float, float, float, float]:
+        return yaw_to_quaternion(self.yaw_rad)
+
+    def transform_odom_to_base_link(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]:
+        """(translation [m], rotation (x, y, z, w)) of the odom -> base_link TF."""
+        return (self.x_m, self.y_m, 0.0), self.orientation_xyzw
 
 
 def _four_floats(values) -> Tuple[float, float, float, float]:

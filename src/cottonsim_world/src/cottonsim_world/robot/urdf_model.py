@@ -26,6 +26,8 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from cottonsim_common.transforms import invert
+
 JOINT_TYPES = ("fixed", "revolute", "continuous", "prismatic", "floating", "planar")
 # Joint types whose motion this reader can apply (one scalar position).
 _SCALAR_JOINTS = ("revolute", "continuous", "prismatic")
@@ -133,15 +135,6 @@ def pose_matrix(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
     out = np.eye(4)
     out[:3, :3] = rpy_matrix(*rpy)
     out[:3, 3] = xyz
-    return out
-
-
-def invert_transform(t: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4x4 transform."""
-    out = np.eye(4)
-    rot = t[:3, :3]
-    out[:3, :3] = rot.T
-    out[:3, 3] = -rot.T @ t[:3, 3]
     return out
 
 
@@ -382,7 +375,7 @@ class UrdfModel:
         t_anc_child = np.eye(4)
         for joint in down:
             t_anc_child = t_anc_child @ joint.transform(self._position(joint, positions, parent_link, child_link))
-        return invert_transform(t_anc_parent) @ t_anc_child
+        return invert(t_anc_parent) @ t_anc_child
 
     def fixed_transform(self, parent_link: str, child_link: str) -> np.ndarray:
         """T_parent_child through fixed joints only; ValueError when the path

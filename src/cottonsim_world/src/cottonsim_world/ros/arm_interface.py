@@ -32,7 +32,7 @@ from std_srvs.srv import SetBool, SetBoolResponse
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 from cottonsim_world.robot.arm_goal import GoalRejected, JointToleranceSpec, TrajectoryGoal, TrajectoryPoint
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 
 ACTION_NAME = "/arm_controller/follow_joint_trajectory"
 

@@ -33,7 +33,7 @@ from cottonsim_msgs.srv import SetBollState, SetBollStateResponse
 from geometry_msgs.msg import Point
 
 from cottonsim_world.farm.bolls import Boll, BollField
-from cottonsim_world.ros import conversions as conv
+from cottonsim_common.ros import conversions as conv
 
 WAIT_FOR_LOOP_S = 10.0      # wall time a service call waits for the simulation loop
 

@@ -94,10 +94,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, NavSatFix, PointCloud2, PointField
 from trajectory_msgs.msg import JointTrajectory
 
+from cottonsim_common.ros import conversions as conv
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
-from cottonsim_world.ros import conversions as conv
 from cottonsim_world.ros.boll_topics import BollTopics
 from cottonsim_world.ros.arm_interface import ArmRosInterface
 from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
@@ -483,13 +483,3 @@ def fault_spec_from_request(kind: str, target: str, duration_s: float, parameter
 
 def _yaw_quaternion(yaw: float):
     return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
-
-
-def main():
-    rospy.init_node("sim_bridge")
-    try:
-        node = SimBridgeNode()
-    except (ValueError, FileNotFoundError) as exc:
-        rospy.logfatal(f"sim_bridge: {exc}")
-        raise SystemExit(2)
-    node.spin()

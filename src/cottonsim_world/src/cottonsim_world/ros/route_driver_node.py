@@ -37,11 +37,11 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool
 
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 from cottonsim_world.driving.pure_pursuit import PurePursuit, PurePursuitConfig
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import route_in_frame
 from cottonsim_world.farm.generator import generate_farm
-from cottonsim_world.ros.conversions import yaw_from_quaternion_msg
 
 
 def in_row_cross_track(farm, xy: np.ndarray) -> np.ndarray:
@@ -138,13 +138,3 @@ class RouteDriverNode:
             writer.writerow(["t_s", "world_x_m", "world_y_m"])
             writer.writerows(self.truth)
         rospy.loginfo("route_driver: wrote %s", out)
-
-
-def main():
-    rospy.init_node("route_driver")
-    try:
-        node = RouteDriverNode()
-    except ValueError as exc:
-        rospy.logfatal(f"route_driver: {exc}")
-        raise SystemExit(2)
-    node.run()

@@ -21,7 +21,7 @@ import pybullet as pb
 
 from cottonsim_world.farm.model import Plant, PlantModel, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.boll_instances import SplitFarm
-from cottonsim_world.transforms import quaternion_from_yaw
+from cottonsim_common.transforms import yaw_to_quaternion
 
 
 def merge_meshes(meshes: Sequence[TriangleMesh]) -> Tuple[np.ndarray, np.ndarray]:
@@ -76,7 +76,7 @@ class PybulletRayWorld:
     def _add_body(self, shape: int, plant: Plant, sem: SemanticClass) -> int:
         if shape < 0:
             return -1
-        body = pb.createMultiBody(0.0, shape, -1, [plant.x_m, plant.y_m, 0.0], quaternion_from_yaw(plant.yaw_rad),
+        body = pb.createMultiBody(0.0, shape, -1, [plant.x_m, plant.y_m, 0.0], yaw_to_quaternion(plant.yaw_rad),
                                   physicsClientId=self.client)
         self._register(body, sem, plant.plant_id)
         return body

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Dict, List, Set, Tuple
 import numpy as np
 import pybullet as pb
 
-from cottonsim_world.transforms import quaternion_from_yaw
+from cottonsim_common.transforms import yaw_to_quaternion
 
 if TYPE_CHECKING:                       # pragma: no cover
     from cottonsim_world.sensors.scene import SensorScene
@@ -104,7 +104,7 @@ class RenderClient:
             n = len(vis)
             body = pb.createMultiBody(
                 baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
-                basePosition=[plant.x_m, plant.y_m, 0.0], baseOrientation=quaternion_from_yaw(plant.yaw_rad),
+                basePosition=[plant.x_m, plant.y_m, 0.0], baseOrientation=yaw_to_quaternion(plant.yaw_rad),
                 linkMasses=[0.0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=vis,
                 linkPositions=[[0.0, 0.0, 0.0]] * n, linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
                 linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n,

@@ -48,7 +48,8 @@ from typing import TYPE_CHECKING, List, Optional, Sequence, Set, Tuple
 import cv2
 import numpy as np
 
-from cottonsim_world.farm.model import Farm, Plant, SemanticClass
+from cottonsim_common.transforms import yaw_to_quaternion
+from cottonsim_world.farm.model import Farm, Plant, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.boll_instances import SplitFarm
 from cottonsim_world.sensors.ray_world import PybulletRayWorld, merge_meshes
 

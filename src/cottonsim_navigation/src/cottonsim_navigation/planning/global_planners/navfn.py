@@ -58,7 +58,8 @@ try:
 except ImportError as exc:  # pragma: no cover
     raise ImportError("the navfn planner needs numba (pip install numba)") from exc
 
-from cottonsim_navigation.core.geometry import Pose2D, as_pose, normalize_angle
+from cottonsim_common.angles import wrap_angle
+from cottonsim_common.pose import Pose2D, as_pose
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, NO_INFORMATION
 from cottonsim_navigation.planning.base import GlobalPlanner, Plan, register_global_planner
 
@@ -272,7 +273,7 @@ def _orientations(xy: np.ndarray, goal_yaw: float, window_m: float) -> np.ndarra
     d = xy[hi] - xy[lo]
     yaw[:] = np.arctan2(d[:, 1], d[:, 0])
     yaw[-1] = goal_yaw
-    return normalize_angle(yaw)
+    return wrap_angle(yaw)
 
 
 class NavfnPlanner(GlobalPlanner):
@@ -307,7 +308,7 @@ class NavfnPlanner(GlobalPlanner):
         along = dx * ux + dy * uy                       # goal ahead of the robot, along the goal's heading
         if along <= c.goal_approach_join_m or math.hypot(dx, dy) <= 0.0:
             return None
-        if abs(normalize_angle(math.atan2(dy, dx) - goal.yaw_rad)) > c.goal_approach_max_angle_rad:
+        if abs(wrap_angle(math.atan2(dy, dx) - goal.yaw_rad)) > c.goal_approach_max_angle_rad:
             return None
         # the join point: on the line, goal_approach_join_m past the robot's foot point
         rest = along - c.goal_approach_join_m

@@ -13,8 +13,8 @@ import pathlib
 from dataclasses import dataclass, field
 from typing import Optional, Tuple
 
-import numpy as np
 
+from cottonsim_common.validation import require_int, require_min_max, require_number
 from cottonsim_world.farm.config import FarmConfig
 
 TASKS = ("seg", "det")
@@ -29,34 +29,6 @@ CAMERAS = (CAMERA_FRONT, CAMERA_LEFT, CAMERA_RIGHT)
 #: The robot's URDF in this workspace (src/cottonsim_description/urdf/).
 DEFAULT_URDF_PATH = str(pathlib.Path(__file__).resolve().parents[5]
                         / "cottonsim_description" / "urdf" / "cottonsim_robot.urdf")
-
-
-def _check_range(name: str, value, lo_bound: float = -math.inf, hi_bound: float = math.inf) -> Tuple[float, float]:
-    """Validate a (min, max) pair inside [lo_bound, hi_bound]; returns it as floats."""
-    if not isinstance(value, (tuple, list)) or len(value) != 2:
-        raise ValueError(f"{name} must be a (min, max) pair, got {value!r}")
-    try:
-        lo, hi = float(value[0]), float(value[1])
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must hold numbers, got {value!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi or lo < lo_bound or hi > hi_bound:
-        raise ValueError(f"{name} must satisfy {lo_bound:g} <= min <= max <= {hi_bound:g}, got {value!r}")
-    return lo, hi
-
-
-def _check_number(name: str, value, lo_bound: float = -math.inf, hi_bound: float = math.inf) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v) or v < lo_bound or v > hi_bound:
-        raise ValueError(f"{name} must be in [{lo_bound:g}, {hi_bound:g}], got {value!r}")
-    return v
-
-
-def _check_int(name: str, value, lo_bound: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo_bound:
-        raise ValueError(f"{name} must be an integer >= {lo_bound}, got {value!r}")
-    return int(value)
 
 
 @dataclass(frozen=True)
@@ -112,17 +84,17 @@ class LabelConfig:
     max_boll_depth_m: float = 1.5
 
     def __post_init__(self) -> None:
-        _check_number("polygon_epsilon_px", self.polygon_epsilon_px, 0.0, 10.0)
-        _check_number("min_region_area_px", self.min_region_area_px, 0.0, 1e6)
-        _check_number("min_hole_area_px", self.min_hole_area_px, 0.0, 1e6)
+        require_number("polygon_epsilon_px", self.polygon_epsilon_px, 0.0, 10.0)
+        require_number("min_region_area_px", self.min_region_area_px, 0.0, 1e6)
+        require_number("min_hole_area_px", self.min_hole_area_px, 0.0, 1e6)
         if self.seg_instances not in ("class", "region"):
             raise ValueError(f"LabelConfig.seg_instances must be 'class' or 'region', "
                              f"got {self.seg_instances!r}")
-        _check_number("boll_extent_factor", self.boll_extent_factor, 1.0, 5.0)
-        _check_number("boll_depth_tolerance_m", self.boll_depth_tolerance_m, 0.0, 1.0)
-        _check_number("min_boll_box_px", self.min_boll_box_px, 0.0, 1e4)
-        _check_int("min_boll_visible_px", self.min_boll_visible_px, 1)
-        _check_number("min_boll_visible_fraction", self.min_boll_visible_fraction, 0.0, 1.0)
+        require_number("boll_extent_factor", self.boll_extent_factor, 1.0, 5.0)
+        require_number("boll_depth_tolerance_m", self.boll_depth_tolerance_m, 0.0, 1.0)
+        require_number("min_boll_box_px", self.min_boll_box_px, 0.0, 1e4)
+        require_int("min_boll_visible_px", self.min_boll_visible_px, 1)
+        require_number("min_boll_visible_fraction", self.min_boll_visible_fraction, 0.0, 1.0)
         if (isinstance(self.max_boll_depth_m, bool) or not isinstance(self.max_boll_depth_m, (int, float))
                 or not self.max_boll_depth_m > 0):     # inf allowed: label every depth
             raise ValueError(f"max_boll_depth_m must be a number > 0 (inf: no limit), "
@@ -211,7 +183,7 @@ class VariationConfig:
                   "noise_std_range": (0.0, 100.0), "headland_distance_range_m": (0.0, 50.0),
                   "close_distance_range_m": (0.05, 10.0)}
         for name, (lo, hi) in ranges.items():
-            pair = _check_range(name, getattr(self, name), lo, hi)
+            pair = require_min_max(name, getattr(self, name), lo, hi)
             if name in ("bolls_min_range", "bolls_span_range"):
                 if any(not float(v).is_integer() for v in pair):
                     raise ValueError(f"{name} must hold integers, got {getattr(self, name)!r}")
@@ -220,14 +192,14 @@ class VariationConfig:
         if self.bolls_min_range[1] + self.bolls_span_range[1] > 60:
             raise ValueError("bolls_min_range max + bolls_span_range max must be <= 60 bolls per plant")
         for name in ("defoliated_probability", "headland_probability", "front_close_probability"):
-            _check_number(name, getattr(self, name), 0.0, 1.0)
+            require_number(name, getattr(self, name), 0.0, 1.0)
         for name in ("light_tint_max", "soil_tint_max", "white_balance_max"):
-            _check_number(name, getattr(self, name), 0.0, 0.5)
+            require_number(name, getattr(self, name), 0.0, 0.5)
         for name in ("camera_height_std_m", "camera_pitch_std_rad", "camera_roll_std_rad",
                      "lane_offset_std_m", "yaw_std_rad"):
-            _check_number(name, getattr(self, name), 0.0, 1.0)
-        _check_number("headland_yaw_max_rad", self.headland_yaw_max_rad, 0.0, math.pi)
-        _check_number("close_yaw_max_rad", self.close_yaw_max_rad, 0.0, math.pi / 2)
+            require_number(name, getattr(self, name), 0.0, 1.0)
+        require_number("headland_yaw_max_rad", self.headland_yaw_max_rad, 0.0, math.pi)
+        require_number("close_yaw_max_rad", self.close_yaw_max_rad, 0.0, math.pi / 2)
 
 
 @dataclass(frozen=True)
@@ -288,12 +260,12 @@ class DatasetConfig:
         if not tasks or any(t not in TASKS for t in tasks) or len(set(tasks)) != len(tasks):
             raise ValueError(f"tasks must be a non-empty subset of {TASKS}, got {self.tasks!r}")
         object.__setattr__(self, "tasks", tasks)
-        _check_int("images_per_task", self.images_per_task, 0)
+        require_int("images_per_task", self.images_per_task, 0)
         for name in ("seeds", "test_seeds"):
             seq = getattr(self, name)
             if isinstance(seq, (str, bytes)) or not hasattr(seq, "__iter__"):
                 raise ValueError(f"{name} must be a sequence of integers, got {seq!r}")
-            vals = tuple(_check_int(f"{name} entry", s, 0) for s in seq)
+            vals = tuple(require_int(f"{name} entry", s, 0) for s in seq)
             if len(set(vals)) != len(vals):
                 raise ValueError(f"{name} has repeated farm seeds: {vals}")
             object.__setattr__(self, name, vals)
@@ -305,33 +277,33 @@ class DatasetConfig:
         if self.test_images_per_task is None:
             default = self.images_per_task // 6 if self.test_seeds else 0
             object.__setattr__(self, "test_images_per_task", default)
-        _check_int("test_images_per_task", self.test_images_per_task, 0)
+        require_int("test_images_per_task", self.test_images_per_task, 0)
         if self.test_images_per_task > 0 and not self.test_seeds:
             raise ValueError("test_images_per_task > 0 needs test_seeds (held-out farms)")
-        _check_number("val_fraction", self.val_fraction, 0.0, 0.9)
+        require_number("val_fraction", self.val_fraction, 0.0, 0.9)
         if self.val_fraction > 0.0 and self.images_per_task > 0 and len(self.seeds) < 2:
             raise ValueError("val_fraction > 0 needs at least 2 seeds (val farms are kept apart from "
                              "train farms); give more seeds or set val_fraction to 0")
         for name in ("width", "height"):
-            v = _check_int(name, getattr(self, name), 16)
+            v = require_int(name, getattr(self, name), 16)
             if v > 4096:
                 raise ValueError(f"{name} must be <= 4096 px, got {v}")
         if self.horizontal_fov_rad is not None:
-            _check_number("horizontal_fov_rad", self.horizontal_fov_rad, 1e-3, math.pi - 1e-3)
+            require_number("horizontal_fov_rad", self.horizontal_fov_rad, 1e-3, math.pi - 1e-3)
         if self.renderer is not None and not isinstance(self.renderer, str):
             raise ValueError(f"renderer must be a string or None, got {self.renderer!r}")
-        _check_int("workers", self.workers, 1)
+        require_int("workers", self.workers, 1)
         if self.image_format not in IMAGE_FORMATS:
             raise ValueError(f"image_format must be one of {IMAGE_FORMATS}, got {self.image_format!r}")
-        q = _check_int("jpeg_quality", self.jpeg_quality, 1)
+        q = require_int("jpeg_quality", self.jpeg_quality, 1)
         if q > 100:
             raise ValueError(f"jpeg_quality must be in [1, 100], got {q}")
-        _check_int("images_per_scene", self.images_per_scene, 1)
-        _check_int("dataset_seed", self.dataset_seed, 0)
+        require_int("images_per_scene", self.images_per_scene, 1)
+        require_int("dataset_seed", self.dataset_seed, 0)
         for name, cls in (("base_farm", FarmConfig), ("variation", VariationConfig), ("labels", LabelConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
-        _check_number("ground_margin_m", self.ground_margin_m, 0.0, 1000.0)
+        require_number("ground_margin_m", self.ground_margin_m, 0.0, 1000.0)
         if not os.path.isfile(self.urdf_path):
             raise ValueError(f"urdf_path {self.urdf_path!r} is not a file")
 

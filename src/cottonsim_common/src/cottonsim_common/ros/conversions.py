@@ -1,6 +1,6 @@
-"""Explicit conversions between the cores' numpy data and ROS messages.
+"""Explicit conversions between the cores' numpy data and ROS messages, for every package.
 
-Every message the bridge publishes is built here, so the cores never see a
+Every message our nodes publish is built here, so the cores never see a
 message type and the node modules stay short. Other packages' ROS layers reuse
 the PointCloud2 and pose helpers (``cloud_to_xyz``, ``yaw_from_quaternion_msg``).
 
@@ -14,11 +14,13 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 import rospy
 from geometry_msgs.msg import Quaternion, TransformStamped
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import OccupancyGrid, Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import (CameraInfo, Image, Imu, JointState, LaserScan, NavSatFix, NavSatStatus,
                              PointCloud2, PointField)
 from std_msgs.msg import Header
+
+from cottonsim_common.transforms import quaternion_to_yaw, yaw_to_quaternion
 
 # PointField datatypes (sensor_msgs/PointField constants) keyed by numpy dtype.
 _POINTFIELD_OF_DTYPE = {
@@ -237,6 +239,49 @@ def joint_state_msg(names: Sequence[str], positions, velocities, stamp: rospy.Ti
     return JointState(header=header(stamp, ""), name=list(names),
                       position=[float(v) for v in positions], velocity=[float(v) for v in velocities],
                       effort=[])
+
+
+def occupancy_grid_msg(grid, resolution_m: float, origin, frame_id: str, stamp: rospy.Time) -> OccupancyGrid:
+    """int8 grid [iy, ix] (row 0 = smallest y) + resolution + origin (x, y, yaw) -> OccupancyGrid."""
+    msg = OccupancyGrid()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    info = msg.info
+    info.map_load_time = stamp
+    info.resolution = float(resolution_m)
+    info.height, info.width = int(grid.shape[0]), int(grid.shape[1])
+    info.origin.position.x, info.origin.position.y = float(origin[0]), float(origin[1])
+    q = yaw_to_quaternion(float(origin[2]))
+    info.origin.orientation.x, info.origin.orientation.y = q[0], q[1]
+    info.origin.orientation.z, info.origin.orientation.w = q[2], q[3]
+    msg.data = grid.reshape(-1).astype("int8").tolist()
+    return msg
+
+
+def occupancy_grid_to_array(msg: OccupancyGrid):
+    """OccupancyGrid -> (grid int8 [height, width], resolution [m], origin (x, y, yaw)).
+
+    Raises ValueError for a message whose data length does not match its size
+    or whose geometry holds NaN.
+    """
+    w, h = int(msg.info.width), int(msg.info.height)
+    if w <= 0 or h <= 0:
+        raise ValueError(f"map has no cells ({w} x {h})")
+    data = msg.data
+    if isinstance(data, (bytes, bytearray)):
+        grid = np.frombuffer(data, dtype=np.int8)
+    else:
+        grid = np.asarray(data, dtype=np.int16)
+    if grid.size != w * h:
+        raise ValueError(f"map data has {grid.size} cells, expected {w} x {h} = {w * h}")
+    o = msg.info.origin
+    q = o.orientation
+    if q.x == q.y == q.z == q.w == 0.0:
+        yaw = 0.0                                        # an unset quaternion: no rotation
+    else:
+        yaw = quaternion_to_yaw(q.x, q.y, q.z, q.w)
+    origin = (float(o.position.x), float(o.position.y), float(yaw))
+    return grid.reshape(h, w).astype(np.int8), float(msg.info.resolution), origin
 
 
 def finite_or_none(*values: float) -> bool:

@@ -2,9 +2,8 @@
 import numpy as np
 import pytest
 
-from cottonsim_navigation.core.map_files import (PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN, EmptyMapConfig,
-                                                 MapSaverConfig, empty_map, occupancy_to_pgm, save_map)
-from cottonsim_world.farm.export import load_map_yaml
+from cottonsim_common.map_files import (PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN, EmptyMapConfig, MapSaverConfig,
+                                        empty_map, load_map_yaml, occupancy_to_pgm, save_map)
 
 
 def test_empty_map_size_and_content():

@@ -1,8 +1,10 @@
-"""Rigid-body transform helpers (numpy only).
+"""Rigid-body transforms and quaternions (numpy only), the one place for each.
 
-Conventions: quaternions are (x, y, z, w) as in ROS messages; a pose is a
-4x4 homogeneous matrix ``a_T_b`` that maps points from frame b into frame a
-(so ``world_T_sensor = world_T_base @ base_T_sensor``).
+Conventions: quaternions are (x, y, z, w) as in ROS messages (REP-103: x
+forward, y left, z up, yaw counter-clockwise about z); a pose is a 4x4
+homogeneous matrix ``a_T_b`` that maps points from frame b into frame a (so
+``world_T_sensor = world_T_base @ base_T_sensor``). Code that talks to an
+engine with another order (ODE's w, x, y, z) converts at that boundary.
 """
 from __future__ import annotations
 
@@ -56,13 +58,6 @@ def pose_matrix(position: Sequence[float], q_xyzw: Sequence[float]) -> np.ndarra
     return t
 
 
-def planar_pose_matrix(x_m: float, y_m: float, yaw_rad: float, z_m: float = 0.0) -> np.ndarray:
-    """A pose in the plane (rotation about z only) as a 4x4 transform."""
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    t = np.eye(4)
-    t[:2, :2] = [[c, -s], [s, c]]
-    t[:3, 3] = (x_m, y_m, z_m)
-    return t
 
 
 def invert(transform: np.ndarray) -> np.ndarray:
@@ -83,10 +78,21 @@ def yaw_of(transform_or_quaternion) -> float:
     return math.atan2(a[1, 0], a[0, 0])
 
 
-def quaternion_from_yaw(yaw_rad: float) -> Tuple[float, float, float, float]:
-    return (0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0))
+def yaw_to_quaternion(yaw_rad: float) -> Tuple[float, float, float, float]:
+    """A rotation about z as a quaternion (x, y, z, w)."""
+    h = 0.5 * float(yaw_rad)
+    return (0.0, 0.0, math.sin(h), math.cos(h))
 
 
-def wrap_angle(angle_rad: float) -> float:
-    """Angle wrapped into [-pi, pi)."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
+    """Yaw [rad] of a quaternion (x, y, z, w), normalised first; roll and pitch are ignored.
+
+    Raises ValueError for a zero-length or non-finite quaternion.
+    """
+    vals = (x, y, z, w)
+    if not all(math.isfinite(v) for v in vals):
+        raise ValueError(f"quaternion has non-finite components: {vals}")
+    n = math.sqrt(sum(v * v for v in vals))
+    if n < 1e-12:
+        raise ValueError("quaternion has zero length")
+    return yaw_of(np.array(vals) / n)

@@ -1,0 +1,1 @@
+"""The ROS helpers every package's thin ROS layer shares; the only part of cottonsim_common that imports rospy."""

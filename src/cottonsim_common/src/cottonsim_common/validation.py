@@ -1,0 +1,98 @@
+"""Checks for config fields and inputs that raise a ValueError naming the bad key.
+
+Every config dataclass validates its fields in ``__post_init__``; these helpers
+keep the checks to one line each and the messages alike across packages
+(``"<name> must be ..., got <value>"``). Each returns the value converted
+(float, int, tuple or array) so a caller can store the clean form.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+
+_NUMBER_TYPES = (int, float, np.integer, np.floating)
+
+
+def is_number(value) -> bool:
+    """True for ints and floats (numpy's too), False for bools and everything else."""
+    return isinstance(value, _NUMBER_TYPES) and not isinstance(value, bool)
+
+
+def require_number(name: str, value, low: float = -math.inf, high: float = math.inf) -> float:
+    """A finite number in [low, high] as a float."""
+    if not is_number(value):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v) or v < low or v > high:
+        raise ValueError(f"{name} must be in [{low:g}, {high:g}], got {value!r}")
+    return v
+
+
+def require_positive(name: str, value, allow_zero: bool = False) -> float:
+    """A finite number > 0 (>= 0 with ``allow_zero``) as a float."""
+    if not is_number(value):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name} must be a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
+    return v
+
+
+def require_finite(name: str, value) -> float:
+    """Any finite number as a float."""
+    if not is_number(value):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+def require_int(name: str, value, low: int = 0, high: Optional[int] = None) -> int:
+    """An integer (not a bool, not a float) >= low (and <= high when given)."""
+    if (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low
+            or (high is not None and value > high)):
+        bound = f">= {low}" if high is None else f"in [{low}, {high}]"
+        raise ValueError(f"{name} must be an integer {bound}, got {value!r}")
+    return int(value)
+
+
+def require_min_max(name: str, value, low: float = -math.inf, high: float = math.inf) -> Tuple[float, float]:
+    """A (min, max) pair with low <= min <= max <= high, as floats."""
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise ValueError(f"{name} must be a (min, max) pair, got {value!r}")
+    try:
+        lo, hi = float(value[0]), float(value[1])
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must hold numbers, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi or lo < low or hi > high:
+        raise ValueError(f"{name} must satisfy {low:g} <= min <= max <= {high:g}, got {value!r}")
+    return lo, hi
+
+
+def require_finite_values(name: str, value, count: int) -> Tuple[float, ...]:
+    """Exactly ``count`` finite numbers as a tuple of floats (e.g. a map origin [x, y, yaw])."""
+    try:
+        values = tuple(value)
+    except TypeError:
+        raise ValueError(f"{name} must be {count} numbers, got {value!r}") from None
+    if len(values) != count:
+        raise ValueError(f"{name} must be {count} numbers, got {value!r}")
+    return tuple(require_finite(f"{name}[{i}]", v) for i, v in enumerate(values))
+
+
+def require_finite_array(name: str, value, shape: Optional[Sequence[Optional[int]]] = None) -> np.ndarray:
+    """A float array without NaN or inf; ``shape`` (None = any size on that axis) is checked when given."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numeric, got {value!r}") from None
+    if shape is not None and (arr.ndim != len(shape)
+                              or any(s is not None and s != n for s, n in zip(shape, arr.shape))):
+        want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return arr

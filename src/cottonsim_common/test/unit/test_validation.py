@@ -1,0 +1,46 @@
+"""cottonsim_common.validation: each check returns the clean value or names the key in its error."""
+import math
+
+import numpy as np
+import pytest
+
+from cottonsim_common.validation import (is_number, require_finite, require_finite_array, require_finite_values,
+                                         require_int, require_min_max, require_number, require_positive)
+
+
+def test_numbers_and_bounds():
+    assert is_number(np.float32(1.5)) and not is_number(True) and not is_number("1")
+    assert require_number("gain", 2, 0.0, 5.0) == 2.0
+    with pytest.raises(ValueError, match=r"gain must be in \[0, 5\], got 6"):
+        require_number("gain", 6, 0.0, 5.0)
+    with pytest.raises(ValueError, match="gain must be a number"):
+        require_number("gain", "2")
+    assert require_positive("rate_hz", 3) == 3.0
+    assert require_positive("margin_m", 0, allow_zero=True) == 0.0
+    for bad in (0, -1, math.inf, math.nan):
+        with pytest.raises(ValueError, match="rate_hz must be a finite number > 0"):
+            require_positive("rate_hz", bad)
+    with pytest.raises(ValueError, match="offset must be finite"):
+        require_finite("offset", -math.inf)
+
+
+def test_integers_pairs_and_arrays():
+    assert require_int("workers", np.int64(3), 1) == 3
+    for bad in (0, 2.0, True):
+        with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+            require_int("workers", bad, 1)
+    with pytest.raises(ValueError, match=r"beams must be an integer in \[1, 4\]"):
+        require_int("beams", 5, 1, 4)
+    assert require_min_max("height_m", [0.2, 0.5], 0.0) == (0.2, 0.5)
+    with pytest.raises(ValueError, match="height_m must satisfy"):
+        require_min_max("height_m", (0.5, 0.2))
+    assert require_finite_values("origin", [1, 2, 0], 3) == (1.0, 2.0, 0.0)
+    with pytest.raises(ValueError, match=r"origin\[1\] must be finite"):
+        require_finite_values("origin", [1, math.nan, 0], 3)
+    with pytest.raises(ValueError, match="origin must be 3 numbers"):
+        require_finite_values("origin", [1, 2], 3)
+    assert require_finite_array("points", [[1, 2]], (None, 2)).shape == (1, 2)
+    with pytest.raises(ValueError, match=r"points must have shape \(N, 2\)"):
+        require_finite_array("points", [1, 2, 3], (None, 2))
+    with pytest.raises(ValueError, match="points contains NaN"):
+        require_finite_array("points", [math.nan])
