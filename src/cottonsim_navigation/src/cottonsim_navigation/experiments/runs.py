@@ -289,7 +289,8 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
                 fh.write(f"{float(lat):.14f} {float(lon):.14f}\n")
         args = {"run_name": name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": route,
                 "real_time_factor": real_time_factor, "on_failure": "stop",
-                "goal_timeout_s": config.goal_timeout_s, "record_bag": "false"}
+                "goal_timeout_s": config.goal_timeout_s, "record_bag": "false",
+                "vision": "false"}      # a traversability study of the LiDAR costmap: no cameras
         print(f"row spacing {spacing:.2f} m, seed {config.seed}: attempt {k + 1}/{len(config.spacings_m)}", flush=True)
         result = runner(LaunchSpec("cottonsim_navigation", "gps_navigation.launch", args,
                                    os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"{spacing:.2f} m"))
