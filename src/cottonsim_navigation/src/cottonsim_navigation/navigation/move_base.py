@@ -36,7 +36,9 @@ Vision correction (optional, :class:`VisionBiasConfig`): while CONTROLLING
 with a valid local plan, a fresh row-centring estimate (angular rate) is
 added to the local planner's angular velocity, bounded to
 ``max_vision_rate`` rad/s, but only when the robot is inside a crop row
-(the global costmap has obstacles on both sides within ``row_reach_m``).
+(the global costmap - a map's rows - or the local costmap - the LiDAR's plants,
+all a GPS route's empty map leaves - has obstacles on both sides within
+``row_reach_m``).
 So only move_base commands the base; the two never fight over /cmd_vel.
 
 Frames: the global costmap and plans are in the global frame (map); the
@@ -144,8 +146,8 @@ class VisionBiasConfig:
     max_vision_rate [rad/s]: bound on the added angular rate. Default
     radians(5) = 0.0873 rad/s: the paper caps a correction at 5 deg, here
     at most 5 deg of heading change per second of correction.
-    row_reach_m [m]: the robot counts as inside a crop row when the global
-    costmap has a LETHAL cell within this lateral distance on both sides (1.0).
+    row_reach_m [m]: the robot counts as inside a crop row when the global or
+    the local costmap has a LETHAL cell within this lateral distance on both sides (1.0).
     """
 
     enabled: bool = False
@@ -507,7 +509,8 @@ class MoveBase:
                     if self.recovery_trigger == RecoveryTrigger.CONTROLLING:
                         self.recovery_index = 0
                     if status == LocalPlannerStatus.OK and self.vision.enabled:
-                        in_row = inside_crop_row(self.global_costmap, gpose, self.vision.row_reach_m)
+                        in_row = (inside_crop_row(self.global_costmap, gpose, self.vision.row_reach_m)
+                                  or inside_crop_row(self.local_costmap, lpose, self.vision.row_reach_m))
                         w2 = blend_vision(w, vision_w_radps, vision_age_s, in_row, self.vision)
                         vision_applied = w2 != w
                         w = w2
