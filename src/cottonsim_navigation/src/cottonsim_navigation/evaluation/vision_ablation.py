@@ -3,11 +3,14 @@
 Input: the run reports (report.json, as the experiment recorder writes them)
 of the two modes for one seed; output: a markdown table, one row per figure,
 and the figures as a dict for summary files. A figure a report lacks shows
-as "-" (e.g. the vision_* keys of a run without vision).
+as "-" (e.g. the vision_* keys of a run without vision). :func:`ablation_section`
+builds the results page's subsection from the two route folders.
 """
 from __future__ import annotations
 
+import json
 import math
+import os
 from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 # (report key, label, scale, digits)
@@ -80,3 +83,27 @@ def ablation_markdown(summary_vision: Optional[Mapping], summary_no_vision: Opti
     for seed in sorted(set(on) & set(off)):
         lines += [f"Seed {seed}:", ""] + ablation_table(on[seed], off[seed]) + [""]
     return lines
+
+
+def _read_summary(path: str) -> Optional[Mapping]:
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh)
+    except (OSError, ValueError):
+        return None
+
+
+def ablation_section(results_root: str, experiment: str) -> List[str]:
+    """The results page's ablation subsection of one route (results/<experiment>/ beside
+    results/<experiment>_no_vision/); empty when they share no seed."""
+    on = _read_summary(os.path.join(results_root, experiment, "summary.json"))
+    off = _read_summary(os.path.join(results_root, f"{experiment}_no_vision", "summary.json"))
+    if not (on or {}).get("vision") or off is None:
+        return []
+    table = ablation_markdown(on, off)
+    if not table:
+        return []
+    cmd = f"rosrun cottonsim_navigation reproduce {experiment.replace('_', '-')} --vision both"
+    return [f"### Vision ablation: {experiment}", "",
+            f"Command: `{cmd}` (writes `results/{experiment}/` and `results/{experiment}_no_vision/`). "
+            f"Machine: {on.get('machine', 'not recorded')}.", ""] + table

@@ -30,3 +30,17 @@ def test_figures_and_markdown_per_seed_only_where_both_modes_have_a_report():
     md = ablation_markdown(on, off)
     assert md[0] == "Seed 0:" and not any(l == "Seed 1:" for l in md)
     assert ablation_markdown(on, None) == []
+
+
+def test_section_reads_both_route_folders_and_needs_a_shared_seed(tmp_path):
+    import json
+    from cottonsim_navigation.evaluation.vision_ablation import ablation_section
+    assert ablation_section(str(tmp_path), "gps_route") == []
+    for name, vision, report in (("gps_route", True, ON), ("gps_route_no_vision", False, OFF)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "summary.json").write_text(json.dumps(
+            {"vision": vision, "machine": "test box", "runs": [{"seed": 0, "report": report}]}))
+    lines = ablation_section(str(tmp_path), "gps_route")
+    assert lines[0] == "### Vision ablation: gps_route"
+    assert "--vision both" in lines[2] and "test box" in lines[2]
+    assert "| AE [m] | 0.051 | 0.053 |" in lines
