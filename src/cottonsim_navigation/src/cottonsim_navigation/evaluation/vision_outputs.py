@@ -29,6 +29,14 @@ class VisionCounts:
         self.row_centring_frames += 1
         self.no_estimate_frames += str(text).startswith("no_estimate")
 
+    def add_command(self) -> None:
+        """One row-centring command (/husky/cv/coords)."""
+        self.coords += 1
+
+    def add_correction(self) -> None:
+        """One control cycle in which move_base added the correction."""
+        self.corrections += 1
+
     def add_verdict(self, in_reach: bool) -> None:
         self.boll_verdicts += 1
         self.bolls_in_reach += bool(in_reach)

@@ -158,10 +158,12 @@ class ExperimentRecorderNode:
         self.vision = bool(rospy.get_param("~vision", False))
         self._vision_counts = VisionCounts()
         if self.vision:
-            rospy.Subscriber("/row_centring/status", String, self._on_vision_status, queue_size=50)
-            rospy.Subscriber("/husky/cv/coords", Float64MultiArray, self._on_vision_coords, queue_size=50)
-            rospy.Subscriber("/move_base/vision_correction", Float64, self._on_vision_correction, queue_size=50)
-            rospy.Subscriber("/cotton_eye/bolls_in_reach", Bool, self._on_boll_verdict, queue_size=50)
+            for topic, msg_type, update in (
+                    ("/row_centring/status", String, lambda m: lambda c: c.add_status(m.data)),
+                    ("/husky/cv/coords", Float64MultiArray, lambda m: VisionCounts.add_command),
+                    ("/move_base/vision_correction", Float64, lambda m: VisionCounts.add_correction),
+                    ("/cotton_eye/bolls_in_reach", Bool, lambda m: lambda c: c.add_verdict(m.data))):
+                rospy.Subscriber(topic, msg_type, lambda m, u=update: self._count_vision(u(m)), queue_size=50)
         rospy.on_shutdown(self._on_shutdown)
         if self.plot:
             # import matplotlib now, in the background: at the end (possibly during a shutdown, when
@@ -205,28 +207,11 @@ class ExperimentRecorderNode:
             with self._lock:
                 self._datum = (msg.latitude, msg.longitude)
 
-    def _along_route(self) -> bool:
-        return self._start is not None and self._end is None
-
-    def _on_vision_status(self, msg: String):
+    def _count_vision(self, update):
+        """Apply update(VisionCounts) to the counts, along the route only."""
         with self._lock:
-            if self._along_route():
-                self._vision_counts.add_status(msg.data)
-
-    def _on_vision_coords(self, _msg: Float64MultiArray):
-        with self._lock:
-            if self._along_route():
-                self._vision_counts.coords += 1
-
-    def _on_vision_correction(self, _msg: Float64):
-        with self._lock:
-            if self._along_route():
-                self._vision_counts.corrections += 1
-
-    def _on_boll_verdict(self, msg: Bool):
-        with self._lock:
-            if self._along_route():
-                self._vision_counts.add_verdict(msg.data)
+            if self._start is not None and self._end is None:
+                update(self._vision_counts)
 
     def _on_contacts(self, msg: PlantContacts):
         with self._lock:
