@@ -2,12 +2,15 @@
 # Set everything up (idempotent, see scripts/setup.sh), then run the main job:
 # the paper's GPS-based experiment, headless and as fast as the machine allows:
 # the robot drives the 30-waypoint serpentine GPS route through the default
-# cotton farm (navsat transform + move_base with navfn and DWA); at the end
+# cotton farm (navsat transform + move_base with navfn and DWA), with Cotton-Eye
+# in the loop (cameras, segmentation + row centring -> move_base, halts at bolls;
+# vision:=false = LiDAR + GPS alone, several times faster); at the end
 # results/gps_route/ (under $COTTONSIM_RESULTS when set) holds report.json (the
 # paper's CR, AE, RMSE, plant contacts, cross-track error, durations) and
 # trajectory.png (planned vs actual, as the paper's Fig. 14a).
 #   bash scripts/main.sh                                  # default run
 #   bash scripts/main.sh run_name:=mine record_bag:=true  # extra roslaunch arguments
+#   bash scripts/main.sh vision:=false                    # the LiDAR + GPS run
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"

@@ -164,6 +164,18 @@ def test_route_runs_per_seed_and_summarises_the_spread(tmp_path):
         run_route(ws, "boat_route", [0], runner=runner)
 
 
+def test_route_runs_with_vision_by_default_and_without_into_its_own_folder(tmp_path):
+    ws = _workspace(tmp_path)
+    report = dict(_report(30, 30), cr_percent=100.0, ae_m=0.05, rmse_m=0.06, mode="gps")
+    runner = _fake_runner([report, report])
+    on = run_route(ws, "gps_route", [0], record_bag=False, runner=runner)
+    off = run_route(ws, "gps_route", [0], record_bag=False, runner=runner, vision=False)
+    assert [c.args["vision"] for c in runner.calls] == ["true", "false"]
+    assert (on["vision"], off["vision"]) == (True, False)
+    assert os.path.isfile(tmp_path / "results" / "gps_route" / "summary.json")
+    assert os.path.isfile(tmp_path / "results" / "gps_route_no_vision" / "summary.json")
+
+
 def test_map_route_seeds_the_simulator_only_and_keeps_the_mapped_farm(tmp_path):
     ws = _workspace(tmp_path)
     report = dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, mode="map")

@@ -1,6 +1,7 @@
 """Reproduce the paper's experiments, one command each: ``rosrun cottonsim_experiments reproduce EXPERIMENT``.
 
-  reproduce gps-route   [--seeds 0 1 2] [--real-time-factor 0] [--no-bag]   GPS route, report + plot + bag per seed
+  reproduce gps-route   [--seeds 0 1 2] [--real-time-factor 0] [--no-bag] [--vision on|off|both]
+                                                                           GPS route, report + plot + bag per seed
   reproduce map-route   [--seeds 0 1 2] ...                                  map-based route (AMCL on the SLAM map)
   reproduce row-spacing [--spacings 1.0 1.1 ... 1.9] [--seeds 0]            the paper's Fig. 3a study
   reproduce perception  [--synthetic-images 120]                           Tables 2 and 3 (evaluate command)
@@ -21,6 +22,8 @@ import argparse
 import os
 import sys
 
+from cottonsim_navigation.evaluation.vision_ablation import ablation_markdown
+
 from . import row_spacing as rs
 from .packages import RESULTS_ENV, default_results_dir
 from .results_doc import render_results
@@ -40,6 +43,10 @@ def main(argv=None) -> int:
                          "the farm in sim_navigation.yaml); route runs default 0 1 2, the row-spacing study 0")
     ap.add_argument("--real-time-factor", type=float, default=0.0, help="0 = as fast as possible")
     ap.add_argument("--no-bag", action="store_true", help="route runs: do not record bags")
+    ap.add_argument("--vision", choices=("on", "off", "both"), default="on",
+                    help="route runs: Cotton-Eye in the loop (on, the paper's robot: results/<route>/), the LiDAR + "
+                         "GPS run (off: results/<route>_no_vision/), or both and their ablation table "
+                         "(results/<route>_vision_ablation.md)")
     ap.add_argument("--spacings", type=float, nargs="+", default=list(rs.PAPER_SPACINGS_M), help="row spacings [m]")
     ap.add_argument("--plants-per-row", type=int, default=rs.RowSpacingStudyConfig.plants_per_row,
                     help="row-spacing study: plants per row (fewer = a shorter lane, for quick checks)")
@@ -60,10 +67,9 @@ def main(argv=None) -> int:
     doc = os.path.abspath(a.doc) if a.doc else os.path.join(results, "results.md")
     try:
         ws = Workspace(results=results)
-        if a.experiment in ("gps-route", "all"):
-            run_route(ws, "gps_route", a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag, waypoints=a.waypoints)
-        if a.experiment in ("map-route", "all"):
-            run_route(ws, "map_route", a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag, waypoints=a.waypoints)
+        for experiment in ("gps_route", "map_route"):
+            if a.experiment in (experiment.replace("_", "-"), "all"):
+                _route(ws, experiment, a)
         if a.experiment in ("row-spacing", "all"):
             run_row_spacing(ws, rs.RowSpacingStudyConfig(spacings_m=tuple(a.spacings),
                                                          plants_per_row=a.plants_per_row,
@@ -90,3 +96,17 @@ def main(argv=None) -> int:
         print("\nreproduce: interrupted; finished runs are kept under " + results, file=sys.stderr)
         return 130
     return 0
+
+
+
+def _route(ws: Workspace, experiment: str, a) -> None:
+    """One route in the --vision mode(s); with both, the ablation table next to the two result folders."""
+    modes = {"on": (True,), "off": (False,), "both": (False, True)}[a.vision]
+    summaries = {vision: run_route(ws, experiment, a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag,
+                                   waypoints=a.waypoints, vision=vision) for vision in modes}
+    if len(summaries) == 2:
+        lines = ablation_markdown(summaries[True], summaries[False])
+        path = os.path.join(ws.results, f"{experiment}_vision_ablation.md")
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write("\n".join(lines) + "\n")
+        print("\n".join(lines) + f"\nwrote {path}", flush=True)

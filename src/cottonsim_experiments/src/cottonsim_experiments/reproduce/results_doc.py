@@ -15,6 +15,7 @@ from typing import List
 
 from .row_spacing import seeds_markdown, summary_markdown
 from .runs import read_report
+from cottonsim_navigation.evaluation.vision_ablation import ablation_section
 from cottonsim_perception.evaluation.paper import PAPER_TABLES
 from .seeds import format_spread
 
@@ -67,7 +68,8 @@ def _route_section(name: str, title: str, results_root: str, doc_dir: str) -> Li
     spread = summary.get("spread", {})
     n_runs = summary.get("runs_with_report", 0)
     out += [f"Seeds {summary.get('seeds')} ({n_runs} runs with a report); mean ± sample standard deviation "
-            f"(min..max) over the seeds. Machine: {summary.get('machine', 'not recorded')}.", "",
+            f"(min..max) over the seeds. Machine: {summary.get('machine', 'not recorded')}. "
+            f"Cotton-Eye in the loop: {'yes' if summary.get('vision') else 'no (LiDAR + GPS)'}.", "",
             "| figure | ours | paper | target |", "|---|---|---|---|"]
     for key, label, scale, digits in ROUTE_ROWS:
         if key not in spread:
@@ -167,7 +169,9 @@ def render_results(results_root: str, doc_path: str) -> str:
              f"on {datetime.date.today().isoformat()}; do not edit by hand: re-run the experiments and this command.",
              ""]
     lines += _route_section("gps_route", "GPS-based route (the paper's section 3.3)", results_root, doc_dir)
+    lines += ablation_section(results_root, "gps_route")
     lines += _route_section("map_route", "Map-based route (AMCL on our SLAM map)", results_root, doc_dir)
+    lines += ablation_section(results_root, "map_route")
     lines += _row_spacing_section(results_root)
     lines += _perception_section(results_root)
     text = "\n".join(lines)

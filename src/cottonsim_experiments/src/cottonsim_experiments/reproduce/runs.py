@@ -163,7 +163,7 @@ def _write_json(path: str, data) -> None:
 def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_factor: float = 0.0,
               record_bag: bool = True, extra_args: Optional[Mapping[str, object]] = None,
               wall_timeout_s: float = 5400.0, runner: Callable = run_launch,
-              waypoints: Optional[str] = None) -> Dict:
+              waypoints: Optional[str] = None, vision: bool = True) -> Dict:
     """The GPS or map route once per seed, then the spread.
 
     Seeds: the GPS route seeds the simulator and the farm alike (a new farm per seed); the map route
@@ -172,14 +172,16 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
 
     With ``record_bag`` each run's bag is re-evaluated offline (``rosrun cottonsim_experiments evaluate_bag``)
     and the summary says whether that reproduces the online report. ``waypoints``
-    replaces the paper's route file (quick checks on a short route).
+    replaces the paper's route file (quick checks on a short route). ``vision``: Cotton-Eye in the
+    loop (the launch files' default, results/<experiment>/); False: the LiDAR + GPS run
+    (results/<experiment>_no_vision/).
     """
     if experiment not in ROUTES:
         raise ValueError(f"experiment must be one of {sorted(ROUTES)}, got {experiment!r}")
     if not seeds:
         raise ValueError("seeds must name at least one seed")
     route = ROUTES[experiment]
-    out_dir = os.path.join(ws.results, experiment)
+    out_dir = os.path.join(ws.results, experiment if vision else f"{experiment}_no_vision")
     machine = machine_description()
     if waypoints is None:
         waypoints = os.path.join(ws.navigation, route["waypoints"])
@@ -194,7 +196,8 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
                                     seed_overrides(experiment, seed),
                                     os.path.join(run_dir, "sim.yaml"))
         args = {"run_name": run_name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": waypoints,
-                "real_time_factor": real_time_factor, "record_bag": str(bool(record_bag)).lower()}
+                "real_time_factor": real_time_factor, "record_bag": str(bool(record_bag)).lower(),
+                "vision": str(bool(vision)).lower()}
         args.update(extra_args or {})
         print(f"{experiment}: run {k + 1}/{len(seeds)} (seed {seed})", flush=True)
         result = runner(LaunchSpec("cottonsim_navigation", route["launch"], args,
@@ -207,7 +210,8 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
         runs.append(entry)
         print("  " + (summary_line(report) if report else f"no report (see {run_dir}/launch.log)"), flush=True)
     reports = [r["report"] for r in runs if r["report"] is not None]
-    summary = {"experiment": experiment, "mode": route["mode"], "seeds": list(seeds), "machine": machine,
+    summary = {"experiment": experiment, "mode": route["mode"], "vision": bool(vision), "seeds": list(seeds),
+               "machine": machine,
                "waypoints_file": waypoints, "runs_with_report": len(reports), "runs": runs,
                "spread": aggregate_reports(reports),
                "all_complete": len(reports) == len(seeds) and all(r.get("complete", False) for r in reports)}
@@ -295,7 +299,8 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
                 fh.write(f"{float(lat):.14f} {float(lon):.14f}\n")
         args = {"run_name": name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": route,
                 "real_time_factor": real_time_factor, "on_failure": "stop",
-                "goal_timeout_s": config.goal_timeout_s, "record_bag": "false"}
+                "goal_timeout_s": config.goal_timeout_s, "record_bag": "false",
+                "vision": "false"}      # a traversability study of the LiDAR costmap: no cameras
         print(f"row spacing {spacing:.2f} m, seed {config.seed}: attempt {k + 1}/{len(config.spacings_m)}", flush=True)
         result = runner(LaunchSpec("cottonsim_navigation", "gps_navigation.launch", args,
                                    os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"{spacing:.2f} m"))

@@ -21,7 +21,7 @@ from cottonsim_msgs.msg import GpsLocalizationStatus, PlantContacts
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import NavSatFix, NavSatStatus
-from std_msgs.msg import String
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from cottonsim_experiments.recording.experiment import (MODES, TrajectoryLog, TrajectoryLogConfig,
                                                         planned_world_from_gps, planned_world_from_map,
@@ -31,6 +31,7 @@ from cottonsim_navigation.evaluation.gps_outages import (GpsOutageConfig, estima
 from cottonsim_common.pose import Pose2D
 from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 from cottonsim_navigation.evaluation.localization_error import localization_errors, localization_summary
+from cottonsim_navigation.evaluation.vision_outputs import VisionCounts, vision_report
 from cottonsim_navigation.geodesy.navsat import NavsatConfig, NavsatTransform
 from cottonsim_navigation.waypoints.files import WaypointFileError, load_gps_waypoints, load_map_waypoints
 
@@ -70,6 +71,9 @@ class ExperimentRecorderNode:
       ~plot (bool, true): write trajectory.png
       ~shutdown_when_done (bool, true): end the node (and, as a required node, the launch) after writing
       ~gps_outage_min_gap_s (float, 1.0): a gap between usable fixes longer than this [s] is an outage
+      ~vision (bool, false): count Cotton-Eye's outputs along the route (/row_centring/status, /husky/cv/coords,
+        /move_base/vision_correction, /cotton_eye/bolls_in_reach); the report gets the vision_* keys of
+        evaluation.vision_outputs (rates per sim second, the fraction of "no estimate" frames)
     Files: report.json, trajectory.csv, trajectory.png (see evaluation.experiment). On shutdown before
     the navigator finished, the same files are written with "complete": false.
     """
@@ -151,6 +155,15 @@ class ExperimentRecorderNode:
             rospy.Subscriber(self.gps_status_topic, GpsLocalizationStatus, self._on_gps_status, queue_size=20)
             rospy.Subscriber(str(rospy.get_param("~datum_topic", "/navsat_transform/datum")), NavSatFix,
                              self._on_datum, queue_size=2)
+        self.vision = bool(rospy.get_param("~vision", False))
+        self._vision_counts = VisionCounts()
+        if self.vision:
+            for topic, msg_type, update in (
+                    ("/row_centring/status", String, lambda m: lambda c: c.add_status(m.data)),
+                    ("/husky/cv/coords", Float64MultiArray, lambda m: VisionCounts.add_command),
+                    ("/move_base/vision_correction", Float64, lambda m: VisionCounts.add_correction),
+                    ("/cotton_eye/bolls_in_reach", Bool, lambda m: lambda c: c.add_verdict(m.data))):
+                rospy.Subscriber(topic, msg_type, lambda m, u=update: self._count_vision(u(m)), queue_size=50)
         rospy.on_shutdown(self._on_shutdown)
         if self.plot:
             # import matplotlib now, in the background: at the end (possibly during a shutdown, when
@@ -194,6 +207,12 @@ class ExperimentRecorderNode:
             with self._lock:
                 self._datum = (msg.latitude, msg.longitude)
 
+    def _count_vision(self, update):
+        """Apply update(VisionCounts) to the counts, along the route only."""
+        with self._lock:
+            if self._start is not None and self._end is None:
+                update(self._vision_counts)
+
     def _on_contacts(self, msg: PlantContacts):
         with self._lock:
             if self._contacts_first is None:
@@ -231,9 +250,13 @@ class ExperimentRecorderNode:
             estimates = list(self._estimates)
             states, fixes = list(self._states), list(self._fix_stamps)
             gps_estimates, datum = list(self._gps_estimates), self._datum
-        extra = {}
+            counts = VisionCounts(**vars(self._vision_counts))
+        extra = {"vision": self.vision, "halts": navigator.get("halts", 0),
+                 "halt_time_s": navigator.get("halt_time_s", 0.0)}
+        if self.vision:
+            extra.update(vision_report(counts, max(0.0, end[0] - start[0])))
         if self.localization_topic:
-            extra = {"localization_topic": self.localization_topic,
+            extra = {**extra, "localization_topic": self.localization_topic,
                      **localization_summary(localization_errors(np.array(estimates).reshape(-1, 3), traj, self.home))}
         if self.fix_topic:
             extra.update(self._outage_keys(start[0], end[0], traj, states, fixes, gps_estimates, datum))

@@ -43,7 +43,9 @@ Vision correction (optional, :class:`VisionBiasConfig`): while CONTROLLING
 with a valid local plan, a fresh row-centring estimate (angular rate) is
 added to the local planner's angular velocity, bounded to
 ``max_vision_rate`` rad/s, but only when the robot is inside a crop row
-(the global costmap has obstacles on both sides within ``row_reach_m``).
+(the global costmap - a map's rows - or the local costmap - the LiDAR's plants,
+all a GPS route's empty map leaves - has obstacles on both sides within
+``row_reach_m``).
 So only move_base commands the base; the two never fight over /cmd_vel.
 
 Frames: the global costmap and plans are in the global frame (map); the
@@ -413,7 +415,8 @@ class MoveBase:
                     if self.recovery_trigger == RecoveryTrigger.CONTROLLING:
                         self.recovery_index = 0
                     if status == LocalPlannerStatus.OK and self.vision.enabled:
-                        in_row = inside_crop_row(self.global_costmap, gpose, self.vision.row_reach_m)
+                        in_row = (inside_crop_row(self.global_costmap, gpose, self.vision.row_reach_m)
+                                  or inside_crop_row(self.local_costmap, lpose, self.vision.row_reach_m))
                         w2 = blend_vision(w, vision_w_radps, vision_age_s, in_row, self.vision)
                         vision_applied = w2 != w
                         w = w2

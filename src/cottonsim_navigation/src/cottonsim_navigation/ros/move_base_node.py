@@ -18,7 +18,7 @@ from geometry_msgs.msg import PoseStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedback, MoveBaseResult
 from nav_msgs.msg import Odometry, Path
 from nav_msgs.srv import GetPlan, GetPlanResponse
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Empty, EmptyResponse
 
 from cottonsim_common.ros import conversions as conv
@@ -33,8 +33,6 @@ from cottonsim_navigation.planning.global_planners.navfn import NavfnConfig
 from cottonsim_navigation.planning.local_planners.dwa import DWAConfig
 from cottonsim_navigation.ros.move_base_costmaps import MoveBaseCostmaps
 from cottonsim_navigation.ros.move_base_messages import path_msg, pose_msg_is_valid, transform_to_pose2d
-from cottonsim_navigation.ros.params import config_from_params, typed_param
-from cottonsim_common.ros import conversions as conv
 
 
 
@@ -65,6 +63,9 @@ class MoveBaseNode:
       ~global_costmap/costmap   nav_msgs/OccupancyGrid      latched, re-sent when it changes
       ~local_costmap/costmap    nav_msgs/OccupancyGrid      at ~local_costmap/publish_frequency (3 Hz)
       ~current_goal             geometry_msgs/PoseStamped   the goal in the global frame
+      ~vision_correction        std_msgs/Float64            the row-centring angular_z [rad/s] added to the
+                                                            command (before the +/- ~max_vision_rate clip),
+                                                            in each control cycle where it changed the command
       move_base/goal            move_base_msgs/MoveBaseActionGoal (from move_base_simple/goal)
       move_base/status, /result, /feedback                  from actionlib
     Services
@@ -136,6 +137,7 @@ class MoveBaseNode:
         self.plan_pub = rospy.Publisher("~NavfnROS/plan", Path, queue_size=1, latch=True)
         self.local_plan_pub = rospy.Publisher("~DWAPlannerROS/local_plan", Path, queue_size=1)
         self.goal_pub = rospy.Publisher("~current_goal", PoseStamped, queue_size=1, latch=True)
+        self.vision_pub = rospy.Publisher("~vision_correction", Float64, queue_size=5)
         self.action_goal_pub = rospy.Publisher("move_base/goal", MoveBaseActionGoal, queue_size=1)
 
         self.costmaps.start()
@@ -313,6 +315,8 @@ class MoveBaseNode:
         cmd = Twist()
         cmd.linear.x, cmd.angular.z = r.v_mps, r.w_radps
         self.cmd_pub.publish(cmd)
+        if r.vision_applied:
+            self.vision_pub.publish(Float64(data=vision_w))
         self.local_plan_pub.publish(path_msg(r.local_path, self.local_frame, now))
         fb = MoveBaseFeedback()
         fb.base_position.header = conv.header(now, self.global_frame)

@@ -20,12 +20,21 @@ kidnap), the active goal is cancelled (move_base stops the robot) and held,
 not counted as aborted; when it reports "localised" again the same goal is
 sent again. The route is never cut short by a lost localisation.
 
+Halt at bolls (``~boll_halt/enabled``, the paper's stop for picking): while
+Cotton-Eye's side cameras report a boll within the arm's reach
+(``~bolls_in_reach_topic``), the active goal is cancelled (move_base stops
+the robot) for ``~boll_halt/dwell_s`` of sim time, then the same goal is
+sent again; the next halt needs the robot to have moved
+``~boll_halt/rearm_distance_m`` (:mod:`cottonsim_navigation.waypoints.boll_halt`),
+so a boll that stays in view never stalls the route.
+
 State (std_msgs/String on ~state, latched): a JSON object
-``{"state": waiting|navigating|returning_home|paused|finished, "index": i (1-based goal), "total": N,
+``{"state": waiting|navigating|returning_home|paused|halted|finished, "index": i (1-based goal), "total": N,
 "label": ..., "goal": [x, y, yaw], "succeeded": n, "passed": n (of the succeeded, driven through),
 "aborted": n, "aborted_waypoints": [{"index": i, "label": ..., "reason": move_base's status text}, ...],
 "skipped": n, "returned_home": bool, "home_reached": bool|null, "holds": n (goals held
-while localisation was lost), "reason": ...}``.
+while localisation was lost), "halts": n (halts at bolls), "halt_time_s": s (their total sim time),
+"reason": ...}``.
 """
 from __future__ import annotations
 
@@ -44,7 +53,9 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Bool, String
 
+from cottonsim_common.ros.params import config_from_params
 from cottonsim_common.transforms import yaw_to_quaternion
+from cottonsim_navigation.waypoints.boll_halt import BollHalt, BollHaltConfig, BollVerdicts
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
 from cottonsim_navigation.waypoints.goals import pass_through_flags
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
@@ -70,6 +81,9 @@ class WaypointNavigatorBase:
         after it was true once, false pauses the route (the active goal is cancelled, the robot stops, the
         goal is held) until it is true again, then the same goal is sent again. The first true is not
         waited for: the route starts on the initial pose (AMCL reports localised only after some motion).
+      ~bolls_in_reach_topic (std_msgs/Bool, default /cotton_eye/bolls_in_reach; only with ~boll_halt/enabled):
+        each boll detection node's verdict per frame; the newest of every publisher (callerid) counts for
+        ~boll_halt/max_age_s, and bolls are in reach while any of them is true.
     Publications
       ~state (std_msgs/String, latched): JSON state, see the module docstring.
     Action client
@@ -91,6 +105,9 @@ class WaypointNavigatorBase:
         ~pass_through_max_turn_rad) counts as reached once the robot (TF) is this close, and the next
         goal is sent at once (preempting), so the robot drives through instead of stopping; 0 = off
       ~pass_through_max_turn_rad (float, 0.35 = 20 deg): the largest turn a pass-through waypoint may have
+      ~boll_halt/enabled (bool, true), ~boll_halt/dwell_s (float, 2.0 s), ~boll_halt/rearm_distance_m
+        (float, 0.7 m), ~boll_halt/min_gap_s (float, 1.0 s), ~boll_halt/max_age_s (float, 1.0 s): the halt at
+        bolls (waypoints.boll_halt.BollHaltConfig; config/boll_halt.yaml); the way Home never halts
     """
 
     NAME = "waypoint_navigator"
@@ -149,6 +166,10 @@ class WaypointNavigatorBase:
         if not self.waypoints_file:
             raise NavigatorStartError("~waypoints_file is not set")
         try:
+            self.halt_config = config_from_params(BollHaltConfig, "~boll_halt/")
+        except ValueError as exc:
+            raise NavigatorStartError(str(exc)) from None
+        try:
             self.waypoints = self.load_route(self.waypoints_file)
         except WaypointFileError as exc:
             raise NavigatorStartError(f"bad waypoint file {exc}") from None
@@ -163,6 +184,8 @@ class WaypointNavigatorBase:
         self._battery_low = False
         self._gate = LocalisationGate()                # the localiser's verdicts
         self._paused_since: Optional[rospy.Time] = None
+        self.boll_halt = BollHalt(self.halt_config)
+        self._verdicts = BollVerdicts(self.halt_config.max_age_s)
         self.follower: Optional[WaypointFollower] = None
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
@@ -173,6 +196,11 @@ class WaypointNavigatorBase:
         if self.localized_topic:
             rospy.Subscriber(self.localized_topic, Bool, self._on_localized, queue_size=5)
             rospy.loginfo("%s: pausing the route while %s reports not localised", self.NAME, self.localized_topic)
+        if self.halt_config.enabled:
+            topic = str(rospy.get_param("~bolls_in_reach_topic", "/cotton_eye/bolls_in_reach"))
+            rospy.Subscriber(topic, Bool, self._on_bolls_in_reach, queue_size=10)
+            rospy.loginfo("%s: halting %.1f s while %s reports bolls in reach", self.NAME,
+                          self.halt_config.dwell_s, topic)
 
     # ------------------------------------------------------------------ inputs
     def _on_battery(self, msg: BatteryState):
@@ -188,6 +216,11 @@ class WaypointNavigatorBase:
     def _on_localized(self, msg: Bool):
         with self._lock:
             self._gate.report(bool(msg.data))
+
+    def _on_bolls_in_reach(self, msg: Bool):
+        source = getattr(msg, "_connection_header", {}).get("callerid", "")
+        with self._lock:
+            self._verdicts.report(source, bool(msg.data), rospy.get_time())
 
     def localisation_lost(self) -> bool:
         """The localiser was localised once and now says it is not (kidnap, re-initialisation)."""
@@ -231,6 +264,7 @@ class WaypointNavigatorBase:
                                      for a in s.aborted_waypoints] if s else [],
                "skipped": s.skipped if s else 0, "returned_home": s.returned_home if s else False,
                "home_reached": s.home_reached if s else None, "holds": s.holds if s else 0,
+               "halts": self.boll_halt.halts, "halt_time_s": round(self.boll_halt.halt_time_s, 3),
                "reason": reason or (s.stopped_reason if s else "")}
         self.state_pub.publish(String(data=json.dumps(msg)))
 
@@ -358,8 +392,8 @@ class WaypointNavigatorBase:
                               reason, "going on with the route" if self.follower_config.on_failure == "skip"
                               else "stopping")
             f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED, reason)
-        elif lost or self._paused_since is not None:
-            pass                         # paused or resuming: no pass-through or time-out of a held goal
+        elif lost or self._paused_since is not None or self.boll_halt.halted:
+            pass                         # paused, halted or resuming: no pass-through or time-out of a held goal
         elif f.current_is_pass_through and self._passed_current():
             rospy.loginfo("%s: goal %d passed (within %.2f m); on to the next", self.NAME, f.index,
                           self.follower_config.pass_through_radius_m)
@@ -377,9 +411,36 @@ class WaypointNavigatorBase:
             rospy.loginfo("%s: localised again after %.1f s (sim): resuming %s", self.NAME,
                           (rospy.Time.now() - self._paused_since).to_sec(), self._describe_current())
             self._paused_since = None
+        if self._halt_at_bolls():
+            return
         goal = f.next_goal(localisation_ready=True)
         if goal is not None:
             self._send(goal)
+
+    def _halt_at_bolls(self) -> bool:
+        """The halt at bolls for this cycle; True while the robot stands (no goal may be sent)."""
+        if not self.halt_config.enabled:
+            return False
+        f = self.follower
+        now_s = rospy.get_time()
+        if f.going_home:
+            if self.boll_halt.cancel(now_s):
+                rospy.loginfo("%s: halt at bolls ended early: returning Home", self.NAME)
+            return False
+        with self._lock:
+            in_reach = self._verdicts.in_reach(now_s)
+        pose = self.robot_pose()
+        d = self.boll_halt.step(now_s, pose.x_m if pose else None, pose.y_m if pose else None,
+                                in_reach and f.state is FollowerState.ACTIVE)
+        if d.started:
+            self._cancel_active()          # move_base stops the robot
+            f.hold(count=False)
+            rospy.loginfo("%s: bolls in reach: halt %d for %.1f s (%s held)", self.NAME, self.boll_halt.halts,
+                          self.halt_config.dwell_s, self._describe_current())
+            self.publish_state("halted", reason="bolls in reach", goal=f.current_goal)
+        elif d.ended:
+            rospy.loginfo("%s: halt %d done: resuming %s", self.NAME, self.boll_halt.halts, self._describe_current())
+        return d.halted
 
     def _describe_current(self) -> str:
         f = self.follower

@@ -176,17 +176,19 @@ class WaypointFollower:
         self.report_result(GoalResult.SUCCEEDED)
         return True
 
-    def hold(self) -> bool:
+    def hold(self, count: bool = True) -> bool:
         """Withdraw the active goal without a result (localisation lost); True when one was active.
 
         The index stays, so ``next_goal(localisation_ready=True)`` returns the
         same goal (or Home) once the caller is ready again. Nothing happens
-        when no goal is active (READY / WAITING / FINISHED).
+        when no goal is active (READY / WAITING / FINISHED). count=False: not
+        counted in ``summary.holds`` (a halt at bolls, which is counted apart).
         """
         if self.state is not FollowerState.ACTIVE:
             return False
         self.state = FollowerState.WAITING
-        self.summary.holds += 1
+        if count:
+            self.summary.holds += 1
         return True
 
     def battery_low(self) -> None:

@@ -331,3 +331,14 @@ def test_vision_correction_is_applied_by_the_state_machine_only_in_a_row():
     assert r.vision_applied and r.w_radps == pytest.approx(0.13)
     r = mb.step(DT, Pose2D(0, 0, 0), Pose2D(0, 0, 0), vision_w_radps=0.03, vision_age_s=0.9)
     assert not r.vision_applied and r.w_radps == pytest.approx(0.1)
+
+
+def test_vision_correction_sees_the_row_in_the_local_costmap_when_the_map_is_empty():
+    # the GPS route's global costmap is an empty map: the row is only in the LiDAR's local costmap
+    empty = row_costmap(left=False, right=False)
+    vis = VisionBiasConfig(enabled=True)
+    for local, applied in ((row_costmap(), True), (row_costmap(left=False), False)):
+        mb = MoveBase(MoveBaseConfig(), empty, local, FakeGlobal(), FakeLocal(0.4, 0.1), [], vision=vis)
+        mb.set_goal(Pose2D(2.0, 0.0, 0.0), 0.0)
+        r = mb.step(0.0, Pose2D(0, 0, 0), Pose2D(0, 0, 0), vision_w_radps=0.03, vision_age_s=0.1)
+        assert r.vision_applied is applied
