@@ -7,6 +7,8 @@
   reproduce perception  [--synthetic-images 120]                           Tables 2 and 3 (evaluate command)
   reproduce results-doc [--doc docs/results.md]                            the results page from the results folder
   reproduce screenshots [--bringups sim gps_navigation ...]                 headless rviz screenshots of the bringups
+  reproduce sweep       --config SWEEP.yaml [--address auto|HOST:PORT] [--cpus-per-run 2] [--max-retries 2] [--resume]
+                                                                           a grid of runs on Ray (docs/sweeps.md)
   reproduce all         [--seeds 0 1 2]                                    everything above, then results-doc
 
 Results go to --results DIR (default: $COTTONSIM_RESULTS, else results/ in the current directory);
@@ -34,7 +36,7 @@ from .screenshots import BRINGUPS, take_screenshots
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("experiment", choices=("gps-route", "map-route", "row-spacing", "perception", "results-doc",
-                                           "screenshots", "all"))
+                                           "screenshots", "sweep", "all"))
     ap.add_argument("--results", default=None,
                     help=f"results root (default: ${RESULTS_ENV}, else results/ in the current directory)")
     ap.add_argument("--doc", default=None, help="results page to write (default: RESULTS/results.md)")
@@ -57,6 +59,17 @@ def main(argv=None) -> int:
     ap.add_argument("--original-data", default=os.environ.get("COTTONSIM_PAPER_DATA"),
                     help="the paper's labelled images (a folder with Segmentation/ and Detection/); default: "
                          "$COTTONSIM_PAPER_DATA")
+    ap.add_argument("--config", default=None, help="sweep: the sweep file (YAML; see docs/sweeps.md)")
+    ap.add_argument("--address", default=None,
+                    help="sweep: a Ray cluster to run on ('auto' or HOST:PORT); default: a local cluster of this "
+                         "machine's cores")
+    ap.add_argument("--cpus-per-run", type=int, default=2,
+                    help="sweep: cores each run reserves (and its NUMBA/OMP threads); default 2")
+    ap.add_argument("--max-retries", type=int, default=2,
+                    help="sweep: extra attempts of a run whose worker died or whose master port was taken")
+    ap.add_argument("--resume", action="store_true", help="sweep: keep the finished runs of the sweep, run the rest")
+    ap.add_argument("--local-cpus", type=int, default=None,
+                    help="sweep: cores of the local cluster (default: this machine's)")
     ap.add_argument("--synthetic-images", type=int, default=120,
                     help="held-out synthetic test frames per task (0: skip the synthetic tables)")
     ap.add_argument("--bringups", nargs="+", default=None,
@@ -66,6 +79,12 @@ def main(argv=None) -> int:
     results = os.path.abspath(a.results) if a.results else default_results_dir()
     doc = os.path.abspath(a.doc) if a.doc else os.path.join(results, "results.md")
     try:
+        if a.experiment == "sweep":
+            if not a.config:
+                raise ValueError("sweep needs --config SWEEP.yaml (see docs/sweeps.md)")
+            from cottonsim_experiments.sweep.command import sweep_command
+            return sweep_command(a.config, results, a.address, a.cpus_per_run, a.max_retries, a.resume,
+                                 a.local_cpus)
         ws = Workspace(results=results)
         for experiment in ("gps_route", "map_route"):
             if a.experiment in (experiment.replace("_", "-"), "all"):

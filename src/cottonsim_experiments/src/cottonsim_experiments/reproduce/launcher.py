@@ -91,6 +91,7 @@ class LaunchResult:
     timed_out: bool
     wall_s: float
     log_path: str
+    aborted_reason: str = ""          # why ``on_line`` stopped the bringup early ("" when it did not)
 
 
 def _print_progress(label: str, text: str, started: float) -> None:
@@ -102,9 +103,23 @@ def _print_progress(label: str, text: str, started: float) -> None:
     sys.stdout.flush()
 
 
+def _restore_sigint() -> None:
+    """In the child before exec: SIGINT unblocked and at its default action.
+
+    A process started from a Ray task (or any thread that blocks or ignores SIGINT) passes that on
+    to its children, and a roslaunch that never sees SIGINT cannot stop its nodes cleanly.
+    """
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run_launch(spec: LaunchSpec, show_progress: bool = True,
-               on_line: Optional[Callable[[str], None]] = None) -> LaunchResult:
-    """Run ``spec`` to its end (or its wall limit); returns how it ended."""
+               on_line: Optional[Callable[[str], Optional[str]]] = None) -> LaunchResult:
+    """Run ``spec`` to its end (or its wall limit); returns how it ended.
+
+    ``on_line`` sees every console line; when it returns a reason (a non-empty string) the bringup is
+    stopped (SIGINT) and the reason is the result's ``aborted_reason``.
+    """
     port = free_port()
     env, network_note = ros_network_environment(os.environ)      # ValueError: a ROS_HOSTNAME that does not resolve
     env["ROS_MASTER_URI"] = f"http://localhost:{port}"
@@ -118,13 +133,21 @@ def run_launch(spec: LaunchSpec, show_progress: bool = True,
         log.write("$ " + " ".join(spec.command(port)) + "\n")
         log.flush()
         proc = subprocess.Popen(spec.command(port), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, errors="replace", start_new_session=True)
+                                text=True, errors="replace", start_new_session=True,
+                                preexec_fn=_restore_sigint)
+        aborted = []
 
         def pump():
             for line in proc.stdout:
                 log.write(line)
-                if on_line is not None:
-                    on_line(line)
+                reason = on_line(line) if on_line is not None else None
+                if reason and not aborted:
+                    aborted.append(reason)
+                    log.write(f"\n[launcher] stopping: {reason}\n")
+                    try:
+                        os.killpg(proc.pid, signal.SIGINT)
+                    except ProcessLookupError:
+                        pass
                 if parser.feed(line) and show_progress:
                     _print_progress(spec.label, parser.text, started)
             log.flush()
@@ -144,7 +167,8 @@ def run_launch(spec: LaunchSpec, show_progress: bool = True,
             reader.join(timeout=10.0)
     if show_progress and sys.stdout.isatty():
         sys.stdout.write("\n")
-    return LaunchResult(proc.returncode, timed_out, time.monotonic() - started, spec.log_path)
+    return LaunchResult(proc.returncode, timed_out, time.monotonic() - started, spec.log_path,
+                        aborted[0] if aborted else "")
 
 
 def stop_process_group(proc: subprocess.Popen) -> None:
