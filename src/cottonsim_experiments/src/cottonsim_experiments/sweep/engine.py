@@ -53,6 +53,7 @@ def _task_body(run_function: RunFunction, run: RunSpec, cpus: int) -> Dict[str, 
     outcome = dict(run_function(run, cpus))
     outcome.setdefault("node", os.uname().nodename)
     outcome["node_ip"] = ray.util.get_node_ip_address()
+    outcome["ray_node"] = ray.get_runtime_context().get_node_id()[:12]
     return outcome
 
 

@@ -29,7 +29,7 @@ from .spec import RunSpec
 # The report's figures copied into runs.csv and summarised in summary.md.
 FIGURES = ("complete", "cr_percent", "cr_percent_010m", "ae_m", "rmse_m", "cross_track_mean_m", "cross_track_max_m",
            "plant_contacts", "sim_duration_s", "real_time_factor")
-RUN_COLUMNS = ("run_id", "seed", "status", "attempts", "node", "load_average_1m", "wall_s", "error")
+RUN_COLUMNS = ("run_id", "seed", "status", "attempts", "node", "ray_node", "load_average_1m", "wall_s", "error")
 OUTCOME_FILE = "outcome.json"
 STATUS_DONE = "done"
 STATUS_FAILED = "failed"
