@@ -83,6 +83,21 @@ class TfPoseReader:
         return self._mounts[key]
 
 
+def scan_and_odom(poses: "TfPoseReader", msg: LaserScan, base_frame: str, odom_frame: str, node: str):
+    """The scan of ``msg`` (laser pose from TF) and the odometry pose at its stamp, or None when TF has
+    neither yet or the scan is malformed (logged, throttled, naming ``node``)."""
+    laser = poses.mount(base_frame, msg.header.frame_id)
+    if laser is None:
+        return None
+    try:
+        scan = scan_from_msg(msg, laser)
+    except ValueError as exc:
+        rospy.logwarn_throttle(5.0, f"{node}: scan ignored: {exc}")
+        return None
+    odom = poses.pose(odom_frame, base_frame, msg.header.stamp, 0.2)
+    return None if odom is None else (scan, odom)
+
+
 def pose_msg(x: float, y: float, yaw: float) -> Pose:
     p = Pose()
     p.position.x, p.position.y = float(x), float(y)
@@ -274,17 +289,10 @@ class AmclNode:
     def _on_scan(self, msg: LaserScan):
         if not self._have_map:
             return
-        laser = self.poses.mount(self.base_frame, msg.header.frame_id)
-        if laser is None:
+        read = scan_and_odom(self.poses, msg, self.base_frame, self.odom_frame, "amcl")
+        if read is None:
             return
-        try:
-            scan = scan_from_msg(msg, laser)
-        except ValueError as exc:
-            rospy.logwarn_throttle(5.0, f"amcl: scan ignored: {exc}")
-            return
-        odom = self.poses.pose(self.odom_frame, self.base_frame, msg.header.stamp, 0.2)
-        if odom is None:
-            return
+        scan, odom = read
         with self._lock:
             step = self.supervisor.step(msg.header.stamp.to_sec(), (odom.x_m, odom.y_m, odom.yaw_rad), scan)
             self._map_to_odom = step.result.map_to_odom

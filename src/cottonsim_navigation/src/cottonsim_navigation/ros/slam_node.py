@@ -29,7 +29,7 @@ from cottonsim_common.ros.tf import PlanarTransformBroadcaster
 from cottonsim_common.transforms import quaternion_to_matrix, yaw_to_quaternion
 from cottonsim_navigation.mapping.scan_matcher import ScanMatcherConfig
 from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig
-from cottonsim_navigation.ros.amcl_node import TfPoseReader, scan_from_msg
+from cottonsim_navigation.ros.amcl_node import TfPoseReader, scan_and_odom
 
 
 def base_yaw_from_imu(q_world_imu, r_base_imu: np.ndarray) -> Optional[float]:
@@ -169,17 +169,10 @@ class SlamNode:
         return best[1] if abs(best[0] - stamp_s) <= max_gap_s else None
 
     def _on_scan(self, msg: LaserScan):
-        laser = self.poses.mount(self.base_frame, msg.header.frame_id)
-        if laser is None:
+        read = scan_and_odom(self.poses, msg, self.base_frame, self.odom_frame, "slam_gmapping")
+        if read is None:
             return
-        try:
-            scan = scan_from_msg(msg, laser)
-        except ValueError as exc:
-            rospy.logwarn_throttle(5.0, f"slam_gmapping: scan ignored: {exc}")
-            return
-        odom = self.poses.pose(self.odom_frame, self.base_frame, msg.header.stamp, 0.2)
-        if odom is None:
-            return
+        scan, odom = read
         t0 = time.perf_counter()
         with self._lock:
             result = self.slam.update(odom, scan, msg.header.stamp.to_sec(),
