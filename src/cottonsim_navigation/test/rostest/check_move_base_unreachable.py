@@ -14,7 +14,9 @@ import rospy
 import rostest
 from nav_msgs.msg import Odometry
 
-from cottonsim_navigation.evaluation.experiment import sim_world_from_settings
+from cottonsim_world.config_io import simulator_config_from_dict
+from cottonsim_world.farm.generator import generate_farm
+from cottonsim_world.geodesy import HectorGeodesy
 from cottonsim_navigation.waypoints.files import load_gps_waypoints
 from navigator_watch import NavigatorWatch
 
@@ -39,7 +41,9 @@ class UnreachableGoalTest(NavigatorWatch):
         report_file = rospy.get_param("~report_file")
         self.forget_old_report(report_file)
         wps = load_gps_waypoints(rospy.get_param("~waypoints_file"))
-        world = sim_world_from_settings(rospy.get_param("/sim_bridge/sim", {}) or {})
+        config = simulator_config_from_dict(dict(rospy.get_param("/sim_bridge/sim", {}) or {}))
+        geodesy = HectorGeodesy(*config.geodesy_reference)
+        plant_xy = generate_farm(config.farm).plant_positions()
         s = self.wait_until_finished(560)
         rospy.loginfo("check_move_base_unreachable: navigator %s", s)
         # goal 1 (on a stem) aborted by move_base with its reason, not by the navigator's time-out
@@ -54,11 +58,11 @@ class UnreachableGoalTest(NavigatorWatch):
         # the route went on: the robot passed goals 2-4 (ground truth, the sim's own geodesy)
         traj = np.array(self.truth)
         for w in wps[1:]:
-            wx, wy, _ = world.geodesy.geodetic_to_world(w.lat, w.lon, 0.0)
+            wx, wy, _ = geodesy.geodetic_to_world(w.lat, w.lon, 0.0)
             self.assertLess(np.hypot(traj[:, 0] - wx, traj[:, 1] - wy).min(), 0.25, f"goal ({wx:.2f}, {wy:.2f})")
         # goal 3 lies beyond the row at row_x_m: the robot went around the row's end, never across the row
         row_x = float(rospy.get_param("~row_x_m"))
-        stems_y = world.plant_xy[np.isclose(world.plant_xy[:, 0], row_x, atol=0.05), 1]
+        stems_y = plant_xy[np.isclose(plant_xy[:, 0], row_x, atol=0.05), 1]
         self.assertGreater(len(stems_y), 0, f"no row at x = {row_x}")
         side = np.sign(traj[:, 0] - row_x)
         crossed = np.nonzero(side[1:] * side[:-1] < 0)[0]

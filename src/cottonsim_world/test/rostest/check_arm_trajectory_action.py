@@ -26,7 +26,7 @@ from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.robot.vacuum import VacuumConfig
-from cottonsim_world.transforms import pose_matrix
+from cottonsim_common.transforms import pose_matrix
 from nav_msgs.msg import Odometry
 
 ARM = ["ur5e_shoulder_pan_joint", "ur5e_shoulder_lift_joint", "ur5e_elbow_joint", "ur5e_wrist_1_joint",
