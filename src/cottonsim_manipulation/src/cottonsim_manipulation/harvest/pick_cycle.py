@@ -78,15 +78,18 @@ class PickTarget:
     outward: Tuple[float, float, float]
 
 
+@dataclass(frozen=True)
+class _Signal:
+    """A command or event without fields (equal to another of its own class only)."""
+
+
 # Commands (outputs).
-@dataclass(frozen=True)
-class HaltRoute:
-    pass
+class HaltRoute(_Signal):
+    """Pause the route (the paper's halt)."""
 
 
-@dataclass(frozen=True)
-class ResumeRoute:
-    pass
+class ResumeRoute(_Signal):
+    """Go on along the route."""
 
 
 @dataclass(frozen=True)
@@ -95,9 +98,8 @@ class SendTrajectory:
     purpose: str                      # 'transit', 'approach', 'retreat' or 'deliver'
 
 
-@dataclass(frozen=True)
-class CancelTrajectory:
-    pass
+class CancelTrajectory(_Signal):
+    """Stop the trajectory in progress."""
 
 
 @dataclass(frozen=True)
@@ -106,14 +108,12 @@ class SetVacuum:
 
 
 # Events (inputs).
-@dataclass(frozen=True)
-class RobotStopped:
-    pass
+class RobotStopped(_Signal):
+    """The base has come to rest."""
 
 
-@dataclass(frozen=True)
-class TrajectoryDone:
-    pass
+class TrajectoryDone(_Signal):
+    """The trajectory sent last has ended at its goal."""
 
 
 @dataclass(frozen=True)
@@ -121,9 +121,8 @@ class TrajectoryFailed:
     detail: str = ""
 
 
-@dataclass(frozen=True)
-class CaptureConfirmed:
-    pass
+class CaptureConfirmed(_Signal):
+    """The nozzle holds the boll."""
 
 
 @dataclass(frozen=True)
