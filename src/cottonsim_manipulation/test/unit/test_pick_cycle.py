@@ -196,3 +196,9 @@ def test_bad_config_and_input():
         PickCycleConfig(bin_joints_rad=(0.0, 0.0, 9.0, 0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="unique"):
         PickCycle(targets(1) * 2, START, planner())
+    with pytest.raises(ValueError, match="time"):
+        PickCycle(targets(1), START, planner()).start(float("nan"))
+    cycle = start_first(1)
+    with pytest.raises(RuntimeError, match="already started"):
+        cycle.start(1.0)
+    assert cycle.current_target_id == 0

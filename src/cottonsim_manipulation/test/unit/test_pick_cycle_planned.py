@@ -57,7 +57,7 @@ def test_every_reachable_boll_is_captured_and_binned(model):
             now += traj.duration_s
             q = traj.waypoints_rad[-1]
             if sent[0].purpose == "approach":
-                boll, outward = bolls[cycle._current.target.target_id]
+                boll, outward = bolls[cycle.current_target_id]
                 tip, axis = nozzle_tip(forward_kinematics(q), NOZZLE_M)
                 check = check_capture(tip, axis, boll, outward)
                 assert check.distance_m <= CaptureConfig().capture_radius_m

@@ -2,7 +2,7 @@
 
 Phases, per target in the given order (see harvest.pick_order):
 
-    HALT -> [ APPROACH -> CAPTURE -> RETREAT -> DELIVER -> RELEASE ] * targets -> RESUME -> DONE
+    HALT -> [ APPROACH -> CAPTURE -> RETREAT -> DELIVER -> RELEASE ] * targets -> ResumeRoute -> DONE
 
 * HALT: the route is paused (command HaltRoute); waits for the robot to stop.
 * APPROACH: the target is planned (``plan_pick(target, q_current)``, e.g.
@@ -35,8 +35,8 @@ from cottonsim_common.kinematics.ur5e import joint_vector
 from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
 
 REASONS = ("ok", "unreachable", "ik_failed", "collision", "aborted", "capture_missed", "lost", "timeout")
-HALT, APPROACH, CAPTURE, RETREAT, DELIVER, RELEASE, RESUME, DONE = (
-    "halt", "approach", "capture", "retreat", "deliver", "release", "resume", "done")
+HALT, APPROACH, CAPTURE, RETREAT, DELIVER, RELEASE, DONE = (
+    "halt", "approach", "capture", "retreat", "deliver", "release", "done")
 
 
 @dataclass(frozen=True)
@@ -185,9 +185,19 @@ class PickCycle:
     def done(self) -> bool:
         return self.phase == DONE
 
+    @property
+    def current_target_id(self) -> Optional[int]:
+        """The id of the target being picked, None between targets."""
+        return None if self._current is None else self._current.target.target_id
+
+    def _check_time(self, now_s: float) -> None:
+        if isinstance(now_s, bool) or not isinstance(now_s, (int, float)) or not math.isfinite(now_s):
+            raise ValueError(f"the time must be a finite number of seconds, got {now_s!r}")
+
     def start(self, now_s: float) -> list:
         if self.phase is not None:
             raise RuntimeError("the pick cycle has already started")
+        self._check_time(now_s)
         self._mark_s = now_s
         if not self._queue:
             return self._finish(now_s)
@@ -196,6 +206,7 @@ class PickCycle:
 
     def on_event(self, event, now_s: float) -> list:
         """Commands in answer to an event; events that do not fit the phase are ignored."""
+        self._check_time(now_s)
         if isinstance(event, TargetLost):
             return self._on_lost(event.target_id, now_s)
         phase, cur = self.phase, self._current
@@ -238,6 +249,7 @@ class PickCycle:
 
     def tick(self, now_s: float) -> list:
         """Commands when the phase's time is up (the release dwell ends, or a timeout)."""
+        self._check_time(now_s)
         if self.phase in (None, DONE) or now_s < self._deadline_s:
             return []
         if self.phase == RELEASE:
@@ -306,7 +318,6 @@ class PickCycle:
         return []
 
     def _finish(self, now_s: float) -> list:
-        self.phase = RESUME
         self._deadline_s = math.inf
-        self.phase = DONE
+        self.phase = DONE                # RESUME is the command itself: the stop is over
         return [ResumeRoute()]
