@@ -63,14 +63,17 @@ Modules (import from this package; the names below are its API):
 * ``seg_labels``: mask_to_label_polygons, segmentation_instances, class_ious;
 * ``det_labels``: boll_boxes, detection_instances;
 * ``pipeline``: plan_jobs, render_farm_job, generate_dataset (worker pool);
+* ``ray_engine``: RayEngineConfig, plan_ranges, run_on_ray (Ray imported only
+  when a RayEngineConfig is passed to generate_dataset);
 * ``cli``: parse_seed_list, parse_image_size.
 """
 from .cli import parse_image_size, parse_seed_list
 from .config import (CAMERA_FRONT, CAMERA_LEFT, CAMERA_RIGHT, CAMERAS, DEFAULT_URDF_PATH, IMAGE_FORMATS, SPLITS,
                      TASKS, DatasetConfig, LabelConfig, VariationConfig)
 from .det_labels import BollLabel, boll_boxes, detection_instances
-from .pipeline import (DatasetSummary, FarmJob, ImageRecord, generate_dataset, plan_jobs, render_farm_job,
-                       split_seeds)
+from .pipeline import (DatasetSummary, EncodedImage, FarmJob, ImageRecord, generate_dataset, plan_jobs,
+                       render_farm_job, render_scene_range, split_seeds, write_encoded_image)
+from .ray_engine import RayEngineConfig, SceneRange, plan_ranges
 from .poses import RobotShot, base_pose_matrix, camera_transforms, sample_robot_pose
 from .randomize import apply_photometric, sample_farm_config, sample_scene_config, seeded_rng
 from .seg_labels import (SEG_GROUND, SEG_PLANT, SEG_SKY, class_ious, mask_to_label_polygons,
@@ -85,6 +88,7 @@ __all__ = [
     "segmentation_instances", "rasterize_instances", "class_ious",
     "BollLabel", "boll_boxes", "detection_instances",
     "FarmJob", "split_seeds", "plan_jobs", "ImageRecord", "DatasetSummary", "render_farm_job",
-    "generate_dataset",
+    "generate_dataset", "EncodedImage", "render_scene_range", "write_encoded_image",
+    "RayEngineConfig", "SceneRange", "plan_ranges",
     "parse_seed_list", "parse_image_size",
 ]

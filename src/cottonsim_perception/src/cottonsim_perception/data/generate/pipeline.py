@@ -123,76 +123,122 @@ def _image_name(farm_seed: int, index: int, ext: str) -> str:
     return f"s{farm_seed:04d}_{index:05d}.{ext}"
 
 
-def _write_image(path: str, rgb: np.ndarray, config: DatasetConfig) -> None:
+@dataclass
+class EncodedImage:
+    """One rendered image, encoded and labelled, not yet written: what a range task returns."""
+
+    task: str
+    name: str                   # file name, e.g. s0003_00012.jpg
+    image_bytes: bytes          # the encoded jpg / png file
+    label_text: str             # the label file's text
+    ignore_text: Optional[str]  # det: the ignore file's text; seg: None
+    record: ImageRecord
+
+
+def _encode_image(rgb: np.ndarray, config: DatasetConfig) -> bytes:
     bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
     params = [cv2.IMWRITE_JPEG_QUALITY, int(config.jpeg_quality)] if config.image_format == "jpg" else []
-    if not cv2.imwrite(path, bgr, params):
-        raise OSError(f"could not write image {path!r}")
+    ok, buf = cv2.imencode("." + config.image_format, bgr, params)
+    if not ok:
+        raise OSError(f"could not encode a {config.image_format} image")
+    return buf.tobytes()
+
+
+def _label_text(instances, task: str) -> str:
+    lines = [yf.format_label_line(inst, task) for inst in instances]
+    return "\n".join(lines) + ("\n" if lines else "")
+
+
+def scene_count(config: DatasetConfig, images: int) -> int:
+    """How many scenes ``images`` images of one task of one farm use."""
+    return -(-images // config.images_per_scene)
+
+
+def render_scene_range(config: DatasetConfig, job: FarmJob, task: str, scene_lo: int, scene_hi: int,
+                       on_image: Optional[Callable[[], None]] = None, farm_and_config=None):
+    """Yield an ``EncodedImage`` for every image of scenes [scene_lo, scene_hi) of one task of ``job``.
+
+    Every draw depends only on (dataset_seed, farm seed, task, scene / image
+    index), so any cut of a job's scenes into ranges gives the same images.
+    """
+    from cottonsim_world.sensors.camera import CameraModel
+    from cottonsim_world.sensors.scene import SensorScene
+
+    count = dict(job.counts)[task]
+    cam_cfg = config.camera_config()
+    base_T_optical = camera_transforms(config.urdf_path)
+    if farm_and_config is None:
+        farm_cfg = sample_farm_config(config.base_farm, job.farm_seed, config.variation, config.dataset_seed)
+        farm = generate_farm(farm_cfg)
+    else:
+        farm, farm_cfg = farm_and_config
+    renderer = str(cam_cfg.renderer)
+    for scene_idx in range(scene_lo, min(scene_hi, scene_count(config, count))):
+        s0 = scene_idx * config.images_per_scene
+        srng = seeded_rng(config.dataset_seed, SCENE_STREAM, job.farm_seed, TASK_CODE[task], scene_idx)
+        scene_cfg = sample_scene_config(srng, config.variation, seed=int(srng.integers(0, 2 ** 31 - 1)),
+                                        ground_margin_m=config.ground_margin_m)
+        with SensorScene(farm, scene_cfg) as scene:
+            camera = CameraModel(scene, cam_cfg)
+            renderer = str(getattr(camera, "renderer", cam_cfg.renderer))   # after an EGL fallback
+            K = camera.intrinsics().K
+            for index in range(s0, min(count, s0 + config.images_per_scene)):
+                irng = seeded_rng(config.dataset_seed, IMAGE_STREAM, job.farm_seed, TASK_CODE[task], index)
+                shot = sample_robot_pose(farm, task, irng, config.variation, base_T_optical)
+                pose = shot.world_T_base @ base_T_optical[shot.camera]
+                frame = camera.render(pose)
+                ignore_text = None
+                if task == "seg":
+                    instances = segmentation_instances(frame.semantic, config.labels)
+                    ious = class_ious(frame.semantic, instances)
+                    finite = [x for x in ious.values() if not math.isnan(x)]
+                    worst = min(finite) if finite else float("nan")
+                else:
+                    bolls = boll_boxes(frame.semantic, frame.depth_m, frame.plant_id, farm, pose, K,
+                                       config.labels)
+                    instances = detection_instances(bolls, config.width, config.height)
+                    ignore_text = _label_text(
+                        detection_instances(bolls, config.width, config.height, ignored=True), task)
+                    worst = float("nan")
+                rgb = apply_photometric(frame.rgb, irng, config.variation)
+                name = _image_name(job.farm_seed, index, config.image_format)
+                yaw = math.atan2(shot.world_T_base[1, 0], shot.world_T_base[0, 0])
+                record = ImageRecord(
+                    task, job.split, f"images/{job.split}/{name}", job.farm_seed, scene_idx, shot.camera,
+                    shot.mode, float(shot.world_T_base[0, 3]), float(shot.world_T_base[1, 3]), yaw,
+                    farm_cfg.growth_stage, scene_cfg.sun_azimuth_rad, scene_cfg.sun_elevation_rad,
+                    len(instances), worst, renderer)
+                yield EncodedImage(task, name, _encode_image(rgb, config), _label_text(instances, task),
+                                   ignore_text, record)
+                if on_image is not None:
+                    on_image()
+
+
+def write_encoded_image(config: DatasetConfig, split: str, item: EncodedImage) -> ImageRecord:
+    """Write one ``EncodedImage``'s image, label and ignore files under ``out_dir``; returns its record."""
+    root = os.path.join(config.out_dir, item.task)
+    stem = os.path.splitext(item.name)[0]
+    files = [(os.path.join(root, "images", split, item.name), item.image_bytes),
+             (os.path.join(root, "labels", split, stem + ".txt"), item.label_text.encode("utf-8"))]
+    if item.ignore_text is not None:
+        files.append((os.path.join(root, yf.IGNORE_FOLDER, split, stem + ".txt"), item.ignore_text.encode("utf-8")))
+    for path, data in files:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with open(path, "wb") as fh:
+            fh.write(data)
+    return item.record
 
 
 def render_farm_job(config: DatasetConfig, job: FarmJob,
                     on_image: Optional[Callable[[], None]] = None) -> List[ImageRecord]:
     """Render, label and write every image of one ``FarmJob``; returns the manifest rows."""
-    from cottonsim_world.sensors.camera import CameraModel
-    from cottonsim_world.sensors.scene import SensorScene
-
-    cam_cfg = config.camera_config()
-    base_T_optical = camera_transforms(config.urdf_path)
     farm_cfg = sample_farm_config(config.base_farm, job.farm_seed, config.variation, config.dataset_seed)
     farm = generate_farm(farm_cfg)
-    ext = config.image_format
     records = []
-    renderer = str(cam_cfg.renderer)
     for task, count in job.counts:
-        root = os.path.join(config.out_dir, task)
-        img_dir = os.path.join(root, "images", job.split)
-        lbl_dir = os.path.join(root, "labels", job.split)
-        ign_dir = os.path.join(root, yf.IGNORE_FOLDER, job.split)
-        os.makedirs(img_dir, exist_ok=True)
-        os.makedirs(lbl_dir, exist_ok=True)
-        if task == "det":
-            os.makedirs(ign_dir, exist_ok=True)
-        for s0 in range(0, count, config.images_per_scene):
-            scene_idx = s0 // config.images_per_scene
-            srng = seeded_rng(config.dataset_seed, SCENE_STREAM, job.farm_seed, TASK_CODE[task], scene_idx)
-            scene_cfg = sample_scene_config(srng, config.variation, seed=int(srng.integers(0, 2 ** 31 - 1)),
-                                            ground_margin_m=config.ground_margin_m)
-            with SensorScene(farm, scene_cfg) as scene:
-                camera = CameraModel(scene, cam_cfg)
-                renderer = str(getattr(camera, "renderer", cam_cfg.renderer))   # after an EGL fallback
-                K = camera.intrinsics().K
-                for index in range(s0, min(count, s0 + config.images_per_scene)):
-                    irng = seeded_rng(config.dataset_seed, IMAGE_STREAM, job.farm_seed, TASK_CODE[task], index)
-                    shot = sample_robot_pose(farm, task, irng, config.variation, base_T_optical)
-                    pose = shot.world_T_base @ base_T_optical[shot.camera]
-                    frame = camera.render(pose)
-                    if task == "seg":
-                        instances = segmentation_instances(frame.semantic, config.labels)
-                        ious = class_ious(frame.semantic, instances)
-                        finite = [x for x in ious.values() if not math.isnan(x)]
-                        worst = min(finite) if finite else float("nan")
-                    else:
-                        bolls = boll_boxes(frame.semantic, frame.depth_m, frame.plant_id, farm, pose, K,
-                                           config.labels)
-                        instances = detection_instances(bolls, config.width, config.height)
-                        ignored = detection_instances(bolls, config.width, config.height, ignored=True)
-                        worst = float("nan")
-                    rgb = apply_photometric(frame.rgb, irng, config.variation)
-                    name = _image_name(job.farm_seed, index, ext)
-                    _write_image(os.path.join(img_dir, name), rgb, config)
-                    yf.write_label_file(os.path.join(lbl_dir, os.path.splitext(name)[0] + ".txt"),
-                                        instances, task)
-                    if task == "det":
-                        yf.write_label_file(os.path.join(ign_dir, os.path.splitext(name)[0] + ".txt"),
-                                            ignored, task)
-                    yaw = math.atan2(shot.world_T_base[1, 0], shot.world_T_base[0, 0])
-                    records.append(ImageRecord(
-                        task, job.split, f"images/{job.split}/{name}", job.farm_seed, scene_idx, shot.camera,
-                        shot.mode, float(shot.world_T_base[0, 3]), float(shot.world_T_base[1, 3]), yaw,
-                        farm_cfg.growth_stage, scene_cfg.sun_azimuth_rad, scene_cfg.sun_elevation_rad,
-                        len(instances), worst, renderer))
-                    if on_image is not None:
-                        on_image()
+        for item in render_scene_range(config, job, task, 0, scene_count(config, count), on_image,
+                                       farm_and_config=(farm, farm_cfg)):
+            records.append(write_encoded_image(config, job.split, item))
     return records
 
 
@@ -267,8 +313,11 @@ def _write_manifest(path: str, records: Sequence[ImageRecord]) -> None:
             wr.writerow(row)
 
 
-def generate_dataset(config: DatasetConfig, progress: bool = True) -> DatasetSummary:
+def generate_dataset(config: DatasetConfig, progress: bool = True, ray_engine=None) -> DatasetSummary:
     """Generate the whole dataset described by ``config`` (see the module docstring).
+
+    ``ray_engine`` (a ``RayEngineConfig``) renders on Ray instead of the worker
+    pool (see ``ray_engine.run_on_ray``); the files are the same.
 
     Existing files with the same names are overwritten; other files in
     ``out_dir`` are left alone. Raises ValueError for an unusable camera
@@ -282,7 +331,14 @@ def generate_dataset(config: DatasetConfig, progress: bool = True) -> DatasetSum
     t0 = time.monotonic()
     bar = _Progress(total, progress)
     records: List[ImageRecord] = []
-    if config.workers == 1 or len(jobs) <= 1:
+    for job in jobs:
+        for task, _ in job.counts:
+            for folder in ("images", "labels") + ((yf.IGNORE_FOLDER,) if task == "det" else ()):
+                os.makedirs(os.path.join(config.out_dir, task, folder, job.split), exist_ok=True)
+    if ray_engine is not None:
+        from .ray_engine import run_on_ray
+        records = run_on_ray(config, jobs, ray_engine, bar.update_to)
+    elif config.workers == 1 or len(jobs) <= 1:
         done = [0]
 
         def tick() -> None:
