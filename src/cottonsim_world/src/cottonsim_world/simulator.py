@@ -18,37 +18,8 @@ Given the same config (including its seed) and the same command sequence,
 a run is deterministic: ODE's solver is seeded and every noise model has a
 seed derived from ``SimulatorConfig.seed``.
 
-With ``SimulatorConfig.sensor_workers`` > 0 the cameras and the LiDAR run on
-worker threads while the main thread keeps stepping the physics (their
-numba kernels release the GIL): when such a sensor falls due, ``step()``
-takes its pose from the physics at that instant and hands the render or scan
-to a worker; the reading comes back from a later ``step()``. Every reading
-is still returned once, in the serial order and with the serial stamp, and
-bit-identical to the serial run; readings behind a pending one wait with it
-(``delivered_time_s`` says up to which sim time everything is out). Physics
-runs at most one sensor period ahead: the step at which a sensor falls due
-again (at most its period after the stamp) hands its next job to the workers
-(queued behind the pending one) and then waits for the pending one, so no
-reading comes out later than the longest camera / LiDAR period after
-its stamp (0.1 s of sim time with the 10 Hz VLP-16). Commands
-(``command_velocity``, teleports) act on the physics, which is ahead of
-the readings by that lag. ``flush_readings()``
-returns what is still pending (end of a run); ``close()`` stops the workers.
-
-Sensor frames come from the URDF (``base_link -> <sensor frame>`` fixed
-transforms), so the robot description stays the single source of truth.
-Sensors can be switched off individually (``set_sensor_active``), which the
-bridge does for topics nobody subscribes to: rendering is the expensive part.
-
-Sensor faults (GPS outage / no fix / degraded fix / jump, camera blackout,
-LiDAR dropout; ``cottonsim_world.faults``) act on the readings ``step()``
-returns, by each reading's stamp: scheduled ones come from
-``SimulatorConfig.faults``, run-time ones from ``sim.faults.add(FaultSpec(...))``,
-``sim.faults.clear(sim.time_s)`` ends them all. Without faults the readings
-are untouched.
-
-Bolls: the arm side changes boll states through ``sim.bolls`` (``farm.bolls.BollField``); each sensor
-job takes the boll visibility of the step it falls due in, so later readings lack the bolls that left.
+Pipelined sensors (``sensor_workers`` > 0), the sensor frames from the URDF, switching sensors off,
+sensor faults and the bolls' visibility: docs/simulator.md.
 """
 from __future__ import annotations
 
