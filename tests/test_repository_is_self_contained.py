@@ -20,10 +20,20 @@ OUTSIDE_PATH = re.compile(r"/work/|\.\./shared\b|\bshared/(?:reference|datasets|
 CHECKED_SUFFIXES = {".py", ".sh", ".launch", ".test", ".yaml", ".yml", ".xml", ".txt", ".cfg", ""}
 
 
+CHECKED_FOLDERS = ("src", "tests", "scripts", "benchmarks", "docker", ".ci")
+
+
+def repository_files():
+    """The files git tracks under CHECKED_FOLDERS; in a copy without .git (the Docker image), every file there."""
+    listing = subprocess.run(["git", "ls-files", *CHECKED_FOLDERS], cwd=ROOT, capture_output=True, text=True)
+    if listing.returncode == 0 and (ROOT / ".git").exists():
+        return listing.stdout.split()
+    return [str(p.relative_to(ROOT)) for folder in CHECKED_FOLDERS for p in sorted((ROOT / folder).rglob("*"))
+            if p.is_file() and "__pycache__" not in p.parts]
+
+
 def tracked_text_files():
-    names = subprocess.run(["git", "ls-files", "src", "tests", "scripts", "benchmarks", "docker", ".ci"],
-                           cwd=ROOT, capture_output=True, text=True, check=True).stdout.split()
-    for name in names:
+    for name in repository_files():
         path = ROOT / name
         if path.suffix in CHECKED_SUFFIXES and path.is_file() and path != pathlib.Path(__file__).resolve():
             yield path
