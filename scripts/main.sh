@@ -22,7 +22,7 @@ results="${COTTONSIM_RESULTS:-$ROOT/results}"
 for arg in "$@"; do
   case "$arg" in run_name:=*) run_name="${arg#run_name:=}" ;; esac
 done
-roslaunch cottonsim_navigation gps_navigation.launch run_name:="$run_name" results_dir:="$results" "$@"
+roslaunch cottonsim_experiments gps_navigation.launch run_name:="$run_name" results_dir:="$results" "$@"
 report="$results/$run_name/report.json"
 if [ -f "$report" ]; then
   echo "[main] report: $report"

@@ -23,10 +23,6 @@ ROBOT_SIDE = ("cottonsim_navigation", "cottonsim_perception", "cottonsim_manipul
 SIMULATOR = "cottonsim_world"
 
 # Files that still import the simulator, each with the reason and where it goes.
-# Scores a SLAM map against the simulator's ground truth (an evaluation of the simulator's world):
-_MAP_EVALUATION = [
-    "src/cottonsim_navigation/scripts/evaluate_map",
-]
 # Synthetic dataset generation renders the simulated farm: a simulator client that belongs beside the
 # simulator, not in the robot-side package.
 _DATASET_GENERATION = [
@@ -38,7 +34,7 @@ _DATASET_GENERATION = [
     "src/cottonsim_perception/src/cottonsim_perception/data/generate/seg_labels.py",
     "src/cottonsim_perception/scripts/generate_dataset",
 ]
-SIMULATOR_ALLOWED = set(_MAP_EVALUATION + _DATASET_GENERATION)
+SIMULATOR_ALLOWED = set(_DATASET_GENERATION)
 # Exempt from the package.xml check (none today).
 UNDECLARED_ALLOWED: set = set()
 
@@ -132,3 +128,18 @@ def test_the_import_reader_sees_nested_imports_and_ignores_text():
     source = '"""uses cottonsim_world"""\nimport os\ndef f():\n    from cottonsim_world.farm import model\n'
     assert imported_packages(source) == {"os", "cottonsim_world"}
     assert imported_packages("from . import sibling\n# import cottonsim_world\n") == set()
+
+
+# Robot-side packages that still need the simulator at run time, with the reason.
+# cottonsim_perception: its synthetic dataset generator renders the simulated farm (_DATASET_GENERATION).
+SIMULATOR_RUN_DEPENDENCY_ALLOWED = {"cottonsim_perception"}
+
+
+@pytest.mark.parametrize("package", ROBOT_SIDE)
+def test_robot_side_package_xml_does_not_need_the_simulator_or_the_experiments(package):
+    run = declared_dependencies(ROOT / "src" / package / "package.xml")["run"]
+    forbidden = {"cottonsim_experiments"} | ({SIMULATOR} - ({SIMULATOR} if package in
+                                                             SIMULATOR_RUN_DEPENDENCY_ALLOWED else set()))
+    assert not run & forbidden, (f"{package}/package.xml declares {sorted(run & forbidden)} as a run dependency: "
+                                 f"installing the robot stack would pull in the simulator (whole-system launch "
+                                 f"files live in cottonsim_experiments; tests may <test_depend>)")

@@ -181,7 +181,7 @@ def test_map_route_seeds_the_simulator_only_and_keeps_the_mapped_farm(tmp_path):
     report = dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, mode="map")
     runner = _fake_runner([report, report])
     run_route(ws, "map_route", [1, 2], record_bag=False, runner=runner)
-    base = yaml.safe_load(open(os.path.join(ws.navigation, "config", "sim_navigation.yaml")))
+    base = yaml.safe_load(open(os.path.join(ws.experiments, "config", "sim_navigation.yaml")))
     for call, seed in zip(runner.calls, (1, 2)):
         sim = yaml.safe_load(open(call.args["sim_config"]))
         assert sim["seed"] == seed                                   # sensor noise, solver order vary

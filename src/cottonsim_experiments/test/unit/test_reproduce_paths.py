@@ -19,7 +19,7 @@ def test_results_default_to_the_environment_then_the_current_directory(tmp_path,
 def test_packages_are_found_by_name_and_a_missing_one_is_named():
     nav = package_path("cottonsim_navigation")
     assert os.path.isfile(os.path.join(nav, "package.xml"))
-    assert package_file("cottonsim_navigation", "config/sim_navigation.yaml").startswith(nav)
+    assert package_file("cottonsim_navigation", "config/boll_halt.yaml").startswith(nav)
     with pytest.raises(ValueError, match="cottonsim_no_such_package"):
         package_path("cottonsim_no_such_package")
     with pytest.raises(ValueError, match="no_such_file.yaml"):

@@ -44,12 +44,13 @@ class Workspace:
     results: str
     navigation: str = ""
     perception: str = ""
+    experiments: str = ""
 
     def __post_init__(self) -> None:
         if not self.results:
             raise ValueError("results must name the results folder")
         object.__setattr__(self, "results", os.path.abspath(self.results))
-        for name in ("navigation", "perception"):
+        for name in ("navigation", "perception", "experiments"):
             if not getattr(self, name):
                 object.__setattr__(self, name, package_path(f"cottonsim_{name}"))
 
@@ -192,7 +193,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
     for k, seed in enumerate(seeds):
         run_name = f"seed_{seed}"
         run_dir = os.path.join(out_dir, run_name)
-        sim_yaml = write_sim_config(os.path.join(ws.navigation, route["sim_config"]),
+        sim_yaml = write_sim_config(os.path.join(ws.experiments, route["sim_config"]),
                                     seed_overrides(experiment, seed),
                                     os.path.join(run_dir, "sim.yaml"))
         args = {"run_name": run_name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": waypoints,
@@ -200,7 +201,7 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
                 "vision": str(bool(vision)).lower()}
         args.update(extra_args or {})
         print(f"{experiment}: run {k + 1}/{len(seeds)} (seed {seed})", flush=True)
-        result = runner(LaunchSpec("cottonsim_navigation", route["launch"], args,
+        result = runner(LaunchSpec("cottonsim_experiments", route["launch"], args,
                                    os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"seed {seed}"))
         report = read_report(os.path.join(run_dir, "report.json"))
         entry = {"seed": seed, "run_dir": run_dir, "report": report, "launch_returncode": result.returncode,
@@ -278,7 +279,7 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
     from cottonsim_world.farm.config import FarmConfig
     from cottonsim_world.geodesy import HectorGeodesy
 
-    base_sim = os.path.join(ws.navigation, "config", "sim_navigation.yaml")
+    base_sim = os.path.join(ws.experiments, "config", "sim_navigation.yaml")
     outcomes = []
     farm = None
     for k, spacing in enumerate(config.spacings_m):
@@ -302,7 +303,7 @@ def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_d
                 "goal_timeout_s": config.goal_timeout_s, "record_bag": "false",
                 "vision": "false"}      # a traversability study of the LiDAR costmap: no cameras
         print(f"row spacing {spacing:.2f} m, seed {config.seed}: attempt {k + 1}/{len(config.spacings_m)}", flush=True)
-        result = runner(LaunchSpec("cottonsim_navigation", "gps_navigation.launch", args,
+        result = runner(LaunchSpec("cottonsim_experiments", "gps_navigation.launch", args,
                                    os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"{spacing:.2f} m"))
         error = "wall-clock limit reached" if result.timed_out else ""
         ys = read_trajectory_y(os.path.join(run_dir, "trajectory.csv"))

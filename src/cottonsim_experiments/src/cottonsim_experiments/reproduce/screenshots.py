@@ -24,14 +24,14 @@ from .packages import package_path
 # name -> (launches [(package, launch file, args)], rviz config (package, path), seconds to wait [wall])
 BRINGUPS: Dict[str, Tuple[Tuple[Tuple[str, str, Mapping[str, object]], ...], Tuple[str, str], float]] = {
     "sim": ((("cottonsim_world", "sim.launch", {}),), ("cottonsim_description", "rviz/cottonsim.rviz"), 25.0),
-    "gps_navigation": ((("cottonsim_navigation", "gps_navigation.launch",
+    "gps_navigation": ((("cottonsim_experiments", "gps_navigation.launch",
                          {"real_time_factor": 1.0, "results_dir": "/tmp/cottonsim_screenshot_runs",
                           "shutdown_when_done": "false"}),),
                        ("cottonsim_navigation", "rviz/navigation.rviz"), 75.0),
-    "map_navigation": ((("cottonsim_navigation", "map_navigation.launch",
+    "map_navigation": ((("cottonsim_experiments", "map_navigation.launch",
                          {"real_time_factor": 1.0, "results_dir": "/tmp/cottonsim_screenshot_runs"}),),
                        ("cottonsim_navigation", "rviz/navigation.rviz"), 75.0),
-    "mapping": ((("cottonsim_navigation", "mapping.launch",
+    "mapping": ((("cottonsim_experiments", "mapping.launch",
                   {"real_time_factor": 1.0, "map_file": "/tmp/cottonsim_screenshot_runs/farm_slam"}),),
                 ("cottonsim_navigation", "rviz/mapping.rviz"), 120.0),
     "perception": ((("cottonsim_perception", "perception_demo.launch",

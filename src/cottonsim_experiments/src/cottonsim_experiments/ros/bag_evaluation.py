@@ -5,7 +5,7 @@ the navigator's state (start = first "navigating", end = "finished") and
 /sim/stats (to recover the wall-clock duration), then writes the same files as
 the experiment_recorder node (report.json, trajectory.csv, trajectory.png).
 
-Example (a bag from `roslaunch cottonsim_navigation gps_navigation.launch record_bag:=true`):
+Example (a bag from `roslaunch cottonsim_experiments gps_navigation.launch record_bag:=true`):
   rosrun cottonsim_experiments evaluate_bag results/gps_run/run.bag --waypoints $(rospack find cottonsim_navigation)/config/waypoints/route_gps.txt \
       --out results/gps_run_offline
 Map routes: --mode map (waypoints in the Home frame). A non-default farm: --sim-config FILE (sim.yaml shape).

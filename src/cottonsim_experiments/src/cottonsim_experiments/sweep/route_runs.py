@@ -39,7 +39,7 @@ def _route_files(run: RunSpec, ws: Workspace):
     waypoints = run.waypoints or os.path.join(ws.navigation, route["waypoints"])
     if not os.path.isfile(waypoints):
         raise ValueError(f"waypoints file {waypoints!r} does not exist")
-    return route, os.path.abspath(waypoints), os.path.join(ws.navigation, route["sim_config"])
+    return route, os.path.abspath(waypoints), os.path.join(ws.experiments, route["sim_config"])
 
 
 def run_sim_overrides(run: RunSpec) -> Dict[str, Any]:
@@ -87,7 +87,7 @@ def execute_route_run(run: RunSpec, cpus: int, keep_dir: Optional[str] = None) -
         args = {"run_name": run.run_id, "results_dir": work, "sim_config": sim_yaml, "waypoints": waypoints,
                 "real_time_factor": run.real_time_factor, "record_bag": str(bool(run.record_bag)).lower()}
         args.update({k: (str(v).lower() if isinstance(v, bool) else v) for k, v in run.launch_args.items()})
-        spec = LaunchSpec("cottonsim_navigation", route["launch"], args, os.path.join(out_dir, "launch.log"),
+        spec = LaunchSpec("cottonsim_experiments", route["launch"], args, os.path.join(out_dir, "launch.log"),
                           run.wall_timeout_s, label=run.run_id)
         started = time.monotonic()
         result = run_launch(spec, show_progress=False, on_line=_master_watch())

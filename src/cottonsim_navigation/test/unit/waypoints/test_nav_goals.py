@@ -93,25 +93,6 @@ def test_shipped_route_files_read_and_match():
     assert np.allclose(x, -1.43 - 1.8 * lanes, atol=1e-3)
 
 
-def test_off_meridian_rostest_route_is_the_default_farm_route_at_its_reference():
-    """gps_route_lubbock.txt (gps_navigator_off_meridian.test) = the farm's first 6 route points
-    through the simulator's GPS at nav_ci_lubbock.yaml's reference, as generate_farm writes them."""
-    import yaml
-    from cottonsim_world.config_io import simulator_config_from_dict
-    from cottonsim_world.farm.export import route_in_frame
-    from cottonsim_world.farm.generator import generate_farm
-    from cottonsim_world.geodesy import HectorGeodesy
-    rostest_dir = PKG / "test" / "rostest"
-    with open(rostest_dir / "nav_ci_lubbock.yaml", encoding="utf-8") as fh:
-        settings = yaml.safe_load(fh)
-    geodesy = HectorGeodesy(*simulator_config_from_dict(settings).geodesy_reference)
-    assert (geodesy.reference_latitude_deg, geodesy.reference_longitude_deg) == (33.4, -101.0)
-    wps = load_gps_waypoints(rostest_dir / "gps_route_lubbock.txt")
-    x, y, _ = geodesy.geodetic_to_world(np.array([w.lat for w in wps]), np.array([w.lon for w in wps]))
-    route = route_in_frame(generate_farm(simulator_config_from_dict(settings).farm))[:6, :2]
-    np.testing.assert_allclose(np.stack([x, y], axis=1), route, atol=1e-6)
-
-
 def test_pass_through_flags_mark_straight_on_waypoints_not_turns():
     from cottonsim_navigation.waypoints.goals import pass_through_flags
     # a serpentine over two lanes: entry, middle, exit, (90 deg) entry, middle, exit
