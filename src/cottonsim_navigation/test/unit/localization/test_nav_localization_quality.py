@@ -197,7 +197,7 @@ def test_relocalize_covariance_along_and_across_the_heading():
 def test_collapsed_set_has_zero_heading_spread_not_a_math_error():
     # five particles at the same yaw -2.9 with equal weights: the mean resultant length rounds to
     # 1.0000000000000002 (found by search); -2 ln R was negative and its square root raised
-    # "math domain error" in the amcl node's scan callback (seen under load, session 10)
+    # "math domain error" in the amcl node's scan callback
     from cottonsim_navigation.localization.particle_filter import ParticleFilter, mean_resultant_length
 
     yaws, w = np.full(5, -2.9), np.full(5, 0.2)
