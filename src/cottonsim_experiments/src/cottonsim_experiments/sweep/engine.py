@@ -3,11 +3,11 @@
 Each run is one task that reserves ``cpus_per_run`` cores (a bringup starved of cores slows its own
 sim time) and returns its outcome; the driver writes every outcome as it arrives (its folder,
 :mod:`.records`; a row appended to runs.csv, :mod:`.tables`), so a sweep stopped at any point keeps
-its finished runs. Retries are the
-driver's, so they are counted: a task whose worker or node dies, or whose master port was taken,
-is submitted again (Ray places it where cores are free) up to ``max_retries`` times; any other
-failure is the run's own result and is not retried. Ctrl-C cancels the running tasks (each stops
-its bringup with SIGINT, so the recorder writes what it has) and ends the sweep.
+its finished runs. Retries are the driver's, so they are counted: a task whose worker or node
+dies, or whose master port was taken, is submitted again (Ray places it where cores are free) up
+to ``max_retries`` times; any other failure is the run's own result and is not retried. Ctrl-C
+cancels the running tasks (each stops its bringup with SIGINT, so the recorder writes what it has),
+records the runs that finished before their cancel arrived, and ends the sweep.
 """
 from __future__ import annotations
 
