@@ -95,6 +95,9 @@ def test_records_write_runs_tables_and_resume_state(tmp_path):
     with pytest.raises(ValueError, match="file named"):
         write_run(runs_dir, runs[2], {"status": "done", "files": {"../evil": "x"}})
     assert sorted(os.listdir(runs_dir)) == sorted(r.run_id for r in runs[:2])       # no staging folder left
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert os.stat(os.path.join(runs_dir, runs[0].run_id)).st_mode & 0o777 == 0o777 & ~mask
 
 
 def test_a_run_folder_left_on_the_drivers_disk_is_moved_into_the_run_folder(tmp_path):

@@ -33,6 +33,12 @@ STATUS_FAILED = "failed"
 KEPT_DIR_KEY = "kept_dir"
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def run_dir(runs_dir: str, run_id: str) -> str:
     return os.path.join(runs_dir, run_id)
 
@@ -103,6 +109,7 @@ def write_run(runs_dir: str, run: RunSpec, outcome: Mapping[str, Any]) -> str:
     with open(os.path.join(staging, OUTCOME_FILE), "w", encoding="utf-8") as fh:
         json.dump(record, fh, indent=1, allow_nan=True)
         fh.write("\n")
+    os.chmod(staging, 0o777 & ~_umask())            # a folder like any other (mkdtemp made it 0700)
     if os.path.isdir(final):
         shutil.rmtree(final)
     os.rename(staging, final)
