@@ -23,7 +23,9 @@ def test_row_spacing_study_reduced(tmp_path):
     summary = json.loads((results / "row_spacing" / "seed_0" / "summary.json").read_text())
     by_spacing = {round(a["spacing_m"], 2): a for a in summary["attempts"]}
     narrow, paper = by_spacing[1.0], by_spacing[1.8]
-    logs = {s: (results / "row_spacing" / "seed_0" / f"spacing_{s:.2f}" / "launch.log") for s in (1.0, 1.8)}
+    runs = results / "row_spacing" / "runs"          # one folder per attempt, run by the sweep engine
+    logs = {s: (runs / f"seed_0__row_spacing_m={s:g}" / "launch.log") for s in (1.0, 1.8)}
+    assert all(log.is_file() for log in logs.values()), sorted(p.name for p in runs.iterdir())
     assert paper["traversed"], f"1.8 m not traversed: {paper['reason']}\n" + logs[1.8].read_text()[-3000:]
     assert paper["reached"] == 3 and paper["plant_contacts"] == 0
     assert not narrow["traversed"] and narrow["reason"], narrow

@@ -194,4 +194,4 @@ class AmclTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_amcl")
-    rostest.rosrun("cottonsim_navigation", "amcl_check", AmclTest)
+    rostest.rosrun("cottonsim_experiments", "amcl_check", AmclTest)

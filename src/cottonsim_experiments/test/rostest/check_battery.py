@@ -77,4 +77,4 @@ class BatteryTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_battery")
-    rostest.rosrun("cottonsim_navigation", "battery_check", BatteryTest)
+    rostest.rosrun("cottonsim_experiments", "battery_check", BatteryTest)

@@ -60,4 +60,4 @@ class BatteryHomeTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_battery_home")
-    rostest.rosrun("cottonsim_navigation", "battery_home", BatteryHomeTest)
+    rostest.rosrun("cottonsim_experiments", "battery_home", BatteryHomeTest)

@@ -71,4 +71,4 @@ class GpsNavigatorTest(NavigatorWatch):
 
 if __name__ == "__main__":
     rospy.init_node("check_gps_navigator")
-    rostest.rosrun("cottonsim_navigation", "gps_navigator", GpsNavigatorTest)
+    rostest.rosrun("cottonsim_experiments", "gps_navigator", GpsNavigatorTest)

@@ -118,4 +118,4 @@ class GpsOutageTest(NavigatorWatch):
 
 if __name__ == "__main__":
     rospy.init_node("check_gps_outage")
-    rostest.rosrun("cottonsim_navigation", "gps_outage", GpsOutageTest)
+    rostest.rosrun("cottonsim_experiments", "gps_outage", GpsOutageTest)

@@ -28,4 +28,4 @@ class MapNavigationTest(NavigatorWatch):
 
 if __name__ == "__main__":
     rospy.init_node("check_map_navigation")
-    rostest.rosrun("cottonsim_navigation", "map_navigation", MapNavigationTest)
+    rostest.rosrun("cottonsim_experiments", "map_navigation", MapNavigationTest)

@@ -213,4 +213,4 @@ class MapNavigationKidnapTest(NavigatorWatch):
 
 if __name__ == "__main__":
     rospy.init_node("check_map_navigation_kidnap")
-    rostest.rosrun("cottonsim_navigation", "map_navigation_kidnap", MapNavigationKidnapTest)
+    rostest.rosrun("cottonsim_experiments", "map_navigation_kidnap", MapNavigationKidnapTest)

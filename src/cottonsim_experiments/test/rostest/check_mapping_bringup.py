@@ -51,4 +51,4 @@ class MappingBringupTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_mapping_bringup")
-    rostest.rosrun("cottonsim_navigation", "mapping_bringup_check", MappingBringupTest)
+    rostest.rosrun("cottonsim_experiments", "mapping_bringup_check", MappingBringupTest)

@@ -139,4 +139,4 @@ class MoveBaseTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_move_base")
-    rostest.rosrun("cottonsim_navigation", "move_base_check", MoveBaseTest)
+    rostest.rosrun("cottonsim_experiments", "move_base_check", MoveBaseTest)

@@ -80,4 +80,4 @@ class UnreachableGoalTest(NavigatorWatch):
 
 if __name__ == "__main__":
     rospy.init_node("check_move_base_unreachable")
-    rostest.rosrun("cottonsim_navigation", "move_base_unreachable_goal", UnreachableGoalTest)
+    rostest.rosrun("cottonsim_experiments", "move_base_unreachable_goal", UnreachableGoalTest)

@@ -115,4 +115,4 @@ class NavsatTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_navsat")
-    rostest.rosrun("cottonsim_navigation", "navsat_check", NavsatTest)
+    rostest.rosrun("cottonsim_experiments", "navsat_check", NavsatTest)

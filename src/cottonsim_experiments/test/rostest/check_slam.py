@@ -92,4 +92,4 @@ class SlamTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_slam")
-    rostest.rosrun("cottonsim_navigation", "slam_check", SlamTest)
+    rostest.rosrun("cottonsim_experiments", "slam_check", SlamTest)

@@ -80,4 +80,4 @@ class VisionRouteTest(NavigatorWatch):
 
 if __name__ == "__main__":
     rospy.init_node("check_vision_route")
-    rostest.rosrun("cottonsim_navigation", "vision_route", VisionRouteTest)
+    rostest.rosrun("cottonsim_experiments", "vision_route", VisionRouteTest)

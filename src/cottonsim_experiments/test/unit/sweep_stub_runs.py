@@ -50,3 +50,24 @@ def fails_on_seed_2(run, cpus):
     if run.seed == 2:
         raise RuntimeError("the bringup crashed")
     return ok_run(run, cpus)
+
+
+def stub_launch(spec, show_progress=False, on_line=None, reports=None):
+    """Stands in for run_launch in the reproduce experiments' tests: no bringup; writes the report given
+    for the run (``reports``: run name -> report, None for a run that ends without one), the launch
+    arguments (launch_args.json, for the test to read) and a plot, where the launch would have."""
+    from cottonsim_experiments.reproduce.launcher import LaunchResult
+
+    run_dir = os.path.join(spec.args["results_dir"], spec.args["run_name"])
+    os.makedirs(run_dir, exist_ok=True)
+    with open(os.path.join(run_dir, "launch_args.json"), "w") as fh:
+        json.dump({k: str(v) for k, v in spec.args.items()}, fh)
+    with open(os.path.join(run_dir, "trajectory.png"), "wb") as fh:
+        fh.write(b"\x89PNG stub")
+    with open(spec.log_path, "w") as fh:
+        fh.write(f"stub launch of {spec.launch_file}\n")
+    report = (reports or {}).get(spec.args["run_name"])
+    if report is not None:
+        with open(os.path.join(run_dir, "report.json"), "w") as fh:
+            json.dump(report, fh)
+    return LaunchResult(0, False, 0.1, spec.log_path)

@@ -1,4 +1,7 @@
-"""The experiment plans, summaries and the results page (no ROS, no simulator runs)."""
+"""The experiment plans, summaries and the results page (no ROS, no simulator runs; the route and row-spacing
+runs go through the sweep engine on the local 2-CPU Ray cluster of conftest.py, with a stub launcher)."""
+import csv
+import functools
 import json
 import math
 import os
@@ -7,10 +10,12 @@ import pytest
 import yaml
 
 from cottonsim_experiments.reproduce import row_spacing as rs
-from cottonsim_experiments.reproduce.launcher import LaunchResult, LaunchSpec, ProgressParser
+from cottonsim_experiments.reproduce.launcher import LaunchSpec, ProgressParser
 from cottonsim_experiments.reproduce.results_doc import render_results
-from cottonsim_experiments.reproduce.runs import (Workspace, compare_reports, deep_merge, run_route,
-                                                   run_row_spacing, write_sim_config)
+from cottonsim_experiments.reproduce.route_experiments import run_route, run_row_spacing
+from cottonsim_experiments.reproduce.runs import Workspace, compare_reports, deep_merge, write_sim_config
+from cottonsim_experiments.sweep.engine import EngineConfig
+from cottonsim_experiments.sweep.spec import run_id
 from cottonsim_experiments.reproduce.seeds import aggregate_reports, format_spread, spread
 from cottonsim_world.farm.config import FarmConfig
 
@@ -126,99 +131,130 @@ def test_compare_reports_flags_figures_outside_tolerance():
     assert not diff["matches"] and set(diff["differences"]) == {"ae_m", "reached"}
 
 
-def _fake_runner(reports):
-    """Stands in for run_launch: writes the next report where the launch would have."""
-    calls = []
+def _launcher(reports):
+    """The stub launcher (sweep_stub_runs.stub_launch: the Ray workers import it) with run name -> report."""
+    import sweep_stub_runs
+    return functools.partial(sweep_stub_runs.stub_launch, reports=reports)
 
-    def runner(spec):
-        calls.append(spec)
-        run_dir = os.path.join(spec.args["results_dir"], spec.args["run_name"])
-        os.makedirs(run_dir, exist_ok=True)
-        report = reports[len(calls) - 1]
-        if report is not None:
-            with open(os.path.join(run_dir, "report.json"), "w") as fh:
-                json.dump(report, fh)
-        return LaunchResult(0, False, 1.0, spec.log_path)
-    runner.calls = calls
-    return runner
+
+def _launch_args(run_folder):
+    return json.load(open(os.path.join(run_folder, "launch_args.json")))
 
 
 def _workspace(tmp_path):
     return Workspace(results=str(tmp_path / "results"))
 
 
-def test_route_runs_per_seed_and_summarises_the_spread(tmp_path):
+def test_route_runs_per_seed_as_a_sweep_and_summarises_the_spread(ray_cluster, tmp_path):
     ws = _workspace(tmp_path)
     good = dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, mode="gps")
     worse = dict(_report(30, 30), cr_percent=100.0, ae_m=0.06, rmse_m=0.07, mode="gps")
-    runner = _fake_runner([good, worse, None])
-    summary = run_route(ws, "gps_route", [0, 1, 2], record_bag=False, runner=runner)
-    assert [c.args["run_name"] for c in runner.calls] == ["seed_0", "seed_1", "seed_2"]
-    sim = yaml.safe_load(open(runner.calls[1].args["sim_config"]))
+    summary = run_route(ws, "gps_route", [0, 1, 2], record_bag=False,
+                        launcher=_launcher({"seed_0": good, "seed_1": worse}), log=lambda s: None)
+    out = tmp_path / "results" / "gps_route"
+    assert sorted(p for p in os.listdir(out) if p.startswith("seed_")) == ["seed_0", "seed_1", "seed_2"]
+    sim = yaml.safe_load(open(out / "seed_1" / "sim.yaml"))
     assert sim["seed"] == 1 and sim["farm"]["seed"] == 1
     assert sim["cameras"]["realsense_p"]["enabled"] is False        # the experiment's base settings kept
+    assert _launch_args(out / "seed_1")["run_name"] == "seed_1"
     assert summary["runs_with_report"] == 2 and not summary["all_complete"]
     assert summary["spread"]["ae_m"]["mean"] == pytest.approx(0.05)
-    assert json.load(open(tmp_path / "results" / "gps_route" / "summary.json"))["seeds"] == [0, 1, 2]
+    assert json.load(open(out / "summary.json"))["seeds"] == [0, 1, 2]
+    # the sweep's tables, and the run's whole folder (the plot) moved next to its report
+    rows = list(csv.DictReader(open(out / "runs.csv")))
+    assert [(r["run_id"], r["status"]) for r in rows] == [("seed_0", "done"), ("seed_1", "done"),
+                                                          ("seed_2", "failed")]
+    assert (out / "seed_0" / "trajectory.png").read_bytes().startswith(b"\x89PNG")
+    assert summary["runs"][0]["run_dir"] == str(out / "seed_0")
+    assert not (out / ".attempts").exists()
     with pytest.raises(ValueError, match="experiment"):
-        run_route(ws, "boat_route", [0], runner=runner)
+        run_route(ws, "boat_route", [0], launcher=_launcher({}))
 
 
-def test_route_runs_with_vision_by_default_and_without_into_its_own_folder(tmp_path):
+def test_route_runs_again_replace_their_folders_and_resume_keeps_them(ray_cluster, tmp_path):
+    ws = _workspace(tmp_path)
+    first = dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, mode="gps")
+    second = dict(first, ae_m=0.09)
+    run_route(ws, "gps_route", [0], record_bag=False, launcher=_launcher({"seed_0": first}), log=lambda s: None)
+    again = run_route(ws, "gps_route", [0], record_bag=False, launcher=_launcher({"seed_0": second}),
+                      log=lambda s: None)
+    assert again["spread"]["ae_m"]["mean"] == pytest.approx(0.09)         # run again, folder replaced
+    kept = run_route(ws, "gps_route", [0, 1], record_bag=False, launcher=_launcher({"seed_0": first, "seed_1": first}),
+                     log=lambda s: None, engine=EngineConfig(resume=True))
+    assert kept["runs"][0]["report"]["ae_m"] == pytest.approx(0.09)          # seed 0 kept, seed 1 run
+    assert kept["runs_with_report"] == 2
+
+
+def test_route_runs_with_vision_by_default_and_without_into_its_own_folder(ray_cluster, tmp_path):
     ws = _workspace(tmp_path)
     report = dict(_report(30, 30), cr_percent=100.0, ae_m=0.05, rmse_m=0.06, mode="gps")
-    runner = _fake_runner([report, report])
-    on = run_route(ws, "gps_route", [0], record_bag=False, runner=runner)
-    off = run_route(ws, "gps_route", [0], record_bag=False, runner=runner, vision=False)
-    assert [c.args["vision"] for c in runner.calls] == ["true", "false"]
+    on = run_route(ws, "gps_route", [0], record_bag=False, launcher=_launcher({"seed_0": report}), log=lambda s: None)
+    off = run_route(ws, "gps_route", [0], record_bag=False, launcher=_launcher({"seed_0": report}), vision=False,
+                    log=lambda s: None)
+    results = tmp_path / "results"
+    assert _launch_args(results / "gps_route" / "seed_0")["vision"] == "true"
+    assert _launch_args(results / "gps_route_no_vision" / "seed_0")["vision"] == "false"
     assert (on["vision"], off["vision"]) == (True, False)
-    assert os.path.isfile(tmp_path / "results" / "gps_route" / "summary.json")
-    assert os.path.isfile(tmp_path / "results" / "gps_route_no_vision" / "summary.json")
+    assert os.path.isfile(results / "gps_route" / "summary.json")
+    assert os.path.isfile(results / "gps_route_no_vision" / "summary.json")
 
 
-def test_map_route_seeds_the_simulator_only_and_keeps_the_mapped_farm(tmp_path):
+def test_map_route_seeds_the_simulator_only_and_keeps_the_mapped_farm(ray_cluster, tmp_path):
     ws = _workspace(tmp_path)
     report = dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, mode="map")
-    runner = _fake_runner([report, report])
-    run_route(ws, "map_route", [1, 2], record_bag=False, runner=runner)
+    run_route(ws, "map_route", [1, 2], record_bag=False, launcher=_launcher({"seed_1": report, "seed_2": report}),
+              log=lambda s: None)
     base = yaml.safe_load(open(os.path.join(ws.experiments, "config", "sim_navigation.yaml")))
-    for call, seed in zip(runner.calls, (1, 2)):
-        sim = yaml.safe_load(open(call.args["sim_config"]))
+    for seed in (1, 2):
+        sim = yaml.safe_load(open(tmp_path / "results" / "map_route" / f"seed_{seed}" / "sim.yaml"))
         assert sim["seed"] == seed                                   # sensor noise, solver order vary
         assert sim.get("farm") == base.get("farm")                   # the farm the shipped map shows
         assert (sim.get("farm") or {}).get("seed", 0) == 0           # (farm seed 0, the default)
-    assert runner.calls[0].args["waypoints"].endswith("route_map.csv")
+    assert _launch_args(tmp_path / "results" / "map_route" / "seed_1")["waypoints"].endswith("route_map.csv")
 
 
-def test_row_spacing_study_writes_gps_routes_in_the_tested_lane_and_a_summary(tmp_path):
+def _spacing_run(seed, spacing):
+    return run_id(seed, {"row_spacing_m": spacing})
+
+
+def test_row_spacing_study_writes_gps_routes_in_the_tested_lane_and_a_summary(ray_cluster, tmp_path):
     ws = _workspace(tmp_path)
     config = rs.RowSpacingStudyConfig(spacings_m=(1.2, 1.8))
-    runner = _fake_runner([_report(1, 3, aborted=1, reason="no path"), _report()])
-    summary = run_row_spacing(ws, config, runner=runner)
+    reports = {_spacing_run(0, 1.2): _report(1, 3, aborted=1, reason="no path"), _spacing_run(0, 1.8): _report()}
+    summary = run_row_spacing(ws, config, launcher=_launcher(reports), log=lambda s: None)
     assert summary["smallest_traversable_spacing_m"]["mean"] == pytest.approx(1.8)
     assert summary["per_seed"][0]["smallest_traversable_spacing_m"] == pytest.approx(1.8)
     from cottonsim_world.geodesy import HectorGeodesy
     geo = HectorGeodesy()
-    lines = [l.split() for l in open(runner.calls[0].args["waypoints"]) if not l.startswith("#")]
+    run_folder = tmp_path / "results" / "row_spacing" / "runs" / _spacing_run(0, 1.2)
+    args = _launch_args(run_folder)
+    assert os.path.basename(args["waypoints"]) == "route_gps.txt"          # written by the run, kept with it
+    lines = [l.split() for l in open(run_folder / "route_gps.txt") if not l.startswith("#")]
     xs = [geo.geodetic_to_world(float(lat), float(lon))[0] for lat, lon in lines]
     assert xs == pytest.approx([config.lane_x_m] * 3, abs=1e-6)
-    farm = yaml.safe_load(open(runner.calls[0].args["sim_config"]))["farm"]
+    assert json.load(open(run_folder / "outcome.json"))["waypoints_file"] == "route_gps.txt"
+    farm = yaml.safe_load(open(run_folder / "sim.yaml"))["farm"]
     assert farm["row_spacing_m"] == 1.2 and farm["require_lane_fit"] is False and farm["rows"] == 2
-    assert runner.calls[0].args["on_failure"] == "stop"
+    assert args["on_failure"] == "stop" and args["vision"] == "false"
     assert "| 1.20 | 0.50 | no |" in open(tmp_path / "results" / "row_spacing" / "seed_0" / "summary.md").read()
     assert "| 1.20 | 0.50 | 0/1 | 0.0 |" in open(tmp_path / "results" / "row_spacing" / "summary.md").read()
+    rows = list(csv.DictReader(open(tmp_path / "results" / "row_spacing" / "runs" / "runs.csv")))
+    assert [r["row_spacing_m"] for r in rows] == ["1.2", "1.8"]
 
 
-def test_row_spacing_over_seeds_reports_the_spread_of_the_answer(tmp_path):
+def test_row_spacing_over_seeds_reports_the_spread_of_the_answer(ray_cluster, tmp_path):
     ws = _workspace(tmp_path)
     config = rs.RowSpacingStudyConfig(spacings_m=(1.2, 1.5, 1.8))
     # seed 0: 1.2 fails; seed 4: everything passes; seed 7: even 1.8 fails (no answer)
-    outcomes = [_report(contacts=2), _report(), _report(),
-                _report(), _report(), _report(),
-                _report(contacts=1), _report(contacts=1), _report(reached=2)]
-    runner = _fake_runner(outcomes)
-    summary = run_row_spacing(ws, config, runner=runner, seeds=[0, 4, 7])
-    assert [c.args["results_dir"].endswith(f"seed_{s}") for c, s in zip(runner.calls[::3], (0, 4, 7))] == [True] * 3
+    outcomes = {0: [_report(contacts=2), _report(), _report()],
+                4: [_report(), _report(), _report()],
+                7: [_report(contacts=1), _report(contacts=1), _report(reached=2)]}
+    reports = {_spacing_run(seed, sp): rep for seed, reps in outcomes.items()
+               for sp, rep in zip(config.spacings_m, reps)}
+    summary = run_row_spacing(ws, config, launcher=_launcher(reports), seeds=[0, 4, 7], log=lambda s: None)
+    for seed in (0, 4, 7):
+        sim = yaml.safe_load(open(tmp_path / "results" / "row_spacing" / "runs" / _spacing_run(seed, 1.5) / "sim.yaml"))
+        assert sim["seed"] == seed and sim["farm"]["seed"] == seed
     assert summary["seeds"] == [0, 4, 7] and summary["seeds_without_answer"] == 1
     st = summary["smallest_traversable_spacing_m"]
     assert (st["n"], st["mean"], st["min"], st["max"]) == (2, pytest.approx(1.35), 1.2, 1.5)
@@ -230,13 +266,14 @@ def test_row_spacing_over_seeds_reports_the_spread_of_the_answer(tmp_path):
 
 
 # ----------------------------------------------------------------- results page
-def test_results_page_is_generated_from_the_results_folders(tmp_path):
+def test_results_page_is_generated_from_the_results_folders(ray_cluster, tmp_path):
     ws = _workspace(tmp_path)
     reports = [dict(_report(30, 30), cr_percent=100.0, ae_m=0.04, rmse_m=0.05, sim_duration_s=540.0, mode="gps"),
                dict(_report(30, 30), cr_percent=100.0, ae_m=0.06, rmse_m=0.07, sim_duration_s=600.0, mode="gps")]
-    run_route(ws, "gps_route", [0, 1], record_bag=False, runner=_fake_runner(reports))
-    run_row_spacing(ws, rs.RowSpacingStudyConfig(spacings_m=(1.5, 1.6)),
-                    runner=_fake_runner([_report(contacts=2), _report()]))
+    run_route(ws, "gps_route", [0, 1], record_bag=False, launcher=_launcher({"seed_0": reports[0], "seed_1": reports[1]}),
+              log=lambda s: None)
+    run_row_spacing(ws, rs.RowSpacingStudyConfig(spacings_m=(1.5, 1.6)), log=lambda s: None,
+                    launcher=_launcher({_spacing_run(0, 1.5): _report(contacts=2), _spacing_run(0, 1.6): _report()}))
     doc = tmp_path / "docs" / "results.md"
     text = render_results(ws.results, str(doc))
     assert doc.read_text() == text

@@ -11,19 +11,6 @@ ray = pytest.importorskip("ray", reason="ray is a pinned requirement (requiremen
 from cottonsim_experiments.sweep.engine import EngineConfig, run_sweep  # noqa: E402
 from cottonsim_experiments.sweep.spec import SweepConfigError, parse_sweep  # noqa: E402
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-
-
-@pytest.fixture(scope="module")
-def cluster(tmp_path_factory):
-    markers = tmp_path_factory.mktemp("markers")
-    os.environ["COTTONSIM_SWEEP_STUB_MARKERS"] = str(markers)
-    os.environ["PYTHONPATH"] = HERE + os.pathsep + os.environ.get("PYTHONPATH", "")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    import sweep_stub_runs  # noqa: F401  (the same module the workers import)
-    yield markers
-    ray.shutdown()
-
 
 def _spec(name, seeds=(0, 1, 2)):
     return parse_sweep({"name": name, "experiment": "gps_route", "seeds": list(seeds),
@@ -39,7 +26,7 @@ def _config(**kw):
     return EngineConfig(cpus_per_run=1, progress_interval_s=1.0, **kw)
 
 
-def test_every_run_is_written_once_with_its_report(cluster, tmp_path):
+def test_every_run_is_written_once_with_its_report(ray_cluster, tmp_path):
     import sweep_stub_runs
     lines = []
     result = run_sweep(_spec("ok"), str(tmp_path), _config(), sweep_stub_runs.ok_run, log=lines.append)
@@ -53,7 +40,7 @@ def test_every_run_is_written_once_with_its_report(cluster, tmp_path):
     assert "| 0.1 | 3/3 |" in open(os.path.join(str(tmp_path), "summary.md")).read()
 
 
-def test_a_worker_that_dies_mid_run_is_retried_and_its_run_is_present_once(cluster, tmp_path):
+def test_a_worker_that_dies_mid_run_is_retried_and_its_run_is_present_once(ray_cluster, tmp_path):
     import sweep_stub_runs
     run_sweep(_spec("dies"), str(tmp_path), _config(), sweep_stub_runs.worker_dies_on_seed_1, log=lambda s: None)
     rows = _rows(str(tmp_path))
@@ -63,7 +50,7 @@ def test_a_worker_that_dies_mid_run_is_retried_and_its_run_is_present_once(clust
     assert attempts["seed_0__gps.noise_std_m=0"] == "1"
 
 
-def test_a_taken_master_port_is_retried_and_other_failures_are_recorded_not_retried(cluster, tmp_path):
+def test_a_taken_master_port_is_retried_and_other_failures_are_recorded_not_retried(ray_cluster, tmp_path):
     import sweep_stub_runs
     run_sweep(_spec("port"), str(tmp_path / "port"), _config(), sweep_stub_runs.master_port_taken_on_seed_0,
               log=lambda s: None)
@@ -78,7 +65,7 @@ def test_a_taken_master_port_is_retried_and_other_failures_are_recorded_not_retr
     assert all("the bringup crashed" in r["error"] for r in failed)
 
 
-def test_resume_skips_finished_runs_and_a_second_sweep_never_overwrites_them(cluster, tmp_path):
+def test_resume_skips_finished_runs_and_a_second_sweep_never_overwrites_them(ray_cluster, tmp_path):
     import sweep_stub_runs
     sweep_dir = str(tmp_path)
     run_sweep(_spec("resume", seeds=(0,)), sweep_dir, _config(), sweep_stub_runs.ok_run, log=lambda s: None)

@@ -1,4 +1,5 @@
-"""The dataset generator on Ray (a local cluster of 2 CPUs) writes the same files as the worker pool."""
+"""The dataset generator on Ray (a local cluster of 2 CPUs) writes the same files as the worker pool, and a
+range whose worker dies is rendered again."""
 import filecmp
 import os
 
@@ -39,12 +40,28 @@ def test_plan_ranges_covers_every_scene_once():
         assert sum(r.images(cfg) for r in ranges) == sum(j.total for j in jobs)
 
 
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
 @pytest.fixture(scope="module")
-def ray_cluster():
+def ray_cluster(tmp_path_factory):
+    """Ray with 2 CPUs whose workers run generate_fault_injection.install: ranges noted, one doomed on request."""
     import ray
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
+
+    import generate_fault_injection as fault
+    markers = tmp_path_factory.mktemp("range_attempts")
+    saved = {k: os.environ.get(k) for k in (fault.MARKERS_ENV, "PYTHONPATH")}
+    os.environ[fault.MARKERS_ENV] = str(markers)
+    os.environ["PYTHONPATH"] = HERE + os.pathsep + os.environ.get("PYTHONPATH", "")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
+             runtime_env={"worker_process_setup_hook": "generate_fault_injection.install"})
+    yield markers
     ray.shutdown()
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
 
 
 def test_ray_writes_the_pool_files_for_any_range_size(tmp_path, ray_cluster):
@@ -68,3 +85,31 @@ def test_cli_bad_address_exits_2_naming_it(tmp_path, capsys, perception_script):
         ["--out", str(tmp_path), "--images", "2", "--seeds", "0-1", "--address", "nohost"])
     assert rc == 2
     assert "nohost" in capsys.readouterr().err
+
+
+def test_a_range_whose_worker_dies_is_rendered_again_and_the_dataset_is_complete(tmp_path, ray_cluster):
+    import generate_fault_injection as fault
+    markers = str(ray_cluster)
+    cfg = _config(tmp_path / "ray")
+    ranges = g.plan_ranges(cfg, g.plan_jobs(cfg), 1)
+    doomed = ranges[len(ranges) // 2]
+    name = fault.range_name(doomed.job, doomed.task, doomed.scene_lo)
+    for f in os.listdir(markers):
+        os.remove(os.path.join(markers, f))
+    with open(os.path.join(markers, fault.DOOMED_FILE), "w") as fh:
+        fh.write(name)
+    summary = g.generate_dataset(cfg, progress=False, ray_engine=g.RayEngineConfig(scenes_per_range=1, max_retries=1))
+    assert fault.attempts(markers, name) == 2                        # lost once, rendered again
+    others = [fault.range_name(r.job, r.task, r.scene_lo) for r in ranges if r is not doomed]
+    assert [fault.attempts(markers, n) for n in others] == [1] * len(others)
+    assert summary.images == 2 * (4 + 2)
+    g.generate_dataset(_config(tmp_path / "pool"), progress=False)
+    _assert_same_tree(str(tmp_path / "pool"), str(tmp_path / "ray"))   # complete, and the same files
+
+    # without a retry the lost range fails the dataset: the retry above is what completed it
+    for f in os.listdir(markers):
+        if f != fault.DOOMED_FILE:
+            os.remove(os.path.join(markers, f))
+    with pytest.raises(Exception, match="(?i)worker|died|crash"):
+        g.generate_dataset(_config(tmp_path / "no_retry"), progress=False,
+                           ray_engine=g.RayEngineConfig(scenes_per_range=1, max_retries=0))

@@ -1,6 +1,6 @@
 """Reproduce the paper's experiments, one command each: ``rosrun cottonsim_experiments reproduce EXPERIMENT``.
 
-  reproduce gps-route   [--seeds 0 1 2] [--real-time-factor 0] [--no-bag] [--vision on|off|both]
+  reproduce gps-route   [--seeds 0 1 2] [--real-time-factor 0] [--no-bag] [--vision on|off|both] [--resume]
                                                                            GPS route, report + plot + bag per seed
   reproduce map-route   [--seeds 0 1 2] ...                                  map-based route (AMCL on the SLAM map)
   reproduce row-spacing [--spacings 1.0 1.1 ... 1.9] [--seeds 0]            the paper's Fig. 3a study
@@ -16,9 +16,14 @@ the results page to --doc (default DIR/results.md), the screenshots to --screens
 DIR/rviz). From the repository root, `--doc docs/results.md --screenshot-dir docs/rviz` refreshes the
 committed pages.
 
-Each bringup runs on its own ROS master port (a roscore of yours is not touched); its console goes
-to <run>/launch.log and a progress line shows the waypoint being driven. Ctrl-C stops the current
-bringup cleanly (the recorder writes what it has) and ends the command.
+The route seeds and the row-spacing attempts run as sweeps (docs/sweeps.md), the same code path as
+`reproduce sweep`: one Ray task per bringup on a local cluster of this machine's cores (or the cluster
+of --address), each reserving --cpus-per-run cores; a lost worker or a taken master port is retried
+(--max-retries), --resume keeps the runs done before, and runs.csv / summary.md list the runs. Each
+bringup runs on its own ROS master port (a roscore of yours is not touched); its console goes to
+<run>/launch.log and a progress line counts the runs done / running / failed / left. Ctrl-C stops
+every running bringup cleanly (the recorder writes what it has), keeps the finished runs and ends the
+command.
 """
 import argparse
 import os
@@ -26,10 +31,13 @@ import sys
 
 from cottonsim_navigation.evaluation.vision_ablation import ablation_markdown
 
+from cottonsim_experiments.sweep.engine import EngineConfig
+
 from . import row_spacing as rs
 from .packages import RESULTS_ENV, default_results_dir
 from .results_doc import render_results
-from .runs import Workspace, run_perception, run_route, run_row_spacing
+from .route_experiments import run_route, run_row_spacing
+from .runs import Workspace, run_perception
 from .screenshots import BRINGUPS, take_screenshots
 
 
@@ -61,15 +69,17 @@ def main(argv=None) -> int:
                          "$COTTONSIM_PAPER_DATA")
     ap.add_argument("--config", default=None, help="sweep: the sweep file (YAML; see docs/sweeps.md)")
     ap.add_argument("--address", default=None,
-                    help="sweep: a Ray cluster to run on ('auto' or HOST:PORT); default: a local cluster of this "
-                         "machine's cores")
+                    help="sweep and the route / row-spacing runs: a Ray cluster to run on ('auto' or HOST:PORT); "
+                         "default: a local cluster of this machine's cores")
     ap.add_argument("--cpus-per-run", type=int, default=2,
-                    help="sweep: cores each run reserves (and its NUMBA/OMP threads); default 2")
+                    help="cores each run reserves (and its NUMBA/OMP threads); default 2")
     ap.add_argument("--max-retries", type=int, default=2,
-                    help="sweep: extra attempts of a run whose worker died or whose master port was taken")
-    ap.add_argument("--resume", action="store_true", help="sweep: keep the finished runs of the sweep, run the rest")
+                    help="extra attempts of a run whose worker died or whose master port was taken")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the finished runs (of the sweep, or of the route / row-spacing runs), run the rest; "
+                         "without it a route or row-spacing run done before is run again")
     ap.add_argument("--local-cpus", type=int, default=None,
-                    help="sweep: cores of the local cluster (default: this machine's)")
+                    help="cores of the local cluster (default: this machine's)")
     ap.add_argument("--synthetic-images", type=int, default=120,
                     help="held-out synthetic test frames per task (0: skip the synthetic tables)")
     ap.add_argument("--bringups", nargs="+", default=None,
@@ -86,14 +96,16 @@ def main(argv=None) -> int:
             return sweep_command(a.config, results, a.address, a.cpus_per_run, a.max_retries, a.resume,
                                  a.local_cpus)
         ws = Workspace(results=results)
+        engine = EngineConfig(address=a.address, cpus_per_run=a.cpus_per_run, max_retries=a.max_retries,
+                              resume=a.resume, replace_finished=not a.resume, local_cpus=a.local_cpus)
         for experiment in ("gps_route", "map_route"):
             if a.experiment in (experiment.replace("_", "-"), "all"):
-                _route(ws, experiment, a)
+                _route(ws, experiment, a, engine)
         if a.experiment in ("row-spacing", "all"):
             run_row_spacing(ws, rs.RowSpacingStudyConfig(spacings_m=tuple(a.spacings),
                                                          plants_per_row=a.plants_per_row,
                                                          goal_timeout_s=a.goal_timeout),
-                            a.real_time_factor, seeds=a.seeds or [0])
+                            a.real_time_factor, seeds=a.seeds or [0], engine=engine)
         if a.experiment in ("perception", "all"):
             if not a.original_data:
                 raise ValueError("perception needs the paper's labelled images: give --original-data DIR "
@@ -118,11 +130,11 @@ def main(argv=None) -> int:
 
 
 
-def _route(ws: Workspace, experiment: str, a) -> None:
+def _route(ws: Workspace, experiment: str, a, engine: EngineConfig) -> None:
     """One route in the --vision mode(s); with both, the ablation table next to the two result folders."""
     modes = {"on": (True,), "off": (False,), "both": (False, True)}[a.vision]
     summaries = {vision: run_route(ws, experiment, a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag,
-                                   waypoints=a.waypoints, vision=vision) for vision in modes}
+                                   waypoints=a.waypoints, vision=vision, engine=engine) for vision in modes}
     if len(summaries) == 2:
         lines = ablation_markdown(summaries[True], summaries[False])
         path = os.path.join(ws.results, f"{experiment}_vision_ablation.md")

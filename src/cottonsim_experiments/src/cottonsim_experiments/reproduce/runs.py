@@ -1,36 +1,28 @@
-"""The experiments of the paper, each one call: run its bringups, keep every output, summarise.
+"""What the paper's experiments share: the workspace, the routes, their sim settings, reports; the perception tables.
 
-Every experiment writes into its own folder under the results root:
+Every experiment writes into its own folder under the results root; the route experiments and the
+row-spacing study run as sweeps (:mod:`.route_experiments`), the perception tables here:
 
-  gps_route/   seed_<s>/{report.json, trajectory.png, trajectory.csv, run.bag, launch.log, sim.yaml},
-               seed_<s>/offline/ (the report recomputed from the bag alone), summary.json
-  map_route/   the same for the map-based route (mode "map")
-  row_spacing/ spacing_<s>/{report.json, ...}, summary.json, summary.md
   perception/  <table>.json from the evaluate command, summary.json
 
-Nothing here imports ROS: bringups run as child processes (see
-:mod:`.launcher`), the perception tables through the evaluate command.
+Nothing here imports ROS: bringups run as child processes (see :mod:`.launcher`), the perception
+tables through the evaluate command.
 """
 from __future__ import annotations
 
 import copy
-import dataclasses
 import json
 import os
 import subprocess
 import time
 from dataclasses import dataclass
-from typing import Callable, Dict, Mapping, Optional, Sequence
+from typing import Dict, Mapping, Optional
 
 import yaml
 
 from cottonsim_common.config.yaml_files import load_yaml_file
 
-from cottonsim_experiments.recording.experiment import summary_line
-from . import row_spacing as rs
-from .launcher import LaunchSpec, run_launch
 from .packages import package_path, rosrun_command
-from .seeds import aggregate_reports
 
 
 @dataclass(frozen=True)
@@ -124,7 +116,7 @@ def read_report(path: str) -> Optional[Dict]:
     return report if isinstance(report, dict) else None
 
 
-def _widest_collision_radius_m(farm_config) -> Optional[float]:
+def widest_collision_radius_m(farm_config) -> Optional[float]:
     """The largest horizontal collision radius among the farm's plants [m] (None without a farm)."""
     if farm_config is None:
         return None
@@ -154,70 +146,11 @@ def machine_description() -> str:
             f"load average {os.getloadavg()[0]:.1f} at the start")
 
 
-def _write_json(path: str, data) -> None:
+def write_json(path: str, data) -> None:
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w", encoding="utf-8") as fh:
         json.dump(data, fh, indent=1, allow_nan=True)
         fh.write("\n")
-
-
-def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_factor: float = 0.0,
-              record_bag: bool = True, extra_args: Optional[Mapping[str, object]] = None,
-              wall_timeout_s: float = 5400.0, runner: Callable = run_launch,
-              waypoints: Optional[str] = None, vision: bool = True) -> Dict:
-    """The GPS or map route once per seed, then the spread.
-
-    Seeds: the GPS route seeds the simulator and the farm alike (a new farm per seed); the map route
-    seeds the simulator only (sensor noise, solver order) and keeps the farm of its sim settings, the
-    one the shipped SLAM map was drawn from (see :func:`seed_overrides`).
-
-    With ``record_bag`` each run's bag is re-evaluated offline (``rosrun cottonsim_experiments evaluate_bag``)
-    and the summary says whether that reproduces the online report. ``waypoints``
-    replaces the paper's route file (quick checks on a short route). ``vision``: Cotton-Eye in the
-    loop (the launch files' default, results/<experiment>/); False: the LiDAR + GPS run
-    (results/<experiment>_no_vision/).
-    """
-    if experiment not in ROUTES:
-        raise ValueError(f"experiment must be one of {sorted(ROUTES)}, got {experiment!r}")
-    if not seeds:
-        raise ValueError("seeds must name at least one seed")
-    route = ROUTES[experiment]
-    out_dir = os.path.join(ws.results, experiment if vision else f"{experiment}_no_vision")
-    machine = machine_description()
-    if waypoints is None:
-        waypoints = os.path.join(ws.navigation, route["waypoints"])
-    elif not os.path.isfile(waypoints):
-        raise ValueError(f"waypoints file {waypoints!r} does not exist")
-    waypoints = os.path.abspath(waypoints)
-    runs = []
-    for k, seed in enumerate(seeds):
-        run_name = f"seed_{seed}"
-        run_dir = os.path.join(out_dir, run_name)
-        sim_yaml = write_sim_config(os.path.join(ws.experiments, route["sim_config"]),
-                                    seed_overrides(experiment, seed),
-                                    os.path.join(run_dir, "sim.yaml"))
-        args = {"run_name": run_name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": waypoints,
-                "real_time_factor": real_time_factor, "record_bag": str(bool(record_bag)).lower(),
-                "vision": str(bool(vision)).lower()}
-        args.update(extra_args or {})
-        print(f"{experiment}: run {k + 1}/{len(seeds)} (seed {seed})", flush=True)
-        result = runner(LaunchSpec("cottonsim_experiments", route["launch"], args,
-                                   os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"seed {seed}"))
-        report = read_report(os.path.join(run_dir, "report.json"))
-        entry = {"seed": seed, "run_dir": run_dir, "report": report, "launch_returncode": result.returncode,
-                 "launch_timed_out": result.timed_out, "launch_wall_s": result.wall_s}
-        if record_bag and report is not None and os.path.isfile(os.path.join(run_dir, "run.bag")):
-            entry["offline"] = _offline_check(ws, route["mode"], run_dir, waypoints, sim_yaml, report)
-        runs.append(entry)
-        print("  " + (summary_line(report) if report else f"no report (see {run_dir}/launch.log)"), flush=True)
-    reports = [r["report"] for r in runs if r["report"] is not None]
-    summary = {"experiment": experiment, "mode": route["mode"], "vision": bool(vision), "seeds": list(seeds),
-               "machine": machine,
-               "waypoints_file": waypoints, "runs_with_report": len(reports), "runs": runs,
-               "spread": aggregate_reports(reports),
-               "all_complete": len(reports) == len(seeds) and all(r.get("complete", False) for r in reports)}
-    _write_json(os.path.join(out_dir, "summary.json"), summary)
-    return summary
 
 
 # Figures compared between the online report and the one recomputed from the bag [same units].
@@ -238,7 +171,9 @@ def compare_reports(online: Mapping, offline: Mapping, tolerances: Mapping[str, 
     return {"matches": not differences, "differences": differences}
 
 
-def _offline_check(ws: Workspace, mode: str, run_dir: str, waypoints: str, sim_yaml: str, report: Mapping) -> Dict:
+def offline_report_check(mode: str, run_dir: str, waypoints: str, sim_yaml: str, report: Mapping) -> Dict:
+    """The report recomputed from <run_dir>/run.bag alone (``evaluate_bag``, into <run_dir>/offline/) compared
+    with the online ``report``: {"matches": bool, "differences": ...} or {"matches": False, "error": ...}."""
     out = os.path.join(run_dir, "offline")
     cmd = rosrun_command("cottonsim_experiments", "evaluate_bag",
                          [os.path.join(run_dir, "run.bag"), "--waypoints", waypoints, "--mode", mode,
@@ -248,76 +183,6 @@ def _offline_check(ws: Workspace, mode: str, run_dir: str, waypoints: str, sim_y
     if proc.returncode != 0 or offline is None:
         return {"matches": False, "error": proc.stdout.strip()[-500:]}
     return compare_reports(report, offline)
-
-
-def run_row_spacing(ws: Workspace, config: rs.RowSpacingStudyConfig = rs.RowSpacingStudyConfig(),
-                    real_time_factor: float = 0.0, wall_timeout_s: float = 1200.0,
-                    runner: Callable = run_launch, seeds: Optional[Sequence[int]] = None) -> Dict:
-    """The paper's Fig. 3a study: one GPS-navigation bringup per spacing and seed (see :mod:`.row_spacing`).
-
-    Writes row_spacing/seed_<s>/{spacing_<x>/..., summary.json, summary.md} per
-    seed (default: ``config.seed`` alone) and row_spacing/{summary.json,
-    summary.md} over the seeds.
-    """
-    out_dir = os.path.join(ws.results, "row_spacing")
-    machine = machine_description()
-    per_seed = []
-    for seed in (list(seeds) if seeds else [config.seed]):
-        per_seed.append(_row_spacing_one_seed(ws, dataclasses.replace(config, seed=int(seed)),
-                                              os.path.join(out_dir, f"seed_{seed}"), real_time_factor,
-                                              wall_timeout_s, runner))
-    summary = dict(rs.seeds_summary(per_seed), machine=machine)
-    _write_json(os.path.join(out_dir, "summary.json"), summary)
-    with open(os.path.join(out_dir, "summary.md"), "w", encoding="utf-8") as fh:
-        fh.write(rs.seeds_markdown(summary) + "\n")
-    return summary
-
-
-def _row_spacing_one_seed(ws: Workspace, config: rs.RowSpacingStudyConfig, out_dir: str, real_time_factor: float,
-                          wall_timeout_s: float, runner: Callable) -> Dict:
-    from cottonsim_world.config_io import simulator_config_from_dict
-    from cottonsim_world.farm.config import FarmConfig
-    from cottonsim_world.geodesy import HectorGeodesy
-
-    base_sim = os.path.join(ws.experiments, "config", "sim_navigation.yaml")
-    outcomes = []
-    farm = None
-    for k, spacing in enumerate(config.spacings_m):
-        name = f"spacing_{spacing:.2f}"
-        run_dir = os.path.join(out_dir, name)
-        farm_settings = rs.attempt_farm_settings(config, spacing)
-        farm = FarmConfig.from_dict(farm_settings)
-        sim_yaml = write_sim_config(base_sim, {"seed": config.seed, "farm": farm_settings},
-                                    os.path.join(run_dir, "sim.yaml"))
-        # the simulator's GPS reference for these settings (its own default when the file has none)
-        reference = simulator_config_from_dict(load_yaml_file(sim_yaml, default={})).geodesy_reference
-        geodesy = HectorGeodesy(*reference)
-        route = os.path.join(run_dir, "route_gps.txt")
-        with open(route, "w", encoding="utf-8") as fh:
-            fh.write(f"# lane 1 (between rows 0 and 1) at {spacing:.2f} m row spacing: entry, middle, exit\n")
-            for x, y in rs.attempt_route_world(farm):
-                lat, lon, _ = geodesy.world_to_geodetic(x, y, 0.0)
-                fh.write(f"{float(lat):.14f} {float(lon):.14f}\n")
-        args = {"run_name": name, "results_dir": out_dir, "sim_config": sim_yaml, "waypoints": route,
-                "real_time_factor": real_time_factor, "on_failure": "stop",
-                "goal_timeout_s": config.goal_timeout_s, "record_bag": "false",
-                "vision": "false"}      # a traversability study of the LiDAR costmap: no cameras
-        print(f"row spacing {spacing:.2f} m, seed {config.seed}: attempt {k + 1}/{len(config.spacings_m)}", flush=True)
-        result = runner(LaunchSpec("cottonsim_experiments", "gps_navigation.launch", args,
-                                   os.path.join(run_dir, "launch.log"), wall_timeout_s, label=f"{spacing:.2f} m"))
-        error = "wall-clock limit reached" if result.timed_out else ""
-        ys = read_trajectory_y(os.path.join(run_dir, "trajectory.csv"))
-        outcome = rs.outcome_from_report(spacing, farm.plant_width_m,
-                                         read_report(os.path.join(run_dir, "report.json")), error,
-                                         None if ys is None else rs.lane_progress_m(ys, farm))
-        outcomes.append(outcome)
-        print(f"  {'traversed' if outcome.traversed else 'NOT traversed: ' + outcome.reason}", flush=True)
-    robot_width = farm.robot_width_m if farm is not None else float("nan")
-    summary = rs.study_summary(config, outcomes, robot_width, _widest_collision_radius_m(farm))
-    _write_json(os.path.join(out_dir, "summary.json"), summary)
-    with open(os.path.join(out_dir, "summary.md"), "w", encoding="utf-8") as fh:
-        fh.write(rs.summary_markdown(summary) + "\n")
-    return summary
 
 
 # The perception tables: (name, task, dataset folder relative to the original data root or absolute, splits).
@@ -383,6 +248,6 @@ def run_perception(ws: Workspace, original_data: str, synthetic_data: Optional[s
                                    "json": out_json, "ok": proc.returncode == 0,
                                    "wall_s": time.monotonic() - t0,
                                    "error": "" if proc.returncode == 0 else proc.stdout.strip()[-500:]}
-    _write_json(os.path.join(out_dir, "summary.json"), summary)
+    write_json(os.path.join(out_dir, "summary.json"), summary)
     return summary
 

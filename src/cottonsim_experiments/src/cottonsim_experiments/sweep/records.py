@@ -1,6 +1,6 @@
-"""What a sweep keeps: one folder per run, runs.csv, summary.md, and the progress line.
+"""What a sweep keeps of each run: its folder, written whole, and the progress line.
 
-Layout under ``results/sweeps/<name>/``::
+Layout under ``results/sweeps/<name>/`` (the tables are :mod:`.tables`)::
 
     sweep.yaml               the sweep file as run
     runs/<run_id>/           report.json, trajectory.csv, launch.log, sim.yaml (what the run returned)
@@ -8,13 +8,13 @@ Layout under ``results/sweeps/<name>/``::
     runs.csv                 one row per run: parameters, status, attempts, node, RTF, the report's figures
     summary.md               per grid point, the spread of each figure over the seeds
 
-A run folder is written atomically (a temporary folder renamed into place) when its outcome reaches
-the driver, so an interrupted sweep leaves only whole runs; ``--resume`` skips the runs whose
-outcome says ``done``. Nothing here imports Ray or ROS.
+The ``reproduce`` experiments keep their run folders elsewhere (``runs_dir``: results/gps_route/
+holds seed_0/ ...). A run folder is written atomically (a temporary folder renamed into place) when
+its outcome reaches the driver, so an interrupted sweep leaves only whole runs; ``--resume`` skips
+the runs whose outcome says ``done``. Nothing here imports Ray or ROS.
 """
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -23,129 +23,97 @@ import tempfile
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence
 
-from ..reproduce.seeds import aggregate_reports, format_spread
 from .spec import RunSpec
 
-# The report's figures copied into runs.csv and summarised in summary.md.
-FIGURES = ("complete", "cr_percent", "cr_percent_010m", "ae_m", "rmse_m", "cross_track_mean_m", "cross_track_max_m",
-           "plant_contacts", "sim_duration_s", "real_time_factor")
-RUN_COLUMNS = ("run_id", "seed", "status", "attempts", "node", "ray_node", "load_average_1m", "wall_s", "error")
 OUTCOME_FILE = "outcome.json"
 STATUS_DONE = "done"
 STATUS_FAILED = "failed"
+# An outcome key: a folder on the driver's machine where the run left its whole folder (a local
+# cluster shares the driver's disk); write_run moves what it holds (bag, plot) into the run folder.
+KEPT_DIR_KEY = "kept_dir"
 
 
-def run_dir(sweep_dir: str, run_id: str) -> str:
-    return os.path.join(sweep_dir, "runs", run_id)
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
-def read_outcome(sweep_dir: str, run_id: str) -> Optional[Dict[str, Any]]:
-    """A run's outcome.json, or None when the run has not finished (or the file is unreadable)."""
+def run_dir(runs_dir: str, run_id: str) -> str:
+    return os.path.join(runs_dir, run_id)
+
+
+def read_json_mapping(path: str) -> Optional[Dict[str, Any]]:
+    """A JSON file holding a mapping, or None when it is missing, unreadable or not a mapping."""
     try:
-        with open(os.path.join(run_dir(sweep_dir, run_id), OUTCOME_FILE), "r", encoding="utf-8") as fh:
-            outcome = json.load(fh)
+        with open(path, "r", encoding="utf-8") as fh:
+            data = json.load(fh)
     except (OSError, ValueError):
         return None
-    return outcome if isinstance(outcome, dict) else None
+    return data if isinstance(data, dict) else None
 
 
-def finished_run_ids(sweep_dir: str, runs: Sequence[RunSpec]) -> List[str]:
+def read_outcome(runs_dir: str, run_id: str) -> Optional[Dict[str, Any]]:
+    """A run's outcome.json, or None when the run has not finished (or the file is unreadable)."""
+    return read_json_mapping(os.path.join(run_dir(runs_dir, run_id), OUTCOME_FILE))
+
+
+def read_run_report(runs_dir: str, run_id: str) -> Optional[Dict[str, Any]]:
+    """A run's report.json, or None."""
+    return read_json_mapping(os.path.join(run_dir(runs_dir, run_id), "report.json"))
+
+
+def finished_run_ids(runs_dir: str, runs: Sequence[RunSpec]) -> List[str]:
     """The runs of ``runs`` whose folder holds an outcome with status ``done`` (``--resume`` skips them)."""
-    return [r.run_id for r in runs if (read_outcome(sweep_dir, r.run_id) or {}).get("status") == STATUS_DONE]
+    return [r.run_id for r in runs if (read_outcome(runs_dir, r.run_id) or {}).get("status") == STATUS_DONE]
 
 
-def write_run(sweep_dir: str, run: RunSpec, outcome: Mapping[str, Any]) -> str:
-    """Write a run's returned files and its outcome.json into runs/<run_id>/, replacing an older attempt.
-
-    ``outcome["files"]`` maps file names to their text; everything else of ``outcome`` goes to
-    outcome.json with the run's parameters.
-    """
-    final = run_dir(sweep_dir, run.run_id)
-    os.makedirs(os.path.dirname(final), exist_ok=True)
-    staging = tempfile.mkdtemp(prefix=f".{run.run_id}.", dir=os.path.dirname(final))
-    for name, text in (outcome.get("files") or {}).items():
-        if os.path.basename(name) != name or name in ("", ".", "..", OUTCOME_FILE):
-            raise ValueError(f"run {run.run_id} returned a file named {name!r}")
-        with open(os.path.join(staging, name), "w", encoding="utf-8") as fh:
-            fh.write(text)
-    record = {k: v for k, v in outcome.items() if k != "files"}
-    record.update(run_id=run.run_id, experiment=run.experiment, seed=run.seed, parameters=dict(run.parameters),
-                  files=sorted((outcome.get("files") or {}).keys()))
-    with open(os.path.join(staging, OUTCOME_FILE), "w", encoding="utf-8") as fh:
-        json.dump(record, fh, indent=1, allow_nan=True)
-        fh.write("\n")
-    if os.path.isdir(final):
-        shutil.rmtree(final)
-    os.rename(staging, final)
-    return final
-
-
-def _report(sweep_dir: str, run_id: str) -> Optional[Dict[str, Any]]:
+def outcome_report(outcome: Mapping[str, Any]) -> Optional[Dict[str, Any]]:
+    """The report.json a run returned (parsed), or None."""
+    text = (outcome.get("files") or {}).get("report.json")
+    if text is None:
+        return None
     try:
-        with open(os.path.join(run_dir(sweep_dir, run_id), "report.json"), "r", encoding="utf-8") as fh:
-            report = json.load(fh)
-    except (OSError, ValueError):
+        report = json.loads(text)
+    except ValueError:
         return None
     return report if isinstance(report, dict) else None
 
 
-def _cell(value: Any) -> Any:
-    if isinstance(value, float):
-        return "" if math.isnan(value) else f"{value:.6g}"
-    return "" if value is None else value
+def write_run(runs_dir: str, run: RunSpec, outcome: Mapping[str, Any]) -> str:
+    """Write a run's returned files and its outcome.json into <runs_dir>/<run_id>/, replacing an older attempt.
 
-
-def write_tables(sweep_dir: str, runs: Sequence[RunSpec]) -> Dict[str, str]:
-    """runs.csv and summary.md from the run folders (runs without an outcome are listed as 'missing')."""
-    parameter_keys = sorted({k for r in runs for k in r.parameters})
-    rows = []
-    for run in runs:
-        outcome = read_outcome(sweep_dir, run.run_id) or {"status": "missing"}
-        report = _report(sweep_dir, run.run_id) or {}
-        row = {"run_id": run.run_id, "seed": run.seed}
-        row.update({k: run.parameters.get(k) for k in parameter_keys})
-        row.update({k: outcome.get(k) for k in RUN_COLUMNS if k not in ("run_id", "seed")})
-        row.update({k: report.get(k) for k in FIGURES})
-        rows.append(row)
-    csv_path = os.path.join(sweep_dir, "runs.csv")
-    columns = ["run_id", "seed", *parameter_keys, *RUN_COLUMNS[2:], *FIGURES]
-    with open(csv_path, "w", encoding="utf-8", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=columns)
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: _cell(row.get(k)) for k in columns})
-    md_path = os.path.join(sweep_dir, "summary.md")
-    with open(md_path, "w", encoding="utf-8") as fh:
-        fh.write(summary_markdown(sweep_dir, runs, parameter_keys) + "\n")
-    return {"runs_csv": csv_path, "summary_md": md_path}
-
-
-# (figure, column title, scale, digits) of summary.md
-_SUMMARY_FIGURES = (("cr_percent", "CR 5e-6 deg [%]", 1.0, 1), ("cr_percent_010m", "CR 0.10 m [%]", 1.0, 1),
-                    ("ae_m", "AE [m]", 1.0, 3), ("rmse_m", "RMSE [m]", 1.0, 3),
-                    ("cross_track_mean_m", "in-row cross-track mean [cm]", 100.0, 2),
-                    ("plant_contacts", "plant contacts", 1.0, 1), ("sim_duration_s", "route [min]", 1 / 60, 2),
-                    ("real_time_factor", "RTF", 1.0, 2))
-
-
-def summary_markdown(sweep_dir: str, runs: Sequence[RunSpec], parameter_keys: Sequence[str]) -> str:
-    """One row per grid point: the spread of each figure over its seeds ('mean ± std (min..max, n)')."""
-    groups: Dict[tuple, List[RunSpec]] = {}
-    for run in runs:
-        groups.setdefault(tuple(run.parameters.get(k) for k in parameter_keys), []).append(run)
-    status = [(read_outcome(sweep_dir, r.run_id) or {}).get("status", "missing") for r in runs]
-    lines = [f"# Sweep {os.path.basename(os.path.normpath(sweep_dir))}", "",
-             f"{len(runs)} runs: {status.count(STATUS_DONE)} done, {status.count(STATUS_FAILED)} failed, "
-             f"{status.count('missing')} not run. Each cell: mean ± std (min..max, n) over the seeds.", ""]
-    header = [*parameter_keys, "runs with a report", *(title for _, title, _, _ in _SUMMARY_FIGURES)]
-    lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    for key, members in groups.items():
-        reports = [rep for rep in (_report(sweep_dir, r.run_id) for r in members) if rep is not None]
-        stats = aggregate_reports(reports, [f for f, _, _, _ in _SUMMARY_FIGURES])
-        cells = [str(v) for v in key] + [f"{len(reports)}/{len(members)}"]
-        cells += [format_spread(stats.get(f, {}), scale, digits) for f, _, scale, digits in _SUMMARY_FIGURES]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+    ``outcome["files"]`` maps file names to their text; ``outcome["kept_dir"]``, when that folder
+    exists here, holds the rest of the run's folder (moved in, then removed); everything else of
+    ``outcome`` goes to outcome.json with the run's parameters.
+    """
+    final = run_dir(runs_dir, run.run_id)
+    os.makedirs(runs_dir, exist_ok=True)
+    staging = tempfile.mkdtemp(prefix=f".{run.run_id}.", dir=runs_dir)
+    files = outcome.get("files") or {}
+    for name, text in files.items():
+        if os.path.basename(name) != name or name in ("", ".", "..", OUTCOME_FILE):
+            shutil.rmtree(staging, ignore_errors=True)
+            raise ValueError(f"run {run.run_id} returned a file named {name!r}")
+        with open(os.path.join(staging, name), "w", encoding="utf-8") as fh:
+            fh.write(text)
+    kept = outcome.get(KEPT_DIR_KEY)
+    if kept and os.path.isdir(kept):
+        for name in os.listdir(kept):
+            if name not in files and name != OUTCOME_FILE:
+                shutil.move(os.path.join(kept, name), os.path.join(staging, name))
+        shutil.rmtree(kept, ignore_errors=True)
+    record = {k: v for k, v in outcome.items() if k not in ("files", KEPT_DIR_KEY)}
+    record.update(run_id=run.run_id, experiment=run.experiment, seed=run.seed, parameters=dict(run.parameters),
+                  files=sorted(os.listdir(staging)))
+    with open(os.path.join(staging, OUTCOME_FILE), "w", encoding="utf-8") as fh:
+        json.dump(record, fh, indent=1, allow_nan=True)
+        fh.write("\n")
+    os.chmod(staging, 0o777 & ~_umask())            # a folder like any other (mkdtemp made it 0700)
+    if os.path.isdir(final):
+        shutil.rmtree(final)
+    os.rename(staging, final)
+    return final
 
 
 @dataclass
@@ -159,6 +127,9 @@ class Progress:
     running: int = 0
     retries: int = 0
     wall_s: List[float] = field(default_factory=list)
+
+    def counts(self) -> Dict[str, int]:
+        return {k: v for k, v in self.__dict__.items() if k != "wall_s"}
 
     @property
     def left(self) -> int:

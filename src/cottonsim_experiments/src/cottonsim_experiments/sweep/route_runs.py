@@ -8,15 +8,18 @@ text, so a cluster needs no shared file system: the driver writes them.
 """
 from __future__ import annotations
 
+import json
 import os
 import platform
 import shutil
 import tempfile
 import time
-from typing import Any, Dict, Optional
+from typing import Any, Callable, Dict, Optional
 
 from ..reproduce.launcher import LaunchSpec, run_launch
-from ..reproduce.runs import ROUTES, Workspace, deep_merge, seed_overrides, write_sim_config
+from ..reproduce.runs import (ROUTES, Workspace, deep_merge, offline_report_check, seed_overrides,
+                              write_sim_config)
+from .records import KEPT_DIR_KEY
 from .spec import RunSpec
 
 # What a run sends back to the driver (the bag stays on the worker: it is large).
@@ -71,26 +74,40 @@ def _master_watch():
     return on_line
 
 
-def execute_route_run(run: RunSpec, cpus: int, keep_dir: Optional[str] = None) -> Dict[str, Any]:
+RouteWriter = Callable[[RunSpec, str, str], str]
+
+
+def execute_route_run(run: RunSpec, cpus: int, keep_root: Optional[str] = None, launcher: Callable = run_launch,
+                      route_writer: Optional[RouteWriter] = None, offline_check: bool = False) -> Dict[str, Any]:
     """Run one bringup of ``run`` here and return its outcome with its small outputs as text.
 
-    ``keep_dir``: where to leave the whole run folder (bag included); default a temporary folder,
-    removed after the outputs are read. Raises :class:`MasterPortTaken` for a retry.
+    ``keep_root``: a folder of this machine under which the whole run folder (bag, plot, offline
+    check) is left and named in the outcome (``kept_dir``), for a driver on the same machine to move
+    into place; default a temporary folder, removed after the outputs are read. ``route_writer(run,
+    sim_yaml, out_dir)`` writes the run's own route file and returns its path (default: the run's
+    waypoints or its experiment's route). ``offline_check``: a recorded bag is evaluated again
+    offline (``evaluate_bag``) and the comparison returned as ``offline``. ``launcher`` runs the
+    bringup (:func:`..reproduce.launcher.run_launch`; tests give another). Raises
+    :class:`MasterPortTaken` for a retry.
     """
     os.environ["NUMBA_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = str(int(cpus))
-    work = keep_dir or tempfile.mkdtemp(prefix="cottonsim_sweep_")
+    if keep_root:
+        os.makedirs(keep_root, exist_ok=True)
+    work = tempfile.mkdtemp(prefix=f"cottonsim_{run.run_id}.", dir=keep_root or None)
     try:
         ws = Workspace(results=work)
         route, waypoints, base_sim = _route_files(run, ws)
         out_dir = os.path.join(work, run.run_id)
         sim_yaml = write_sim_config(base_sim, run_sim_overrides(run), os.path.join(out_dir, "sim.yaml"))
+        if route_writer is not None:
+            waypoints = route_writer(run, sim_yaml, out_dir)
         args = {"run_name": run.run_id, "results_dir": work, "sim_config": sim_yaml, "waypoints": waypoints,
                 "real_time_factor": run.real_time_factor, "record_bag": str(bool(run.record_bag)).lower()}
         args.update({k: (str(v).lower() if isinstance(v, bool) else v) for k, v in run.launch_args.items()})
         spec = LaunchSpec("cottonsim_experiments", route["launch"], args, os.path.join(out_dir, "launch.log"),
                           run.wall_timeout_s, label=run.run_id)
         started = time.monotonic()
-        result = run_launch(spec, show_progress=False, on_line=_master_watch())
+        result = launcher(spec, show_progress=False, on_line=_master_watch())
         if result.aborted_reason:
             raise MasterPortTaken(f"run {run.run_id}: {result.aborted_reason}")
         files = {}
@@ -105,10 +122,25 @@ def execute_route_run(run: RunSpec, cpus: int, keep_dir: Optional[str] = None) -
         if not has_report:
             error = ("wall-clock limit reached" if result.timed_out
                      else f"no report (roslaunch exit {result.returncode}; see launch.log)")
-        return {"status": "done" if has_report else "failed", "error": error, "files": files,
-                "wall_s": time.monotonic() - started, "launch_returncode": result.returncode,
-                "timed_out": result.timed_out, "cpus": int(cpus), "node": platform.node(),
-                "load_average_1m": os.getloadavg()[0]}
+        outcome = {"status": "done" if has_report else "failed", "error": error, "files": files,
+                   "wall_s": time.monotonic() - started, "launch_returncode": result.returncode,
+                   "timed_out": result.timed_out, "cpus": int(cpus), "node": platform.node(),
+                   "load_average_1m": os.getloadavg()[0],
+                   # a route written into the run folder is named relative to it (the folder moves)
+                   "waypoints_file": (os.path.relpath(waypoints, out_dir)
+                                      if waypoints.startswith(out_dir + os.sep) else waypoints)}
+        bag = os.path.join(out_dir, "run.bag")
+        if offline_check and has_report and os.path.isfile(bag):
+            outcome["offline"] = offline_report_check(route["mode"], out_dir, waypoints, sim_yaml,
+                                                      json.loads(files["report.json"]))
+        if keep_root:
+            outcome[KEPT_DIR_KEY] = out_dir
+        return outcome
     finally:
-        if keep_dir is None:
+        if not keep_root:
             shutil.rmtree(work, ignore_errors=True)
+        elif os.path.isdir(work):
+            # the run folder is the driver's to move; the attempt folder around it goes when it is empty
+            for name in os.listdir(work):
+                if name != run.run_id:
+                    shutil.rmtree(os.path.join(work, name), ignore_errors=True)

@@ -92,6 +92,20 @@ class SweepSpec:
         return out
 
 
+@dataclass(frozen=True)
+class RunList:
+    """Runs built in code (the ``reproduce`` experiments), run by the engine like a sweep file's runs."""
+
+    name: str
+    run_list: Tuple[RunSpec, ...]
+
+    def runs(self) -> List[RunSpec]:
+        ids = [r.run_id for r in self.run_list]
+        if len(set(ids)) != len(ids):
+            raise SweepConfigError(f"{self.name}: a run id appears twice ({sorted(ids)})")
+        return list(self.run_list)
+
+
 def _value_text(value: Any) -> str:
     if isinstance(value, bool):
         return str(value).lower()
