@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-ray = pytest.importorskip("ray", reason="ray is a pinned requirement (requirements.txt); run scripts/setup.sh")
+import ray  # (a pinned requirement: missing is a failure, not a skip)
 
 from cottonsim_experiments.sweep.engine import EngineConfig, run_sweep  # noqa: E402
 from cottonsim_experiments.sweep.spec import SweepConfigError, parse_sweep  # noqa: E402
