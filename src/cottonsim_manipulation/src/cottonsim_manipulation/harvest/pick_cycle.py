@@ -20,7 +20,7 @@ reported 'timeout' (the trajectory cancelled, the vacuum off) and the next one
 starts. A failed target's result carries a reason: 'unreachable', 'ik_failed',
 'collision' (from the planner), 'aborted' (the controller failed the
 trajectory), 'capture_missed', 'lost' (the target vanished before the
-capture), 'timeout'. Cycle time per boll: from the stop (first target) or the
+capture), 'timeout', 'cancelled' (cancel(): the trajectory stopped, the vacuum off). Cycle time per boll: from the stop (first target) or the
 previous target's end to its release.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 from cottonsim_common.kinematics.ur5e import joint_vector
 from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
 
-REASONS = ("ok", "unreachable", "ik_failed", "collision", "aborted", "capture_missed", "lost", "timeout")
+REASONS = ("ok", "unreachable", "ik_failed", "collision", "aborted", "capture_missed", "lost", "timeout", "cancelled")
 HALT, APPROACH, CAPTURE, RETREAT, DELIVER, RELEASE, DONE = (
     "halt", "approach", "capture", "retreat", "deliver", "release", "done")
 
@@ -303,6 +303,20 @@ class PickCycle:
         # The arm stopped somewhere on its path: plan the next pick from there (the
         # last known stop; the ROS layer reports the real joints with update_joints).
         return commands + self._next_target(now_s)
+
+    def cancel(self, now_s: float, detail: str = "cancelled") -> list:
+        """End the cycle now: the current and every queued target 'cancelled' (the arm stops, the vacuum goes
+        off, the route resumes). Nothing happens once the cycle is done."""
+        self._check_time(now_s)
+        if self.phase in (None, DONE):
+            return []
+        commands = [CancelTrajectory()] if self.phase in (APPROACH, CAPTURE, RETREAT, DELIVER) else []
+        commands.append(SetVacuum(False))
+        if self._current is not None:
+            self._record("cancelled", detail, now_s)
+        self.results.extend(PickResult(t.target_id, "cancelled", detail, 0.0) for t in self._queue)
+        self._queue = []
+        return commands + self._finish(now_s)
 
     def update_joints(self, q_rad) -> None:
         """The arm's measured joints (the next plan starts from them)."""
