@@ -161,13 +161,22 @@ def test_bad_pick_requests_are_refused(harvester):
 
 
 def test_the_outward_estimates():
-    left, right = (0.7, 0.0, 0.0), (-0.7, 0.1, 0.0)                 # arm +x is the robot's left
-    np.testing.assert_allclose(estimate_outward(left, ARM_T_BASE, "lateral"), [-1.0, 0.0, 0.0], atol=1e-12)
-    np.testing.assert_allclose(estimate_outward(right, ARM_T_BASE, "lateral"), [1.0, 0.0, 0.0], atol=1e-12)
-    radial = estimate_outward((0.6, 0.8, 0.3), ARM_T_BASE, "radial")
+    left = (0.3, 0.5, 0.4)                                          # base_link: x ahead, y left
+    shoulder = (0.3452, 0.0, 0.4135)
+    lateral = HarvestConfig(outward="lateral")
+    np.testing.assert_allclose(estimate_outward(left, [], shoulder, lateral), [0.0, -1.0, 0.0])
+    np.testing.assert_allclose(estimate_outward((0.3, -0.5, 0.4), [], shoulder, lateral), [0.0, 1.0, 0.0])
+    radial = estimate_outward((0.3452 + 0.3, 0.4, 0.4), [], shoulder, HarvestConfig(outward="radial"))
     np.testing.assert_allclose(radial, [-0.6, -0.8, 0.0], atol=1e-12)
-    with pytest.raises(ValueError, match="outward model"):
-        estimate_outward(left, ARM_T_BASE, "up")
+    # plant: the stem on the row line (0.9 m left), along the row at the centre of the plant's targets
+    # (a plant at x 1.0 and its neighbour 0.7 m on; targets of the other row do not count)
+    plant = HarvestConfig(outward="plant", row_offset_m=0.9, plant_half_spacing_m=0.35)
+    targets = [(0.8, 0.6, 0.4), (1.2, 0.6, 0.5), (1.0, 0.55, 0.6), (1.7, 0.6, 0.4), (1.05, -0.6, 0.5)]
+    out = estimate_outward((1.2, 0.6, 0.5), targets, shoulder, plant)
+    expected = np.array([0.2, -0.3, 0.0]) / np.hypot(0.2, 0.3)
+    np.testing.assert_allclose(out, expected, atol=1e-9)
+    # alone: the stem straight across on the row line
+    np.testing.assert_allclose(estimate_outward((1.2, 0.6, 0.5), [], shoulder, plant), [0.0, -1.0, 0.0])
 
 
 def test_transform_points_and_pose_checks():
@@ -182,6 +191,7 @@ def test_transform_points_and_pose_checks():
 @pytest.mark.parametrize("kwargs, word", [
     ({"reach_m": 0.0}, "reach_m"), ({"min_reach_m": 1.5}, "min_reach_m"), ({"stop_ahead_m": math.nan}, "stop_ahead_m"),
     ({"max_targets_per_stop": 0}, "max_targets_per_stop"), ({"outward": "up"}, "outward"),
+    ({"row_offset_m": 0.0}, "row_offset_m"), ({"plant_half_spacing_m": math.inf}, "plant_half_spacing_m"),
     ({"detection_sigma_m": -0.01}, "detection_sigma_m"), ({"stopped_speed_m_s": True}, "stopped_speed_m_s"),
 ])
 def test_bad_configs_are_refused_by_name(kwargs, word):

@@ -13,11 +13,16 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   anyway; at most ``max_targets_per_stop`` targets, the nearest first, are
   picked in the order of harvest.pick_order (short joint travel from the
   pre-grasps planned from the current joints).
-* The boll's outward direction (from its stem, along which the nozzle comes in)
-  is not observed; it is estimated: ``outward`` 'lateral' (default): along the
-  robot's y axis towards the robot's centre line (a boll on the lane-facing
-  side of a row beside the robot faces the lane), or 'radial': horizontal,
-  from the boll towards the shoulder.
+* The boll's outward direction (horizontal, from its stem, along which the
+  nozzle comes in) is not observed; it is estimated (``outward``):
+  'plant' (default): from the estimated stem to the boll. The stem stands on
+  the row's line, ``row_offset_m`` to the boll's side of the robot's centre
+  line (the robot drives on the lane's centre line); along the row it is the
+  centre of the boll's plant: the mean along-track position of the targets on
+  that side within ``plant_half_spacing_m`` of it, iterated from the boll's
+  own (a mean shift; a plant's bolls spread about its stem along the row even
+  when only its lane-facing half is seen). 'lateral': along the robot's y
+  axis towards its centre line. 'radial': from the boll towards the shoulder.
 * Targets carry their fixed-frame position; each is planned when its turn comes,
   from the arm-base pose of that moment (:meth:`Harvester.update_pose`), so
   the robot may still be braking when a stop is decided.
@@ -43,7 +48,7 @@ from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCy
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
 
-OUTWARD_MODELS = ("lateral", "radial")
+OUTWARD_MODELS = ("plant", "lateral", "radial")
 
 # plan(boll position, outward direction, current joints), all in the arm's base frame -> ApproachResult
 Planner = Callable[[np.ndarray, np.ndarray, np.ndarray], object]
@@ -55,7 +60,9 @@ class HarvestConfig:
     min_reach_m: smallest shoulder-to-target distance tried [m].
     stop_ahead_m: stop once a target in reach is at most this far ahead of the shoulder [m] (along base_link x).
     max_targets_per_stop: targets picked in one stop at most.
-    outward: the outward-direction estimate, 'lateral' or 'radial' (module docstring).
+    outward: the outward-direction estimate, 'plant', 'lateral' or 'radial' (module docstring).
+    row_offset_m: 'plant': the rows' stems from the robot's centre line [m] (half the row spacing).
+    plant_half_spacing_m: 'plant': half the plant spacing along the row, the mean shift's window [m].
     detection_sigma_m: 1-sigma position error given to each detection [m].
     stopped_speed_m_s: the robot stands when its odometry speed is at most this [m/s].
     stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s]."""
@@ -64,13 +71,16 @@ class HarvestConfig:
     min_reach_m: float = 0.2
     stop_ahead_m: float = 0.05
     max_targets_per_stop: int = 12
-    outward: str = "lateral"
+    outward: str = "plant"
+    row_offset_m: float = 0.9
+    plant_half_spacing_m: float = 0.35
     detection_sigma_m: float = 0.01
     stopped_speed_m_s: float = 0.02
     stopped_yaw_rate_rad_s: float = 0.02
 
     def __post_init__(self) -> None:
-        for name in ("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s", "stopped_yaw_rate_rad_s"):
+        for name in ("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s", "stopped_yaw_rate_rad_s",
+                     "row_offset_m", "plant_half_spacing_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 < v <= 10.0):
                 raise ValueError(f"HarvestConfig.{name} must be a number in (0, 10], got {v!r}")
@@ -122,18 +132,32 @@ def transform_points(transform, points_m) -> np.ndarray:
     return p @ t[:3, :3].T + t[:3, 3]
 
 
-def estimate_outward(boll_arm_m, arm_T_base, model: str = "lateral") -> np.ndarray:
-    """The boll's outward direction (unit, arm base frame) as HarvestConfig.outward estimates it."""
-    p = np.asarray(boll_arm_m, dtype=float).reshape(3)
-    t = _pose(arm_T_base, "arm_T_base")
-    if model == "lateral":
-        y_base = (np.linalg.inv(t) @ np.append(p, 1.0))[1]
-        return t[:3, :3] @ np.array([0.0, -1.0 if y_base >= 0.0 else 1.0, 0.0])
-    if model == "radial":
-        d = np.array([-p[0], -p[1], 0.0])
-        n = float(np.linalg.norm(d))
-        return d / n if n > 1e-9 else t[:3, :3] @ np.array([-1.0, 0.0, 0.0])
-    raise ValueError(f"unknown outward model {model!r}; use one of {OUTWARD_MODELS}")
+def estimate_outward(boll_base_m, targets_base_m, shoulder_base_m, config: HarvestConfig = HarvestConfig()
+                     ) -> np.ndarray:
+    """The boll's outward direction (unit, horizontal, base_link) as config.outward estimates it.
+
+    boll_base_m: the boll (3,); targets_base_m: every target (N, 3), for the plant's centre; shoulder_base_m:
+    the arm's shoulder (3,); all in base_link [m]."""
+    p = np.asarray(boll_base_m, dtype=float).reshape(3)
+    side = 1.0 if p[1] >= 0.0 else -1.0
+    lateral = np.array([0.0, -side, 0.0])
+    if config.outward == "lateral":
+        return lateral
+    if config.outward == "radial":
+        d = np.asarray(shoulder_base_m, dtype=float).reshape(3) - p
+        d[2] = 0.0
+    else:
+        others = np.asarray(targets_base_m, dtype=float).reshape(-1, 3)
+        along = others[others[:, 1] * side >= 0.0, 0]
+        x = p[0]
+        for _ in range(20):
+            window = along[np.abs(along - x) <= config.plant_half_spacing_m]
+            if not len(window) or abs(window.mean() - x) < 1e-4:
+                break
+            x = float(window.mean())
+        d = np.array([p[0] - x, p[1] - side * config.row_offset_m, 0.0])
+    n = float(np.linalg.norm(d))
+    return d / n if n > 1e-9 else lateral
 
 
 class Harvester:
@@ -149,6 +173,7 @@ class Harvester:
         self.figures = HarvestFigures()
         self.cycle: Optional[PickCycle] = None
         self.last_result: Dict[int, PickResult] = {}
+        self.history: List[PickResult] = []     # every result, in order
         self._plan = plan
         self._shoulder_m = np.array([0.0, 0.0, (kinematics or Ur5eKinematics()).d1_m])
         self._arm_T_frame: Optional[np.ndarray] = None
@@ -249,8 +274,12 @@ class Harvester:
     def _plan_target(self, target: PickTarget, q_rad: np.ndarray):
         """plan_pick of the PickCycle: the target from its fixed-frame position and the arm's pose now."""
         self._require_pose()
-        boll = transform_points(self._arm_T_frame, [target.position_m])[0]
-        return self._plan(boll, estimate_outward(boll, self._arm_T_base, self.config.outward), q_rad)
+        base_T_arm = np.linalg.inv(self._arm_T_base)
+        base_T_frame = base_T_arm @ self._arm_T_frame
+        boll = transform_points(base_T_frame, [target.position_m])[0]
+        others = transform_points(base_T_frame, [t.position_m for t in self.fusion.targets()])
+        outward = estimate_outward(boll, others, transform_points(base_T_arm, [self._shoulder_m])[0], self.config)
+        return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad)
 
     def _ordered(self, targets: List[PickTarget], q_rad) -> List[PickTarget]:
         plans = [(t, self._plan_target(t, np.asarray(q_rad, dtype=float))) for t in targets]
@@ -270,6 +299,7 @@ class Harvester:
         for result in self.cycle.results[self._seen:]:
             self.figures.record(result)
             self.last_result[result.target_id] = result
+            self.history.append(result)
             if result.target_id >= 0:
                 if result.ok:
                     self.fusion.mark_picked(result.target_id)
