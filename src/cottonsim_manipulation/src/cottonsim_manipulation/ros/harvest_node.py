@@ -126,6 +126,7 @@ class HarvestNode:
         self._world_T_base = None
         self._seq = 0                            # the trajectory in flight (0: none)
         self._parking = False
+        self._park_deadline_s = 0.0
         self._route_held = False
         self._request = None                     # the pick request being served
         self._cancel_request = False
@@ -207,7 +208,6 @@ class HarvestNode:
         return SetBoolResponse(True, f"automatic picking {'on' if req.data else 'off'}")
 
     def _on_arm_done(self, seq: int, state: int, result):
-        rospy.loginfo("harvest: DEBUG done seq %d (current %d) state %d %s", seq, self._seq, state, result)
         if state == GoalStatus.SUCCEEDED:
             event = TrajectoryDone()
         elif state in (GoalStatus.ABORTED, GoalStatus.REJECTED, GoalStatus.LOST):
@@ -243,6 +243,8 @@ class HarvestNode:
 
     # ------------------------------------------------------------------ the loop
     def spin(self) -> None:
+        while not rospy.is_shutdown() and not self.arm.wait_for_server(rospy.Duration(1.0)):
+            rospy.logwarn_throttle(10.0, "harvest: waiting for /arm_controller/follow_joint_trajectory")
         rate = rospy.Rate(self.loop_hz)
         while not rospy.is_shutdown():
             try:
@@ -282,6 +284,10 @@ class HarvestNode:
                 self._seq = 0
                 if isinstance(event, TrajectoryFailed):
                     rospy.logwarn("harvest: the move to the ready pose failed: %s", event.detail)
+            if self._parking and now > self._park_deadline_s:
+                rospy.logwarn("harvest: the move to the ready pose took too long; cancelled")
+                self._carry_out([CancelTrajectory()])
+                self._parking = False
         elif h.busy:
             if q is not None:
                 h.update_joints(q)
@@ -353,7 +359,9 @@ class HarvestNode:
                     self._requests.appendleft(request)
             self._route_held = request is None
             self._parking = True
-            self._send(plan_trajectory(np.stack([q, self.ready_rad])))
+            park = plan_trajectory(np.stack([q, self.ready_rad]))
+            self._park_deadline_s = now + park.duration_s + h.cycle_config.motion_margin_s
+            self._send(park)
             return
         if request is None:
             count = min(len(h.in_reach()), self.config.max_targets_per_stop)
@@ -434,7 +442,6 @@ class HarvestNode:
         with self._lock:
             self._seq += 1
             seq = self._seq
-        rospy.loginfo("harvest: DEBUG send seq %d duration %.2f", seq, trajectory.duration_s)
         self.arm.send_goal(goal, done_cb=lambda state, result, s=seq: self._on_arm_done(s, state, result))
 
     # ------------------------------------------------------------------ outputs
