@@ -66,14 +66,14 @@ class HarvestNodeTest(unittest.TestCase):
             cls.contact_events = max(cls.contact_events, msg.total_contact_events)
 
     def wait_for(self, what, condition, wall_timeout_s=120.0):
-        end = time.monotonic() + wall_timeout_s
-        while True:
+        """Poll condition() under the lock every 50 ms of wall time; fail naming `what` after the timeout."""
+        deadline = time.monotonic() + wall_timeout_s
+        while not rospy.is_shutdown() and time.monotonic() < deadline:
             with self.lock:
                 if condition():
                     return
-            self.assertFalse(rospy.is_shutdown())
-            self.assertLess(time.monotonic(), end, f"timed out waiting for {what}")
             rospy.rostime.wallsleep(0.05)
+        self.fail("shut down" if rospy.is_shutdown() else f"timed out waiting for {what}")
 
     def on_plant(self):
         return sum(b.state == Boll.ON_PLANT for b in self.bolls.bolls)

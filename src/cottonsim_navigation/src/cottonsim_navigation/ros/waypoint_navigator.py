@@ -468,8 +468,8 @@ class WaypointNavigatorBase:
                 self.follower.hold(count=False)
             self.publish_state("held", reason="held by request", goal=self.follower.current_goal)
         if d.started or d.ended:
-            rospy.loginfo("%s: route %s: %s", self.NAME, "held" if d.held else "released", self._describe_current())
-        return d.held
+            rospy.loginfo("%s: route %s: %s", self.NAME, "held" if d.halted else "released", self._describe_current())
+        return d.halted
 
     def _describe_current(self) -> str:
         f = self.follower

@@ -8,7 +8,7 @@ publishes "hold" (true) repeatedly, at least every ``max_age_s``, and "release"
     hold.report(True, stamp_s)        # every request received
     d = hold.step(now_s)              # every control cycle
     d.started    -> cancel the goal (the robot stops)
-    d.held       -> keep standing
+    d.halted     -> keep standing
     d.ended      -> send the same goal again
 
 The route is held while the newest request is "hold" and at most
@@ -23,6 +23,8 @@ import math
 from dataclasses import dataclass
 from typing import Optional
 
+from cottonsim_navigation.waypoints.boll_halt import HaltDecision
+
 
 @dataclass(frozen=True)
 class RouteHoldConfig:
@@ -34,15 +36,6 @@ class RouteHoldConfig:
         v = self.max_age_s
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             raise ValueError(f"max_age_s must be a finite number > 0 [s], got {v!r}")
-
-
-@dataclass(frozen=True)
-class HoldDecision:
-    """What one :meth:`RouteHold.step` asks of the navigator."""
-
-    held: bool = False        # the robot must stand still now
-    started: bool = False     # a hold began this step (cancel the goal)
-    ended: bool = False       # a hold ended this step (send the goal again)
 
 
 class RouteHold:
@@ -70,19 +63,19 @@ class RouteHold:
         """True while the newest request is a hold at most max_age_s old."""
         return bool(self._request) and now_s - self._stamp_s <= self.config.max_age_s
 
-    def step(self, now_s: float) -> HoldDecision:
-        """Advance to now_s."""
+    def step(self, now_s: float) -> HaltDecision:
+        """Advance to now_s (the decision is the halt at bolls': halted = held)."""
         if not math.isfinite(now_s):
             raise ValueError(f"now_s must be finite, got {now_s!r}")
         wanted = self.requested(now_s)
         if self._since is None:
             if not wanted:
-                return HoldDecision()
+                return HaltDecision()
             self._since = now_s
             self.holds += 1
-            return HoldDecision(held=True, started=True)
+            return HaltDecision(halted=True, started=True)
         if wanted:
-            return HoldDecision(held=True)
+            return HaltDecision(halted=True)
         self.hold_time_s += max(0.0, now_s - self._since)
         self._since = None
-        return HoldDecision(ended=True)
+        return HaltDecision(ended=True)

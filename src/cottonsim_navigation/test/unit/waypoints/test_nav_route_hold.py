@@ -8,16 +8,16 @@ from cottonsim_navigation.waypoints.route_hold import RouteHold, RouteHoldConfig
 
 def test_a_fresh_hold_stops_the_route_and_the_release_resumes_it():
     hold = RouteHold(RouteHoldConfig(max_age_s=1.0))
-    assert not hold.step(0.0).held
+    assert not hold.step(0.0).halted
     hold.report(True, 0.5)
     d = hold.step(0.6)
-    assert d.held and d.started and not d.ended
+    assert d.halted and d.started and not d.ended
     hold.report(True, 1.2)
     d = hold.step(1.5)
-    assert d.held and not d.started
+    assert d.halted and not d.started
     hold.report(False, 2.0)
     d = hold.step(2.1)
-    assert d.ended and not d.held
+    assert d.ended and not d.halted
     assert hold.holds == 1 and hold.hold_time_s == pytest.approx(1.5)
     assert hold.step(2.2) == hold.step(2.3) and not hold.held     # no second end
 
@@ -26,10 +26,10 @@ def test_a_silent_holder_releases_the_route_after_max_age():
     hold = RouteHold(RouteHoldConfig(max_age_s=1.0))
     hold.report(True, 10.0)
     assert hold.step(10.0).started
-    assert hold.step(10.9).held
+    assert hold.step(10.9).halted
     d = hold.step(11.01)                  # no request for more than max_age_s: the holder is gone
-    assert d.ended and not d.held
-    assert not hold.step(50.0).held        # and it stays released until a new request
+    assert d.ended and not d.halted
+    assert not hold.step(50.0).halted        # and it stays released until a new request
 
 
 def test_stale_and_release_requests_never_start_a_hold():
@@ -37,7 +37,7 @@ def test_stale_and_release_requests_never_start_a_hold():
     hold.report(True, 0.0)
     assert not hold.step(2.0).started      # too old already when first looked at
     hold.report(False, 3.0)
-    assert not hold.step(3.0).held
+    assert not hold.step(3.0).halted
     assert hold.holds == 0
 
 
