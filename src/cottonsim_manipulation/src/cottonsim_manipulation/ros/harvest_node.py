@@ -15,6 +15,8 @@ Subscriptions
   /arm_controller/vacuum/holding (std_msgs/Bool): the nozzle holds a boll (confirms a capture).
 Publications
   ~targets (cottonsim_msgs/BollTargetArray, latched): every target in ~frame, after each change.
+  ~markers (visualization_msgs/MarkerArray, latched): the targets as 4 cm spheres for rviz, grey tentative,
+      yellow confirmed, green picked, red abandoned.
   ~status (std_msgs/String, latched): JSON {"state": idle|parking|picking, "auto": bool, "phase": the pick
       cycle's phase or null, "target": id or null, "route_held": bool, "targets": {state: count},
       "in_reach": ids of the confirmed targets in the arm's workspace now, the nearest first,
@@ -53,9 +55,10 @@ from cottonsim_msgs.msg import (Boll, BollArray, BollDetections, BollTarget, Bol
                                 PickBollFeedback, PickBollResult)
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, String
+from std_msgs.msg import Bool, ColorRGBA, String
 from std_srvs.srv import SetBool, SetBoolResponse
 from trajectory_msgs.msg import JointTrajectoryPoint
+from visualization_msgs.msg import Marker, MarkerArray
 
 from cottonsim_common.kinematics.ur5e import JOINT_NAMES
 from cottonsim_common.ros.params import config_from_params, typed_param
@@ -74,6 +77,8 @@ from cottonsim_manipulation.planning.trajectory import plan_trajectory
 TARGET_SOURCES = ("detections", "ground_truth")
 _TARGET_STATES = {"tentative": BollTarget.TENTATIVE, "confirmed": BollTarget.CONFIRMED,
                   "picked": BollTarget.PICKED, "abandoned": BollTarget.ABANDONED}
+_MARKER_RGB = {"tentative": (0.6, 0.6, 0.6), "confirmed": (1.0, 0.8, 0.0), "picked": (0.1, 0.8, 0.1),
+               "abandoned": (0.9, 0.1, 0.1)}
 READY_TOLERANCE_RAD = 0.02                      # the arm is at its ready pose this close [rad]
 REST_SPEED_RAD_S = 0.01                         # the arm is at rest below this joint speed [rad/s]
 START_TOLERANCE_RAD = 0.01                      # a trajectory starting farther from the arm gets a lead-in [rad]
@@ -136,6 +141,7 @@ class HarvestNode:
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.targets_pub = rospy.Publisher("~targets", BollTargetArray, queue_size=2, latch=True)
+        self.markers_pub = rospy.Publisher("~markers", MarkerArray, queue_size=2, latch=True)
         self.status_pub = rospy.Publisher("~status", String, queue_size=2, latch=True)
         self.hold_pub = rospy.Publisher(typed_param("~hold_topic", "/harvest/hold_route"), Bool, queue_size=2)
         self.arm = actionlib.SimpleActionClient("/arm_controller/follow_joint_trajectory", FollowJointTrajectoryAction)
@@ -457,6 +463,14 @@ class HarvestNode:
             item.position.x, item.position.y, item.position.z = (float(v) for v in t.position_m)
             msg.targets.append(item)
         self.targets_pub.publish(msg)
+        spheres = Marker(header=msg.header, ns="harvest_targets", id=0, type=Marker.SPHERE_LIST, action=Marker.ADD)
+        spheres.pose.orientation.w = 1.0
+        spheres.scale.x = spheres.scale.y = spheres.scale.z = 0.04
+        for t, item in zip(self.harvester.fusion.targets(), msg.targets):
+            spheres.points.append(item.position)
+            r, g, b = _MARKER_RGB[t.state]
+            spheres.colors.append(ColorRGBA(r, g, b, 1.0))
+        self.markers_pub.publish(MarkerArray(markers=[spheres]))
 
     def _publish_status(self, now: float) -> None:
         self._next_status_s = now + self.status_period_s

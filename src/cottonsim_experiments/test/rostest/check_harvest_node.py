@@ -151,4 +151,4 @@ class HarvestNodeTest(unittest.TestCase):
 
 if __name__ == "__main__":
     rospy.init_node("check_harvest_node")
-    rostest.rosrun("cottonsim_manipulation", "harvest_node", HarvestNodeTest)
+    rostest.rosrun("cottonsim_experiments", "harvest_node", HarvestNodeTest)
