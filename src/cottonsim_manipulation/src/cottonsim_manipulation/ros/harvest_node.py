@@ -144,7 +144,8 @@ class HarvestNode:
         self.markers_pub = rospy.Publisher("~markers", MarkerArray, queue_size=2, latch=True)
         self.status_pub = rospy.Publisher("~status", String, queue_size=2, latch=True)
         self.hold_pub = rospy.Publisher(typed_param("~hold_topic", "/harvest/hold_route"), Bool, queue_size=2)
-        self.arm = actionlib.SimpleActionClient("/arm_controller/follow_joint_trajectory", FollowJointTrajectoryAction)
+        self.arm = actionlib.ActionClient("/arm_controller/follow_joint_trajectory", FollowJointTrajectoryAction)
+        self._arm_goal = None                    # the goal handle of the trajectory in flight
         self.vacuum = rospy.ServiceProxy("/arm_controller/vacuum", SetBool)
         rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=5)
         rospy.Subscriber(typed_param("~odom_topic", "/odometry/filtered"), Odometry, self._on_odom, queue_size=5)
@@ -213,11 +214,15 @@ class HarvestNode:
             self.auto = bool(req.data)
         return SetBoolResponse(True, f"automatic picking {'on' if req.data else 'off'}")
 
-    def _on_arm_done(self, seq: int, state: int, result):
+    def _on_arm_transition(self, seq: int, handle):
+        """actionlib transition callback of the trajectory sent as number seq."""
+        if handle.get_comm_state() != actionlib.CommState.DONE:
+            return
+        state, result = handle.get_goal_status(), handle.get_result()
         if state == GoalStatus.SUCCEEDED:
             event = TrajectoryDone()
         elif state in (GoalStatus.ABORTED, GoalStatus.REJECTED, GoalStatus.LOST):
-            event = TrajectoryFailed(getattr(result, "error_string", "") or self.arm.get_goal_status_text())
+            event = TrajectoryFailed(getattr(result, "error_string", "") or handle.get_goal_status_text())
         else:
             return                                   # cancelled or preempted by us
         with self._lock:
@@ -414,7 +419,9 @@ class HarvestNode:
             elif isinstance(command, CancelTrajectory):
                 self._seq = 0
                 self._waiting = None
-                self.arm.cancel_goal()
+                if self._arm_goal is not None:
+                    self._arm_goal.cancel()
+                    self._arm_goal = None
             elif isinstance(command, SetVacuum):
                 try:
                     self.vacuum(command.on)
@@ -448,7 +455,7 @@ class HarvestNode:
         with self._lock:
             self._seq += 1
             seq = self._seq
-        self.arm.send_goal(goal, done_cb=lambda state, result, s=seq: self._on_arm_done(s, state, result))
+        self._arm_goal = self.arm.send_goal(goal, transition_cb=lambda handle, s=seq: self._on_arm_transition(s, handle))
 
     # ------------------------------------------------------------------ outputs
     def _publish_targets(self) -> None:
