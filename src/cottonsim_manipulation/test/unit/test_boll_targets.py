@@ -142,3 +142,21 @@ def test_bad_input():
         TargetFusionConfig(min_gate_m=0.06)
     with pytest.raises(ValueError, match="confirm_observations"):
         TargetFusionConfig(confirm_observations=0)
+    with pytest.raises(ValueError, match="track_observations"):
+        TargetFusionConfig(track_observations=-1)
+
+
+def test_a_tracking_target_follows_a_drifting_boll_and_a_plain_one_lags():
+    """The boll moves 1 mm per frame in the fixed frame (odometry drift): 60 frames, 6 cm in all."""
+    start = np.array([3.0, 12.0, 0.6])
+    plain, tracking = TargetFusion(), TargetFusion(TargetFusionConfig(track_observations=5))
+    for k in range(60):
+        now = start + np.array([0.001 * k, 0.0, 0.0])
+        plain.update([BollDetection3D(now, SIGMA)], 0.1 * k)
+        tracking.update([BollDetection3D(now, SIGMA)], 0.1 * k)
+    assert len(tracking) == 1
+    (target,) = tracking.targets()
+    assert np.linalg.norm(target.position_m - now) < 0.005
+    assert target.sigma_m == pytest.approx(SIGMA / np.sqrt(5))
+    # without tracking the mean stays behind; the boll outruns its gate and becomes a second target
+    assert len(plain) == 2

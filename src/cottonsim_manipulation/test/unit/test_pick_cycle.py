@@ -202,3 +202,22 @@ def test_bad_config_and_input():
     with pytest.raises(RuntimeError, match="already started"):
         cycle.start(1.0)
     assert cycle.current_target_id == 0
+
+
+def test_cancel_stops_the_arm_and_ends_the_cycle_with_every_target_cancelled():
+    cycle = PickCycle(targets(3), START, planner())
+    cycle.start(0.0)
+    assert purposes(cycle.on_event(RobotStopped(), 0.1)) == ["transit"]
+    commands = cycle.cancel(0.5, "stop")
+    assert commands == [CancelTrajectory(), SetVacuum(False), ResumeRoute()] and cycle.done
+    assert [(r.target_id, r.reason, r.detail) for r in cycle.results] == [(0, "cancelled", "stop"),
+                                                                          (1, "cancelled", "stop"),
+                                                                          (2, "cancelled", "stop")]
+    assert cycle.cancel(0.6) == [] and cycle.tick(100.0) == []
+
+
+def test_cancel_while_halting_sends_no_trajectory_cancel():
+    cycle = PickCycle(targets(1), START, planner())
+    cycle.start(0.0)
+    assert cycle.cancel(0.2) == [SetVacuum(False), ResumeRoute()]
+    assert [r.reason for r in cycle.results] == ["cancelled"]

@@ -20,7 +20,7 @@ reported 'timeout' (the trajectory cancelled, the vacuum off) and the next one
 starts. A failed target's result carries a reason: 'unreachable', 'ik_failed',
 'collision' (from the planner), 'aborted' (the controller failed the
 trajectory), 'capture_missed', 'lost' (the target vanished before the
-capture), 'timeout'. Cycle time per boll: from the stop (first target) or the
+capture), 'timeout', 'cancelled' (cancel(): the trajectory stopped, the vacuum off). Cycle time per boll: from the stop (first target) or the
 previous target's end to its release.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 from cottonsim_common.kinematics.ur5e import joint_vector
 from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
 
-REASONS = ("ok", "unreachable", "ik_failed", "collision", "aborted", "capture_missed", "lost", "timeout")
+REASONS = ("ok", "unreachable", "ik_failed", "collision", "aborted", "capture_missed", "lost", "timeout", "cancelled")
 HALT, APPROACH, CAPTURE, RETREAT, DELIVER, RELEASE, DONE = (
     "halt", "approach", "capture", "retreat", "deliver", "release", "done")
 
@@ -47,13 +47,15 @@ class PickCycleConfig:
     motion_margin_s: a motion phase times out after its trajectory's duration plus this margin.
     capture_wait_s: after the approach ends, how long the capture confirmation may take.
     release_dwell_s: time with the vacuum off over the bin before the next target.
-    bin_joints_rad: the arm's joints with the nozzle over the bin (6 values, within the UR5e limits)."""
+    bin_joints_rad: the arm's joints with the nozzle over the bin (6 values, within the UR5e limits); the
+        default puts the nozzle tip 0.40 m above and 0.385 m behind the arm's base, pointing down: at
+        (-0.04, 0.0, 0.65) in base_link, inside the simulator's bin opening, clear of the robot's body."""
 
     halt_timeout_s: float = 5.0
     motion_margin_s: float = 2.0
     capture_wait_s: float = 0.5
     release_dwell_s: float = 0.3
-    bin_joints_rad: Tuple[float, ...] = (math.pi / 2, -2.2, 2.4, -1.77, -math.pi / 2, 0.0)
+    bin_joints_rad: Tuple[float, ...] = (1.924, -2.909, 1.218, 0.121, -1.571, 0.354)
 
     def __post_init__(self) -> None:
         for name in ("halt_timeout_s", "motion_margin_s", "capture_wait_s", "release_dwell_s"):
@@ -303,6 +305,20 @@ class PickCycle:
         # The arm stopped somewhere on its path: plan the next pick from there (the
         # last known stop; the ROS layer reports the real joints with update_joints).
         return commands + self._next_target(now_s)
+
+    def cancel(self, now_s: float, detail: str = "cancelled") -> list:
+        """End the cycle now: the current and every queued target 'cancelled' (the arm stops, the vacuum goes
+        off, the route resumes). Nothing happens once the cycle is done."""
+        self._check_time(now_s)
+        if self.phase in (None, DONE):
+            return []
+        commands = [CancelTrajectory()] if self.phase in (APPROACH, CAPTURE, RETREAT, DELIVER) else []
+        commands.append(SetVacuum(False))
+        if self._current is not None:
+            self._record("cancelled", detail, now_s)
+        self.results.extend(PickResult(t.target_id, "cancelled", detail, 0.0) for t in self._queue)
+        self._queue = []
+        return commands + self._finish(now_s)
 
     def update_joints(self, q_rad) -> None:
         """The arm's measured joints (the next plan starts from them)."""

@@ -16,6 +16,10 @@ with a 1-sigma position uncertainty) are associated with the existing targets:
   targets does not swap its detections);
 * an associated detection updates its target's position by the inverse-variance
   weighted running mean (sigma_target^2 = 1 / sum of 1 / sigma_detection^2);
+  with ``track_observations`` N > 0 the target's weight before an update is
+  capped at N - 1 times the new detection's, so the mean forgets old
+  detections (an exponential window of about N) and follows a source that
+  moves slowly in the fixed frame, as a boll does when the odometry drifts;
 * a detection associated with no target starts a new one, unless it lies
   within ``picked_radius_m`` of a picked boll (a picked boll is never added
   again, even if a detection of its empty place comes in).
@@ -45,7 +49,8 @@ class TargetFusionConfig:
     min_sigma_m: floor on a detection's 1-sigma uncertainty [m].
     confirm_observations: detections after which a target is confirmed.
     picked_radius_m: detections this close to a picked boll are ignored [m].
-    max_attempts: failed picks after which a target is abandoned."""
+    max_attempts: failed picks after which a target is abandoned.
+    track_observations: 0: the mean keeps every detection; N > 0: it follows about the last N (module docstring)."""
 
     gate_sigma: float = 5.0
     min_gate_m: float = 0.025
@@ -54,6 +59,7 @@ class TargetFusionConfig:
     confirm_observations: int = 2
     picked_radius_m: float = 0.03
     max_attempts: int = 2
+    track_observations: int = 0
 
     def __post_init__(self) -> None:
         for name in ("gate_sigma", "min_gate_m", "max_gate_m", "min_sigma_m", "picked_radius_m"):
@@ -62,10 +68,10 @@ class TargetFusionConfig:
                 raise ValueError(f"TargetFusionConfig.{name} must be a number in (0, 10), got {value!r}")
         if self.min_gate_m > self.max_gate_m:
             raise ValueError(f"TargetFusionConfig.min_gate_m {self.min_gate_m} exceeds max_gate_m {self.max_gate_m}")
-        for name in ("confirm_observations", "max_attempts"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (1 <= value <= 1000):
-                raise ValueError(f"TargetFusionConfig.{name} must be an integer in [1, 1000], got {value!r}")
+        for name in ("confirm_observations", "max_attempts", "track_observations"):
+            value, low = getattr(self, name), 0 if name == "track_observations" else 1
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (low <= value <= 1000):
+                raise ValueError(f"TargetFusionConfig.{name} must be an integer in [{low}, 1000], got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -179,6 +185,8 @@ class TargetFusion:
 
     def _absorb(self, target: BollTarget, position: np.ndarray, sigma: float, stamp_s: float) -> None:
         w = 1.0 / (sigma * sigma)
+        if self.config.track_observations:
+            target._weight = min(target._weight, (self.config.track_observations - 1) * w)
         total = target._weight + w
         target.position_m = (target.position_m * target._weight + position * w) / total
         target._weight = total

@@ -28,13 +28,16 @@ sent again; the next halt needs the robot to have moved
 ``~boll_halt/rearm_distance_m`` (:mod:`cottonsim_navigation.waypoints.boll_halt`),
 so a boll that stays in view never stalls the route.
 
+Route hold (``~hold_topic``, e.g. /harvest/hold_route): while a fresh true is there the goal is cancelled
+and the robot stands; released, the same goal is sent again (:mod:`cottonsim_navigation.waypoints.route_hold`).
+
 State (std_msgs/String on ~state, latched): a JSON object
-``{"state": waiting|navigating|returning_home|paused|halted|finished, "index": i (1-based goal), "total": N,
+``{"state": waiting|navigating|returning_home|paused|halted|held|finished, "index": i (1-based goal), "total": N,
 "label": ..., "goal": [x, y, yaw], "succeeded": n, "passed": n (of the succeeded, driven through),
 "aborted": n, "aborted_waypoints": [{"index": i, "label": ..., "reason": move_base's status text}, ...],
 "skipped": n, "returned_home": bool, "home_reached": bool|null, "holds": n (goals held
 while localisation was lost), "halts": n (halts at bolls), "halt_time_s": s (their total sim time),
-"reason": ...}``.
+"route_holds": n, "route_hold_time_s": s (holds by ~hold_topic), "reason": ...}``.
 """
 from __future__ import annotations
 
@@ -56,6 +59,7 @@ from std_msgs.msg import Bool, String
 from cottonsim_common.ros.params import config_from_params
 from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.waypoints.boll_halt import BollHalt, BollHaltConfig, BollVerdicts
+from cottonsim_navigation.waypoints.route_hold import RouteHold, RouteHoldConfig
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
 from cottonsim_navigation.waypoints.goals import pass_through_flags
 from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
@@ -84,6 +88,7 @@ class WaypointNavigatorBase:
       ~bolls_in_reach_topic (std_msgs/Bool, default /cotton_eye/bolls_in_reach; only with ~boll_halt/enabled):
         each boll detection node's verdict per frame; the newest of every publisher (callerid) counts for
         ~boll_halt/max_age_s, and bolls are in reach while any of them is true.
+      ~hold_topic (std_msgs/Bool, default "" = none): route hold requests, see the module docstring.
     Publications
       ~state (std_msgs/String, latched): JSON state, see the module docstring.
     Action client
@@ -108,6 +113,7 @@ class WaypointNavigatorBase:
       ~boll_halt/enabled (bool, true), ~boll_halt/dwell_s (float, 2.0 s), ~boll_halt/rearm_distance_m
         (float, 0.7 m), ~boll_halt/min_gap_s (float, 1.0 s), ~boll_halt/max_age_s (float, 1.0 s): the halt at
         bolls (waypoints.boll_halt.BollHaltConfig; config/boll_halt.yaml); the way Home never halts
+      ~route_hold/max_age_s (float, 1.0 s): a hold request on ~hold_topic older than this releases the route
     """
 
     NAME = "waypoint_navigator"
@@ -167,6 +173,7 @@ class WaypointNavigatorBase:
             raise NavigatorStartError("~waypoints_file is not set")
         try:
             self.halt_config = config_from_params(BollHaltConfig, "~boll_halt/")
+            self.route_hold = RouteHold(config_from_params(RouteHoldConfig, "~route_hold/"))
         except ValueError as exc:
             raise NavigatorStartError(str(exc)) from None
         try:
@@ -201,6 +208,10 @@ class WaypointNavigatorBase:
             rospy.Subscriber(topic, Bool, self._on_bolls_in_reach, queue_size=10)
             rospy.loginfo("%s: halting %.1f s while %s reports bolls in reach", self.NAME,
                           self.halt_config.dwell_s, topic)
+        hold_topic = str(rospy.get_param("~hold_topic", ""))
+        if hold_topic:
+            rospy.Subscriber(hold_topic, Bool, self._on_hold, queue_size=10)
+            rospy.loginfo("%s: standing while %s holds the route", self.NAME, hold_topic)
 
     # ------------------------------------------------------------------ inputs
     def _on_battery(self, msg: BatteryState):
@@ -221,6 +232,10 @@ class WaypointNavigatorBase:
         source = getattr(msg, "_connection_header", {}).get("callerid", "")
         with self._lock:
             self._verdicts.report(source, bool(msg.data), rospy.get_time())
+
+    def _on_hold(self, msg: Bool):
+        with self._lock:
+            self.route_hold.report(bool(msg.data), rospy.get_time())
 
     def localisation_lost(self) -> bool:
         """The localiser was localised once and now says it is not (kidnap, re-initialisation)."""
@@ -265,6 +280,7 @@ class WaypointNavigatorBase:
                "skipped": s.skipped if s else 0, "returned_home": s.returned_home if s else False,
                "home_reached": s.home_reached if s else None, "holds": s.holds if s else 0,
                "halts": self.boll_halt.halts, "halt_time_s": round(self.boll_halt.halt_time_s, 3),
+               "route_holds": self.route_hold.holds, "route_hold_time_s": round(self.route_hold.hold_time_s, 3),
                "reason": reason or (s.stopped_reason if s else "")}
         self.state_pub.publish(String(data=json.dumps(msg)))
 
@@ -392,7 +408,7 @@ class WaypointNavigatorBase:
                               reason, "going on with the route" if self.follower_config.on_failure == "skip"
                               else "stopping")
             f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED, reason)
-        elif lost or self._paused_since is not None or self.boll_halt.halted:
+        elif lost or self._paused_since is not None or self.boll_halt.halted or self.route_hold.held:
             pass                         # paused, halted or resuming: no pass-through or time-out of a held goal
         elif f.current_is_pass_through and self._passed_current():
             rospy.loginfo("%s: goal %d passed (within %.2f m); on to the next", self.NAME, f.index,
@@ -411,7 +427,7 @@ class WaypointNavigatorBase:
             rospy.loginfo("%s: localised again after %.1f s (sim): resuming %s", self.NAME,
                           (rospy.Time.now() - self._paused_since).to_sec(), self._describe_current())
             self._paused_since = None
-        if self._halt_at_bolls():
+        if self._held_by_request() or self._halt_at_bolls():
             return
         goal = f.next_goal(localisation_ready=True)
         if goal is not None:
@@ -440,6 +456,19 @@ class WaypointNavigatorBase:
             self.publish_state("halted", reason="bolls in reach", goal=f.current_goal)
         elif d.ended:
             rospy.loginfo("%s: halt %d done: resuming %s", self.NAME, self.boll_halt.halts, self._describe_current())
+        return d.halted
+
+    def _held_by_request(self) -> bool:
+        """The route hold (~hold_topic) for this cycle; True while the robot stands (no goal may be sent)."""
+        with self._lock:
+            d = self.route_hold.step(rospy.get_time())
+        if d.started:
+            if self.follower.state is FollowerState.ACTIVE:
+                self._cancel_active()          # move_base stops the robot
+                self.follower.hold(count=False)
+            self.publish_state("held", reason="held by request", goal=self.follower.current_goal)
+        if d.started or d.ended:
+            rospy.loginfo("%s: route %s: %s", self.NAME, "held" if d.halted else "released", self._describe_current())
         return d.halted
 
     def _describe_current(self) -> str:

@@ -1,0 +1,309 @@
+"""The harvest of a moving robot, free of ROS: boll targets in a fixed frame, stops, pick cycles, figures.
+
+The robot knows its bolls as targets in a fixed frame (odom or map; harvest.targets
+fuses the 3-D detections). :class:`Harvester` decides when to stop and what to
+pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
+
+* Workspace: a confirmed target is *in reach* when its distance from the
+  shoulder (the arm's base frame origin raised by the UR5e's d1) is within
+  [``min_reach_m``, ``reach_m``]; the approach planner decides the rest.
+* A stop starts (:meth:`Harvester.want_stop`) when a target in reach lies no
+  more than ``stop_ahead_m`` ahead of the shoulder along the robot's heading
+  (base_link x: the robot has come abeam of it), or when the robot stands
+  anyway; at most ``max_targets_per_stop`` targets, the nearest first, are
+  picked in the order of harvest.pick_order (short joint travel from the
+  pre-grasps planned from the current joints).
+* The boll's outward direction (horizontal, from its stem, along which the
+  nozzle comes in) is not observed; it is estimated (``outward``):
+  'plant' (default): from the estimated stem to the boll. The stem stands on
+  the row's line, ``row_offset_m`` to the boll's side of the robot's centre
+  line (the robot drives on the lane's centre line); along the row it is the
+  centre of the boll's plant: the mean along-track position of the targets on
+  that side within ``plant_half_spacing_m`` of it, iterated from the boll's
+  own (a mean shift; a plant's bolls spread about its stem along the row even
+  when only its lane-facing half is seen). 'lateral': along the robot's y
+  axis towards its centre line. 'radial': from the boll towards the shoulder.
+* Targets carry their fixed-frame position; each is planned when its turn comes,
+  from the arm-base pose of that moment (:meth:`Harvester.update_pose`), so
+  the robot may still be braking when a stop is decided.
+* Results: an 'ok' marks the target picked (harvest.targets never adds it
+  again), any other reason counts a failed attempt (abandoned after
+  TargetFusionConfig.max_attempts). Pick goals for a point (no target) get
+  negative ids and only count in the figures.
+
+Frames: ``frame`` is the fixed frame of the targets; poses are 4x4 matrices:
+arm_T_frame maps fixed-frame points into the arm's base frame (the UR 'base'),
+arm_T_base base_link into it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Dict, List, Optional, Sequence
+
+import numpy as np
+
+from cottonsim_common.kinematics.ur5e import Ur5eKinematics
+from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
+from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks
+from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
+
+OUTWARD_MODELS = ("plant", "lateral", "radial")
+
+# plan(boll position, outward direction, current joints), all in the arm's base frame -> ApproachResult
+Planner = Callable[[np.ndarray, np.ndarray, np.ndarray], object]
+
+
+@dataclass(frozen=True)
+class HarvestConfig:
+    """reach_m: largest shoulder-to-target distance tried [m] (UR5e: 0.85 m to the flange, + the nozzle).
+    min_reach_m: smallest shoulder-to-target distance tried [m].
+    stop_ahead_m: stop once a target in reach is at most this far ahead of the shoulder [m] (along base_link x).
+    max_targets_per_stop: targets picked in one stop at most.
+    outward: the outward-direction estimate, 'plant', 'lateral' or 'radial' (module docstring).
+    row_offset_m: 'plant': the rows' stems from the robot's centre line [m] (half the row spacing).
+    plant_half_spacing_m: 'plant': half the plant spacing along the row, the mean shift's window [m].
+    detection_sigma_m: 1-sigma position error given to each detection [m].
+    stopped_speed_m_s: the robot stands when its odometry speed is at most this [m/s].
+    stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s]."""
+
+    reach_m: float = 1.0
+    min_reach_m: float = 0.2
+    stop_ahead_m: float = 0.05
+    max_targets_per_stop: int = 12
+    outward: str = "plant"
+    row_offset_m: float = 0.9
+    plant_half_spacing_m: float = 0.35
+    detection_sigma_m: float = 0.01
+    stopped_speed_m_s: float = 0.02
+    stopped_yaw_rate_rad_s: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name in ("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s", "stopped_yaw_rate_rad_s",
+                     "row_offset_m", "plant_half_spacing_m"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 < v <= 10.0):
+                raise ValueError(f"HarvestConfig.{name} must be a number in (0, 10], got {v!r}")
+        if self.min_reach_m >= self.reach_m:
+            raise ValueError(f"HarvestConfig.min_reach_m {self.min_reach_m} must be below reach_m {self.reach_m}")
+        v = self.stop_ahead_m
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and abs(v) <= 10.0):
+            raise ValueError(f"HarvestConfig.stop_ahead_m must be a number in [-10, 10] m, got {v!r}")
+        v = self.max_targets_per_stop
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not (1 <= v <= 1000):
+            raise ValueError(f"HarvestConfig.max_targets_per_stop must be an integer in [1, 1000], got {v!r}")
+        if self.outward not in OUTWARD_MODELS:
+            raise ValueError(f"HarvestConfig.outward must be one of {OUTWARD_MODELS}, got {self.outward!r}")
+
+
+@dataclass
+class HarvestFigures:
+    """Counts of pick results per reason, the cycle times of the picked bolls [s], stops made."""
+
+    results: Dict[str, int] = field(default_factory=lambda: {r: 0 for r in REASONS})
+    cycle_times_s: List[float] = field(default_factory=list)
+    stops: int = 0
+
+    def record(self, result: PickResult) -> None:
+        self.results[result.reason] = self.results.get(result.reason, 0) + 1
+        if result.ok:
+            self.cycle_times_s.append(float(result.cycle_time_s))
+
+    def as_dict(self) -> dict:
+        t = np.asarray(self.cycle_times_s, dtype=float)
+        return {"results": dict(self.results), "picked": self.results.get("ok", 0),
+                "attempted": int(sum(self.results.values())), "stops": self.stops,
+                "cycle_time_median_s": float(np.median(t)) if t.size else None,
+                "cycle_time_p95_s": float(np.percentile(t, 95)) if t.size else None,
+                "cycle_times_s": [round(float(x), 3) for x in t]}
+
+
+def _pose(matrix, what: str) -> np.ndarray:
+    t = np.asarray(matrix, dtype=float)
+    if t.shape != (4, 4) or not np.all(np.isfinite(t)):
+        raise ValueError(f"{what} must be a finite 4x4 matrix")
+    return t
+
+
+def transform_points(transform, points_m) -> np.ndarray:
+    """Points (N, 3) [m] moved by a 4x4 rigid transform."""
+    t = _pose(transform, "the transform")
+    p = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    return p @ t[:3, :3].T + t[:3, 3]
+
+
+def estimate_outward(boll_base_m, targets_base_m, shoulder_base_m, config: HarvestConfig = HarvestConfig()
+                     ) -> np.ndarray:
+    """The boll's outward direction (unit, horizontal, base_link) as config.outward estimates it.
+
+    boll_base_m: the boll (3,); targets_base_m: every target (N, 3), for the plant's centre; shoulder_base_m:
+    the arm's shoulder (3,); all in base_link [m]."""
+    p = np.asarray(boll_base_m, dtype=float).reshape(3)
+    side = 1.0 if p[1] >= 0.0 else -1.0
+    lateral = np.array([0.0, -side, 0.0])
+    if config.outward == "lateral":
+        return lateral
+    if config.outward == "radial":
+        d = np.asarray(shoulder_base_m, dtype=float).reshape(3) - p
+        d[2] = 0.0
+    else:
+        others = np.asarray(targets_base_m, dtype=float).reshape(-1, 3)
+        along = others[others[:, 1] * side >= 0.0, 0]
+        x = p[0]
+        for _ in range(20):
+            window = along[np.abs(along - x) <= config.plant_half_spacing_m]
+            if not len(window) or abs(window.mean() - x) < 1e-4:
+                break
+            x = float(window.mean())
+        d = np.array([p[0] - x, p[1] - side * config.row_offset_m, 0.0])
+    n = float(np.linalg.norm(d))
+    return d / n if n > 1e-9 else lateral
+
+
+class Harvester:
+    """Targets, stops and pick cycles of one run; see the module docstring."""
+
+    def __init__(self, plan: Planner, config: HarvestConfig = HarvestConfig(), fusion: Optional[TargetFusion] = None,
+                 cycle_config: PickCycleConfig = PickCycleConfig(), order_config: PickOrderConfig = PickOrderConfig(),
+                 kinematics: Optional[Ur5eKinematics] = None):
+        self.config = config
+        self.fusion = fusion or TargetFusion()
+        self.cycle_config = cycle_config
+        self.order_config = order_config
+        self.figures = HarvestFigures()
+        self.cycle: Optional[PickCycle] = None
+        self.last_result: Dict[int, PickResult] = {}
+        self.history: List[PickResult] = []     # every result, in order
+        self._plan = plan
+        self._shoulder_m = np.array([0.0, 0.0, (kinematics or Ur5eKinematics()).d1_m])
+        self._arm_T_frame: Optional[np.ndarray] = None
+        self._arm_T_base: Optional[np.ndarray] = None
+        self._next_point_id = -1
+        self._seen = 0
+
+    # ------------------------------------------------------------------ inputs
+    @property
+    def busy(self) -> bool:
+        return self.cycle is not None and not self.cycle.done
+
+    def update_pose(self, arm_T_frame, arm_T_base) -> None:
+        """The arm base's pose now: fixed frame -> arm base, base_link -> arm base (4x4)."""
+        self._arm_T_frame = _pose(arm_T_frame, "arm_T_frame")
+        self._arm_T_base = _pose(arm_T_base, "arm_T_base")
+
+    def add_detections(self, points_frame_m, stamp_s: float, sigma_m: Optional[float] = None) -> List[int]:
+        """One frame's boll centres (N, 3) in the fixed frame; returns the target id of each (-1: ignored)."""
+        points = np.asarray(points_frame_m, dtype=float).reshape(-1, 3)
+        sigma = self.config.detection_sigma_m if sigma_m is None else sigma_m
+        return self.fusion.update([BollDetection3D(p, sigma) for p in points], stamp_s)
+
+    # ------------------------------------------------------------------ decisions
+    def _require_pose(self) -> None:
+        if self._arm_T_frame is None:
+            raise RuntimeError("the arm base's pose is not known yet (update_pose)")
+
+    def in_reach(self) -> List[BollTarget]:
+        """Confirmed targets within the arm's workspace now, the nearest to the shoulder first."""
+        self._require_pose()
+        targets = self.fusion.open_targets()
+        if not targets:
+            return []
+        arm = transform_points(self._arm_T_frame, [t.position_m for t in targets])
+        distance = np.linalg.norm(arm - self._shoulder_m, axis=1)
+        ok = (distance >= self.config.min_reach_m) & (distance <= self.config.reach_m)
+        return [targets[i] for i in np.argsort(distance, kind="stable") if ok[i]]
+
+    def want_stop(self, robot_stopped: bool) -> bool:
+        """Whether to stop for a pick now (not while a cycle runs)."""
+        if self.busy:
+            return False
+        reach = self.in_reach()
+        if not reach:
+            return False
+        if robot_stopped:
+            return True
+        base = transform_points(np.linalg.inv(self._arm_T_base) @ self._arm_T_frame, [t.position_m for t in reach])
+        shoulder_x = (np.linalg.inv(self._arm_T_base) @ np.append(self._shoulder_m, 1.0))[0]
+        return bool(np.any(base[:, 0] - shoulder_x <= self.config.stop_ahead_m))
+
+    def start_stop(self, q_current_rad, now_s: float) -> list:
+        """Start a stop over the targets in reach (their pick order from q_current_rad); the first commands."""
+        if self.busy:
+            raise RuntimeError("a pick cycle is running")
+        chosen = self.in_reach()[: self.config.max_targets_per_stop]
+        targets = [PickTarget(t.target_id, tuple(t.position_m), (0.0, 0.0, 0.0)) for t in chosen]
+        self.figures.stops += 1
+        return self._start(self._ordered(targets, q_current_rad), q_current_rad, now_s)
+
+    def start_pick(self, q_current_rad, now_s: float, target_id: Optional[int] = None, point_frame_m=None) -> list:
+        """Start a cycle for one boll: a target by id, or a point (fixed frame). ValueError when the target is
+        unknown or already picked, or the point is not 3 finite numbers; RuntimeError while a cycle runs."""
+        if self.busy:
+            raise RuntimeError("a pick cycle is running")
+        if target_id is not None:
+            try:
+                target = self.fusion.target(int(target_id))
+            except KeyError:
+                raise ValueError(f"no boll target {target_id}") from None
+            if target.state == "picked":
+                raise ValueError(f"boll target {target_id} is picked already")
+            pick = PickTarget(target.target_id, tuple(target.position_m), (0.0, 0.0, 0.0))
+        else:
+            p = np.asarray(point_frame_m, dtype=float).reshape(-1)
+            if p.shape != (3,) or not np.all(np.isfinite(p)):
+                raise ValueError(f"the point must be 3 finite numbers [m], got {point_frame_m!r}")
+            pick = PickTarget(self._next_point_id, tuple(p), (0.0, 0.0, 0.0))
+            self._next_point_id -= 1
+        return self._start([pick], q_current_rad, now_s)
+
+    # ------------------------------------------------------------------ the running cycle
+    def on_event(self, event, now_s: float) -> list:
+        return self._collect(self.cycle.on_event(event, now_s)) if self.busy else []
+
+    def tick(self, now_s: float) -> list:
+        return self._collect(self.cycle.tick(now_s)) if self.busy else []
+
+    def cancel(self, now_s: float, detail: str = "cancelled") -> list:
+        return self._collect(self.cycle.cancel(now_s, detail)) if self.busy else []
+
+    def update_joints(self, q_rad) -> None:
+        if self.busy:
+            self.cycle.update_joints(q_rad)
+
+    # ------------------------------------------------------------------ internals
+    def _plan_target(self, target: PickTarget, q_rad: np.ndarray):
+        """plan_pick of the PickCycle: the target from its fixed-frame position and the arm's pose now."""
+        self._require_pose()
+        base_T_arm = np.linalg.inv(self._arm_T_base)
+        base_T_frame = base_T_arm @ self._arm_T_frame
+        boll = transform_points(base_T_frame, [target.position_m])[0]
+        others = transform_points(base_T_frame, [t.position_m for t in self.fusion.targets()])
+        outward = estimate_outward(boll, others, transform_points(base_T_arm, [self._shoulder_m])[0], self.config)
+        return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad)
+
+    def _ordered(self, targets: List[PickTarget], q_rad) -> List[PickTarget]:
+        plans = [(t, self._plan_target(t, np.asarray(q_rad, dtype=float))) for t in targets]
+        ok = [(t, r) for t, r in plans if r.ok]
+        order = order_picks([t.target_id for t, _ in ok], np.array([r.plan.q_pregrasp_rad for _, r in ok]),
+                            q_rad, self.order_config).target_ids if ok else []
+        by_id = {t.target_id: t for t in targets}
+        return [by_id[i] for i in order] + [t for t, r in plans if not r.ok]
+
+    def _start(self, targets: Sequence[PickTarget], q_rad, now_s: float) -> list:
+        self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config)
+        self._seen = 0
+        return self._collect(self.cycle.start(now_s))
+
+    def _collect(self, commands: list) -> list:
+        """Take the cycle's new results into the targets and the figures."""
+        for result in self.cycle.results[self._seen:]:
+            self.figures.record(result)
+            self.last_result[result.target_id] = result
+            self.history.append(result)
+            if result.target_id >= 0:
+                if result.ok:
+                    self.fusion.mark_picked(result.target_id)
+                elif result.reason != "cancelled":
+                    self.fusion.mark_failed(result.target_id)
+        self._seen = len(self.cycle.results)
+        return commands

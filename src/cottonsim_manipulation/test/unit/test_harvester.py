@@ -1,0 +1,216 @@
+"""The harvest of a robot (harvest.harvester): targets from detections, when to stop, a stop's picks with the
+real planner on a hand-built plant row, single picks of points, cancel, and the figures."""
+import math
+
+import numpy as np
+import pytest
+from hand_built_scene import GROUND_Z_M, STOW_RAD, plant_row
+
+from cottonsim_common.kinematics.ur5e import forward_kinematics
+from cottonsim_manipulation.harvest.capture import check_capture, nozzle_tip
+from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester, estimate_outward, transform_points
+from cottonsim_manipulation.harvest.pick_cycle import (
+    CancelTrajectory,
+    CaptureConfirmed,
+    CaptureMissed,
+    HaltRoute,
+    ResumeRoute,
+    RobotStopped,
+    SendTrajectory,
+    SetVacuum,
+    TrajectoryDone,
+)
+from cottonsim_manipulation.harvest.targets import CONFIRMED, PICKED, TENTATIVE
+from cottonsim_manipulation.planning.approach import plan_approach
+
+# base_link -> the arm's base frame (URDF: the arm base 0.3452 m ahead, 0.251 m up, turned +90 deg about z).
+BASE_T_ARM = np.array([[0.0, -1.0, 0.0, 0.3452], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.251], [0, 0, 0, 1.0]])
+ARM_T_BASE = np.linalg.inv(BASE_T_ARM)
+NOZZLE_M = 0.15
+# Bolls in the arm's base frame (x: the robot's left), their true outward directions.
+BOLLS = {
+    "a": ((0.7, 0.05, GROUND_Z_M + 0.6), (-1.0, 0.2, 0.0)),
+    "b": ((0.72, -0.3, GROUND_Z_M + 0.5), (-1.0, -0.3, 0.0)),
+    "c": ((0.68, 0.35, GROUND_Z_M + 0.75), (-1.0, 0.1, 0.0)),
+}
+FAR = (3.0, 0.0, GROUND_Z_M + 0.6)
+
+
+@pytest.fixture
+def harvester(model):
+    plants = plant_row()
+    # The hand-built bolls face their own outward directions (within 17 deg of the robot's y axis), not away
+    # from a stem: the 'lateral' estimate fits them (the 'plant' estimate is tested on its own below).
+    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model, plants), HarvestConfig(outward="lateral"))
+    h.update_pose(np.eye(4), ARM_T_BASE)       # the fixed frame is the arm's base frame here
+    return h
+
+
+def see(h, points, times=(0.0, 0.1)):
+    for t in times:
+        h.add_detections(np.array(points), t)
+
+
+def drive(h, commands, now=0.0, capture=True):
+    """Play the arm and the vacuum until the cycle ends; the commands seen, the end time."""
+    q, seen, vacuum = STOW_RAD.copy(), list(commands), False
+    events = [RobotStopped()]
+    for _ in range(200):
+        if not h.busy:
+            break
+        for event in events:
+            commands = h.on_event(event, now)
+            seen += commands
+        events = []
+        vacuum = next((c.on for c in reversed(commands) if isinstance(c, SetVacuum)), vacuum)
+        sent = [c for c in commands if isinstance(c, SendTrajectory)]
+        if sent:
+            now += sent[0].trajectory.duration_s
+            q = sent[0].trajectory.waypoints_rad[-1]
+            h.update_joints(q)
+            if sent[0].purpose == "approach":
+                tip, axis = nozzle_tip(forward_kinematics(q), NOZZLE_M)
+                hits = [check_capture(tip, axis, p, n) for p, n in BOLLS.values()]
+                if capture and vacuum and any(c.captured for c in hits):
+                    events.append(CaptureConfirmed())
+            events.append(TrajectoryDone())
+        else:
+            now += 0.1
+            commands = h.tick(now)
+            seen += commands
+    assert not h.busy
+    return seen, now
+
+
+def test_detections_become_confirmed_targets_and_only_those_in_reach_count(harvester):
+    see(harvester, [p for p, _ in BOLLS.values()] + [FAR], times=(0.0,))
+    assert all(t.state == TENTATIVE for t in harvester.fusion.targets())
+    assert harvester.in_reach() == [] and not harvester.want_stop(robot_stopped=True)
+    see(harvester, [p for p, _ in BOLLS.values()] + [FAR], times=(0.1,))
+    assert len(harvester.fusion.open_targets()) == 4
+    near = harvester.in_reach()
+    assert len(near) == 3 and all(np.linalg.norm(t.position_m - FAR) > 1.0 for t in near)
+    assert harvester.want_stop(robot_stopped=True)
+
+
+def test_a_moving_robot_stops_once_it_is_abeam_of_a_target(model):
+    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model), HarvestConfig(stop_ahead_m=0.05))
+    ahead = (0.7, -0.4, GROUND_Z_M + 0.6)            # arm -y is ahead of the robot (base_link +x)
+    see(h, [ahead])
+    h.update_pose(np.eye(4), ARM_T_BASE)
+    assert not h.want_stop(robot_stopped=False) and h.want_stop(robot_stopped=True)
+    moved = np.eye(4)
+    moved[1, 3] = 0.42                               # the robot drove 0.42 m on: the boll is abeam
+    h.update_pose(moved, ARM_T_BASE)
+    assert h.want_stop(robot_stopped=False)
+
+
+def test_a_stop_picks_every_reachable_boll_and_records_the_figures(harvester):
+    see(harvester, [p for p, _ in BOLLS.values()] + [FAR])
+    commands = harvester.start_stop(STOW_RAD, 0.0)
+    assert commands == [HaltRoute()] and harvester.busy
+    seen, end = drive(harvester, commands)
+    assert ResumeRoute() in seen
+    states = {tuple(np.round(t.position_m, 3)): t.state for t in harvester.fusion.targets()}
+    assert [states[tuple(np.round(p, 3))] for p, _ in BOLLS.values()] == [PICKED] * 3
+    assert states[tuple(np.round(FAR, 3))] == CONFIRMED           # out of reach: not tried
+    figures = harvester.figures.as_dict()
+    assert figures["picked"] == 3 and figures["attempted"] == 3 and figures["stops"] == 1
+    assert len(figures["cycle_times_s"]) == 3 and 0.0 < figures["cycle_time_median_s"] < end
+    # the picked bolls are never added again, nor is a stop wanted for them
+    see(harvester, [p for p, _ in BOLLS.values()], times=(5.0, 5.1))
+    assert len(harvester.fusion.targets()) == 4 and not harvester.want_stop(robot_stopped=True)
+
+
+def test_the_detection_path_noisy_detections_over_frames_are_fused_and_picked(harvester):
+    """The side cameras' path: every boll seen in 20 frames with 5 mm noise (and a stray false detection in
+    one frame, never confirmed): the fused targets are picked, each capture checked against the truth."""
+    rng = np.random.default_rng(3)
+    truth = np.array([p for p, _ in BOLLS.values()])
+    for k in range(20):
+        harvester.add_detections(truth + rng.normal(0.0, 0.005, truth.shape), 0.05 * k, sigma_m=0.005)
+    harvester.add_detections([(0.6, 0.2, GROUND_Z_M + 0.3)], 0.5, sigma_m=0.005)
+    assert len(harvester.fusion.open_targets()) == 3 and len(harvester.fusion) == 4
+    errors = [min(np.linalg.norm(truth - t.position_m, axis=1)) for t in harvester.fusion.open_targets()]
+    assert max(errors) < 0.005
+    drive(harvester, harvester.start_stop(STOW_RAD, 0.0))
+    assert harvester.figures.results["ok"] == 3 and harvester.figures.as_dict()["attempted"] == 3
+
+
+def test_missed_captures_count_as_failed_attempts(harvester):
+    see(harvester, [BOLLS["a"][0]])
+    drive(harvester, harvester.start_stop(STOW_RAD, 0.0), capture=False)
+    target = harvester.fusion.targets()[0]
+    assert target.attempts == 1 and target.state == CONFIRMED
+    assert harvester.figures.results["capture_missed"] == 1 and harvester.figures.results["ok"] == 0
+    assert harvester.last_result[target.target_id].reason == "capture_missed"
+
+
+def test_a_point_out_of_reach_is_unreachable_and_leaves_the_targets_alone(harvester):
+    commands = harvester.start_pick(STOW_RAD, 0.0, point_frame_m=FAR)
+    drive(harvester, commands)
+    (result,) = harvester.last_result.values()
+    assert result.target_id < 0 and result.reason == "unreachable"
+    assert len(harvester.fusion) == 0
+
+
+def test_a_cancelled_pick_stops_the_arm_and_keeps_the_target(harvester):
+    see(harvester, [BOLLS["a"][0]])
+    target_id = harvester.fusion.targets()[0].target_id
+    commands = harvester.start_pick(STOW_RAD, 0.0, target_id=target_id)
+    commands = harvester.on_event(RobotStopped(), 0.1)
+    assert isinstance(commands[0], SendTrajectory) and commands[0].purpose == "transit"
+    commands = harvester.cancel(0.5)
+    assert CancelTrajectory() in commands and SetVacuum(False) in commands and not harvester.busy
+    assert harvester.last_result[target_id].reason == "cancelled"
+    assert harvester.fusion.target(target_id).state == CONFIRMED and harvester.fusion.target(target_id).attempts == 0
+
+
+def test_bad_pick_requests_are_refused(harvester):
+    with pytest.raises(ValueError, match="no boll target 7"):
+        harvester.start_pick(STOW_RAD, 0.0, target_id=7)
+    with pytest.raises(ValueError, match="3 finite numbers"):
+        harvester.start_pick(STOW_RAD, 0.0, point_frame_m=(1.0, math.nan, 0.0))
+    see(harvester, [BOLLS["a"][0]])
+    harvester.start_stop(STOW_RAD, 0.0)
+    with pytest.raises(RuntimeError, match="running"):
+        harvester.start_pick(STOW_RAD, 0.0, target_id=0)
+
+
+def test_the_outward_estimates():
+    left = (0.3, 0.5, 0.4)                                          # base_link: x ahead, y left
+    shoulder = (0.3452, 0.0, 0.4135)
+    lateral = HarvestConfig(outward="lateral")
+    np.testing.assert_allclose(estimate_outward(left, [], shoulder, lateral), [0.0, -1.0, 0.0])
+    np.testing.assert_allclose(estimate_outward((0.3, -0.5, 0.4), [], shoulder, lateral), [0.0, 1.0, 0.0])
+    radial = estimate_outward((0.3452 + 0.3, 0.4, 0.4), [], shoulder, HarvestConfig(outward="radial"))
+    np.testing.assert_allclose(radial, [-0.6, -0.8, 0.0], atol=1e-12)
+    # plant: the stem on the row line (0.9 m left), along the row at the centre of the plant's targets
+    # (a plant at x 1.0 and its neighbour 0.7 m on; targets of the other row do not count)
+    plant = HarvestConfig(outward="plant", row_offset_m=0.9, plant_half_spacing_m=0.35)
+    targets = [(0.8, 0.6, 0.4), (1.2, 0.6, 0.5), (1.0, 0.55, 0.6), (1.7, 0.6, 0.4), (1.05, -0.6, 0.5)]
+    out = estimate_outward((1.2, 0.6, 0.5), targets, shoulder, plant)
+    expected = np.array([0.2, -0.3, 0.0]) / np.hypot(0.2, 0.3)
+    np.testing.assert_allclose(out, expected, atol=1e-9)
+    # alone: the stem straight across on the row line
+    np.testing.assert_allclose(estimate_outward((1.2, 0.6, 0.5), [], shoulder, plant), [0.0, -1.0, 0.0])
+
+
+def test_transform_points_and_pose_checks():
+    np.testing.assert_allclose(transform_points(BASE_T_ARM, [[1.0, 0.0, 0.0]]), [[0.3452, 1.0, 0.251]])
+    with pytest.raises(ValueError, match="4x4"):
+        transform_points(np.eye(3), [[0.0, 0.0, 0.0]])
+    h = Harvester(lambda p, n, q: None)
+    with pytest.raises(RuntimeError, match="pose is not known"):
+        h.in_reach()
+
+
+@pytest.mark.parametrize("kwargs, word", [
+    ({"reach_m": 0.0}, "reach_m"), ({"min_reach_m": 1.5}, "min_reach_m"), ({"stop_ahead_m": math.nan}, "stop_ahead_m"),
+    ({"max_targets_per_stop": 0}, "max_targets_per_stop"), ({"outward": "up"}, "outward"),
+    ({"row_offset_m": 0.0}, "row_offset_m"), ({"plant_half_spacing_m": math.inf}, "plant_half_spacing_m"),
+    ({"detection_sigma_m": -0.01}, "detection_sigma_m"), ({"stopped_speed_m_s": True}, "stopped_speed_m_s"),
+])
+def test_bad_configs_are_refused_by_name(kwargs, word):
+    with pytest.raises(ValueError, match=word):
+        HarvestConfig(**kwargs)
