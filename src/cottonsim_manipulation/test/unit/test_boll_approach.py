@@ -6,7 +6,7 @@ import pytest
 from hand_built_scene import GROUND_Z_M, STOW_RAD, plant_row
 
 from cottonsim_common.kinematics.ur5e import forward_kinematics, inverse_kinematics_batch, link_frames
-from cottonsim_manipulation.harvest.capture import check_capture, nozzle_tip
+from cottonsim_common.vacuum_capture import check_capture, nozzle_tip
 from cottonsim_manipulation.planning.approach import (
     ApproachConfig,
     plan_approach,

@@ -7,7 +7,7 @@ import pytest
 from hand_built_scene import GROUND_Z_M, STOW_RAD, plant_row
 
 from cottonsim_common.kinematics.ur5e import forward_kinematics
-from cottonsim_manipulation.harvest.capture import check_capture, nozzle_tip
+from cottonsim_common.vacuum_capture import check_capture, nozzle_tip
 from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester, estimate_outward, transform_points
 from cottonsim_manipulation.harvest.pick_cycle import (
     CancelTrajectory,

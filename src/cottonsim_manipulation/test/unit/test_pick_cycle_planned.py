@@ -4,7 +4,7 @@ import numpy as np
 from hand_built_scene import GROUND_Z_M, STOW_RAD, plant_row
 
 from cottonsim_common.kinematics.ur5e import forward_kinematics
-from cottonsim_manipulation.harvest.capture import CaptureConfig, check_capture, nozzle_tip
+from cottonsim_common.vacuum_capture import CaptureConfig, check_capture, nozzle_tip
 from cottonsim_manipulation.harvest.pick_cycle import (
     CaptureConfirmed,
     CaptureMissed,

@@ -62,7 +62,7 @@ class ApproachConfig:
     tilt_samples_rad: approach directions tried in turn: the outward direction
         turned upwards by each angle (the nozzle then comes from above, which
         reaches low bolls near the robot); the first that gives a plan wins [rad].
-        Keep them inside the capture cone (harvest.capture).
+        Keep them inside the capture cone (cottonsim_common.vacuum_capture).
     """
 
     pregrasp_distance_m: float = 0.10

@@ -2,7 +2,7 @@
 
 The simulation models no air flow: while the vacuum is on and the nozzle
 holds nothing, the nozzle captures the nearest open boll when the capture
-rule of cottonsim_manipulation.harvest.capture holds (tip within
+rule of cottonsim_common.vacuum_capture holds (tip within
 ``capture_radius_m`` of the boll's centre, the nozzle axis within
 ``cone_half_angle_rad`` of the boll's inward direction); the boll leaves its
 plant (``BollStore.attach``) and from then on travels with the tool (its
@@ -20,7 +20,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from cottonsim_manipulation.harvest.capture import CaptureConfig, check_capture
+from cottonsim_common.vacuum_capture import CaptureConfig, check_capture
 from cottonsim_world.robot.boll_store import BollStore
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cottonsim_common.kinematics.ur5e import forward_kinematics
-from cottonsim_manipulation.harvest.capture import CaptureConfig, check_capture, find_capture, nozzle_tip
+from cottonsim_common.vacuum_capture import CaptureConfig, check_capture, find_capture, nozzle_tip
 
 BOLL = np.array([0.6, 0.1, 0.2])
 OUTWARD = np.array([-1.0, 0.0, 0.0])      # the nozzle must point along +x

@@ -1,5 +1,7 @@
 """The vacuum nozzle's capture rule: when does the nozzle take a boll?
 
+Shared: the simulator's nozzle applies it, the robot-side approach planner aims inside it.
+
 The simulation does not model air flow or the fibre's pull-off force; a boll
 is captured when the nozzle tip is within ``capture_radius_m`` of the boll's
 centre and the nozzle points into the boll: the angle between the nozzle axis
