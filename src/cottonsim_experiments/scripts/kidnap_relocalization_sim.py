@@ -37,7 +37,7 @@ from cottonsim_navigation.localization.free_space_model import FreeSpaceConfig  
 from cottonsim_navigation.localization.quality import LocalizationQualityConfig  # noqa: E402
 from cottonsim_navigation.localization.sensor_models import Scan  # noqa: E402
 from cottonsim_navigation.localization.supervisor import LocalizationSupervisor, SupervisorConfig  # noqa: E402
-from cottonsim_navigation.ros.params import config_from_params  # noqa: E402
+from cottonsim_common.ros.params import config_from_params  # noqa: E402
 from cottonsim_world.config_io import simulator_config_from_dict  # noqa: E402
 from cottonsim_world.farm.config import FarmConfig  # noqa: E402
 from cottonsim_world.farm.export import load_map_yaml, world_to_frame  # noqa: E402

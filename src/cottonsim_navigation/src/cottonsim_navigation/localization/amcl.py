@@ -30,7 +30,8 @@ from typing import Optional
 
 import numpy as np
 
-from ..core.geometry import Pose2D, compose, inverse, normalize_angle
+from cottonsim_common.angles import wrap_angle
+from cottonsim_common.pose import Pose2D, compose, inverse
 from ..core.grid import GridSpec
 from .motion_models import OdometryMotionModelConfig, _as_pose_array, motion_parts, sample_motion_model_odometry
 from .particle_filter import FreeSpaceSampler, ParticleFilter, ParticleFilterConfig
@@ -236,7 +237,7 @@ class Amcl:
             self._force_update = True
         delta = odom - self._odom_ref
         moved = (abs(delta[0]) > self.config.update_min_d_m or abs(delta[1]) > self.config.update_min_d_m
-                 or abs(normalize_angle(delta[2])) > self.config.update_min_a_rad)
+                 or abs(wrap_angle(delta[2])) > self.config.update_min_a_rad)
         updated = resampled = False
         parts = 0
         if moved or self._force_update:

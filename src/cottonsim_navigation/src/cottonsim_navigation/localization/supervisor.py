@@ -40,7 +40,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..core.geometry import Pose2D, compose
+from cottonsim_common.pose import Pose2D, compose
 from ..core.grid import GridSpec
 from .amcl import Amcl, AmclResult
 from .free_space_model import FreeSpaceCheckedField, FreeSpaceConfig

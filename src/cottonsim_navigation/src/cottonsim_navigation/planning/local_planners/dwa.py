@@ -54,7 +54,9 @@ try:
 except ImportError as exc:  # pragma: no cover
     raise ImportError("the DWA planner needs numba (pip install numba)") from exc
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.angles import shortest_angular_distance
+from cottonsim_common.pose import Pose2D, as_pose
+from cottonsim_navigation.core.footprint import footprint_outline_points
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from cottonsim_navigation.planning.base import LocalPlanner, LocalPlannerStatus, register_local_planner
 
@@ -225,7 +227,7 @@ class DWAPlanner(LocalPlanner):
         return self.plan[-1] if len(self.plan) else None
 
     # --- goal checks -----------------------------------------------------------
-    def _xy_reached(self, pose: geo.Pose2D) -> bool:
+    def _xy_reached(self, pose: Pose2D) -> bool:
         g = self.goal
         if g is None:
             return False
@@ -237,19 +239,19 @@ class DWAPlanner(LocalPlanner):
         return reached
 
     def is_goal_reached(self, pose, velocity) -> bool:
-        pose = geo.as_pose(pose)
+        pose = as_pose(pose)
         v, w = (float(velocity[0]), float(velocity[1]))
         g = self.goal
         if g is None:
             return False
         if not self._xy_reached(pose):
             return False
-        if abs(geo.shortest_angular_distance(pose.yaw_rad, g[2])) > self.config.yaw_goal_tolerance:
+        if abs(shortest_angular_distance(pose.yaw_rad, g[2])) > self.config.yaw_goal_tolerance:
             return False
         return abs(v) <= self.config.trans_stopped_vel and abs(w) <= self.config.theta_stopped_vel
 
     # --- helpers -----------------------------------------------------------------
-    def _local_plan(self, pose: geo.Pose2D, spec) -> np.ndarray:
+    def _local_plan(self, pose: Pose2D, spec) -> np.ndarray:
         """Plan from the point nearest the robot (never going backwards) while inside the map."""
         # nearest of the next points (a bounded look-ahead, so a path that later
         # passes near the robot again is not cut short); progress never goes back
@@ -263,12 +265,12 @@ class DWAPlanner(LocalPlanner):
         leave = np.flatnonzero(~inside)
         return rest[: leave[0]] if leave.size else rest
 
-    def _update_oscillation(self, pose: geo.Pose2D) -> None:
+    def _update_oscillation(self, pose: Pose2D) -> None:
         if self._osc_ref is None:
             return
         x, y, th = self._osc_ref
         if (math.hypot(pose.x_m - x, pose.y_m - y) >= self.config.oscillation_reset_dist
-                or abs(geo.shortest_angular_distance(th, pose.yaw_rad)) >= self.config.oscillation_reset_angle):
+                or abs(shortest_angular_distance(th, pose.yaw_rad)) >= self.config.oscillation_reset_angle):
             self._osc_sign = 0
             self._osc_ref = None
 
@@ -281,7 +283,7 @@ class DWAPlanner(LocalPlanner):
             nv = math.copysign(max(0.0, abs(v) - c.acc_lim_x * dt), v)
             nw = math.copysign(max(0.0, abs(w) - c.acc_lim_theta * dt), w)
             return nv, nw, LocalPlannerStatus.ROTATING_TO_GOAL
-        err = geo.shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))
+        err = shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))
         # fastest speed from which we can still stop at the goal yaw, counting that the command is
         # held for a whole control period before the next one can brake: w dt + w^2 / (2 a) = |err|.
         # (ROS's sqrt(2 a |err|) assumes braking starts at once; at 5 Hz it overshoots by up to
@@ -291,7 +293,7 @@ class DWAPlanner(LocalPlanner):
         w_cmd = min(c.max_rot_vel, w_stop, abs(w) + c.acc_lim_theta * dt)
         w_cmd = max(c.min_rot_vel, w_cmd)
         w_cmd = math.copysign(w_cmd, err)
-        turned = geo.Pose2D(pose.x_m, pose.y_m, pose.yaw_rad + w_cmd * dt)
+        turned = Pose2D(pose.x_m, pose.y_m, pose.yaw_rad + w_cmd * dt)
         if _footprint_collides(costmap, np.array([[turned.x_m]]), np.array([[turned.y_m]]),
                                np.array([[turned.yaw_rad]]))[0]:
             return 0.0, 0.0, LocalPlannerStatus.NO_VALID_TRAJECTORY
@@ -300,7 +302,7 @@ class DWAPlanner(LocalPlanner):
     # --- main -------------------------------------------------------------------------
     def compute_velocity(self, pose, velocity, costmap) -> Tuple[float, float, LocalPlannerStatus]:
         c = self.config
-        pose = geo.as_pose(pose)
+        pose = as_pose(pose)
         try:
             v0, w0 = float(velocity[0]), float(velocity[1])
         except (TypeError, IndexError, ValueError):
@@ -316,7 +318,7 @@ class DWAPlanner(LocalPlanner):
         if self._xy_reached(pose):
             if self.is_goal_reached(pose, (v0, w0)):
                 return 0.0, 0.0, LocalPlannerStatus.GOAL_REACHED
-            if abs(geo.shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))) <= c.yaw_goal_tolerance:
+            if abs(shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))) <= c.yaw_goal_tolerance:
                 # aligned: just brake to a stop
                 dt = 1.0 / c.controller_frequency
                 nv = math.copysign(max(0.0, abs(v0) - c.acc_lim_x * dt), v0)
@@ -493,7 +495,7 @@ def _scan_trajectories(costs, ox, oy, res, xs, ys, ths, outline):
 def _footprint_collides(costmap, xs, ys, ths, return_cost: bool = False):
     """Collision flags (S,) and highest footprint cost (S,) of trajectories (S, K) of poses."""
     spec = costmap.spec
-    outline = geo.footprint_outline_points(np.asarray(costmap.footprint, dtype=float), spec.resolution_m)
+    outline = footprint_outline_points(np.asarray(costmap.footprint, dtype=float), spec.resolution_m)
     collide, occ = _scan_trajectories(np.ascontiguousarray(costmap.costs, dtype=np.uint8),
                                       float(spec.origin_x_m), float(spec.origin_y_m), float(spec.resolution_m),
                                       np.ascontiguousarray(xs, dtype=float), np.ascontiguousarray(ys, dtype=float),
