@@ -295,10 +295,10 @@ def test_camera_kernels_release_the_gil_and_render_alike_in_threads(farm_scene):
     # the simulator may run the sensor kernels in a worker thread next to the physics: they must not hold the GIL
     import threading
 
-    from cottonsim_world.sensors.fast import raster
+    from cottonsim_world.sensors.fast import image_compose, raster
 
-    for kernel in (raster._draw_plants, raster._clip_near_and_draw, raster._compose,
-                   raster._fill_cloud_xyzrgb):
+    for kernel in (raster.draw_plants, raster._clip_near_and_draw, image_compose.compose_image,
+                   image_compose.fill_cloud_xyzrgb):
         assert kernel.targetoptions.get("nogil") is True, kernel
     cams = [CameraModel(farm_scene, CameraConfig(width=160, height=120)) for _ in range(2)]
     lane = farm_scene.farm.lanes[1]
