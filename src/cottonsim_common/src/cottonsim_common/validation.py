@@ -20,6 +20,14 @@ def is_number(value) -> bool:
     return isinstance(value, _NUMBER_TYPES) and not isinstance(value, bool)
 
 
+def require_instance(name: str, value, cls: type):
+    """``value`` itself when it is an instance of ``cls``, else ValueError naming ``name`` and both types."""
+    if not isinstance(value, cls):
+        article = "an" if cls.__name__[:1].lower() in "aeiou" else "a"
+        raise ValueError(f"{name} must be {article} {cls.__name__}, got {type(value).__name__}")
+    return value
+
+
 def require_number(name: str, value, low: float = -math.inf, high: float = math.inf) -> float:
     """A finite number in [low, high] as a float."""
     if not is_number(value):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cottonsim_common.validation import (is_number, require_finite, require_finite_array, require_finite_values,
-                                         require_int, require_min_max, require_number, require_positive)
+                                         require_instance, require_int, require_min_max, require_number, require_positive)
 
 
 def test_numbers_and_bounds():
@@ -44,3 +44,12 @@ def test_integers_pairs_and_arrays():
         require_finite_array("points", [1, 2, 3], (None, 2))
     with pytest.raises(ValueError, match="points contains NaN"):
         require_finite_array("points", [math.nan])
+
+
+def test_require_instance_returns_the_value_or_names_both_types():
+    config = {"a": 1}
+    assert require_instance("config", config, dict) is config
+    with pytest.raises(ValueError, match=r"^config must be a dict, got list$"):
+        require_instance("config", [], dict)
+    with pytest.raises(ValueError, match=r"^amcl must be an int, got str$"):
+        require_instance("amcl", "x", int)

@@ -32,7 +32,7 @@ from typing import Tuple, Union
 
 import numpy as np
 
-from cottonsim_common.validation import require_finite_array
+from cottonsim_common.validation import require_finite_array, require_instance
 
 WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
@@ -183,8 +183,7 @@ class GpsNoiseModel:
     """
 
     def __init__(self, config: GpsNoiseConfig = GpsNoiseConfig()) -> None:
-        if not isinstance(config, GpsNoiseConfig):
-            raise ValueError(f"config must be a GpsNoiseConfig, got {type(config).__name__}")
+        require_instance("config", config, GpsNoiseConfig)
         self.config = config
         self._offset = tuple(config.offset_m)
         self._freq = np.array(config.drift_frequency_hz)

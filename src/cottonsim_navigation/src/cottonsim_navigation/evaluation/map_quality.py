@@ -42,6 +42,8 @@ import numpy as np
 from scipy import ndimage
 from scipy.signal import fftconvolve
 
+from cottonsim_common.validation import require_instance
+
 OCCUPIED_DEFAULT = 65     # OccupancyGrid values >= this are occupied (map_server occupied_thresh 0.65)
 
 
@@ -230,8 +232,7 @@ def evaluate_map(map_grid, map_resolution_m: float, map_origin: Sequence[float],
                  config: MapQualityConfig = MapQualityConfig()) -> MapQuality:
     """Align ``map_grid`` to ``truth_grid`` (both OccupancyGrid-valued, origins (x_m, y_m, yaw_rad) of
     cell (0, 0)'s corner in the same nominal frame) and score it; see the module docstring."""
-    if not isinstance(config, MapQualityConfig):
-        raise ValueError(f"config must be a MapQualityConfig, got {type(config).__name__}")
+    require_instance("config", config, MapQualityConfig)
     mg, mres, mo = _check_grid("map", map_grid, map_resolution_m, map_origin)
     tg, tres, to = _check_grid("truth", truth_grid, truth_resolution_m, truth_origin)
     if not (mg >= config.occupied_value).any():

@@ -32,6 +32,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
+from cottonsim_common.validation import require_instance
 from ..core.grid import GridSpec
 from .motion_models import OdometryMotionModelConfig, _as_pose_array, motion_parts, sample_motion_model_odometry
 from .particle_filter import FreeSpaceSampler, ParticleFilter, ParticleFilterConfig
@@ -163,8 +164,7 @@ class Amcl:
     """
 
     def __init__(self, config: AmclConfig = AmclConfig(), rng: Optional[np.random.Generator] = None) -> None:
-        if not isinstance(config, AmclConfig):
-            raise ValueError(f"config must be an AmclConfig, got {type(config).__name__}")
+        require_instance("config", config, AmclConfig)
         self.config = config
         self.rng = rng if rng is not None else np.random.default_rng()
         self.filter = ParticleFilter(config.filter_config(), self.rng)
@@ -227,8 +227,7 @@ class Amcl:
         """Feed one scan with the odometry pose at its time; see the module docstring."""
         if self.field is None:
             raise ValueError("Amcl.update needs a map: call set_map first")
-        if not isinstance(scan, Scan):
-            raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
+        require_instance("scan", scan, Scan)
         odom = _as_pose_array(odom_pose, "odom_pose")
         if not self.initialised:
             self.initialise(self.config.initial_pose)

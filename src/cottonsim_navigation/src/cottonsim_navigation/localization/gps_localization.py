@@ -65,6 +65,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
+from cottonsim_common.validation import require_instance
 
 
 @dataclass(frozen=True)
@@ -231,8 +232,7 @@ class GpsLocalizer:
 
     @staticmethod
     def _check(stamp_s: float, odom_pose: Pose2D, **values: float) -> None:
-        if not isinstance(odom_pose, Pose2D):
-            raise ValueError(f"odom_pose must be a Pose2D, got {type(odom_pose).__name__}")
+        require_instance("odom_pose", odom_pose, Pose2D)
         for name, v in dict(values, stamp_s=stamp_s).items():
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{name} must be a finite number, got {v!r}")

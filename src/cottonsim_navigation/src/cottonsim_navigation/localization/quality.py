@@ -62,6 +62,7 @@ from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from .particle_filter import mean_resultant_length
 from .sensor_models import LikelihoodField, Scan
 
@@ -249,8 +250,7 @@ class LocalizationMonitor:
     """Hysteresis over (spread, fit) checks; :attr:`localized` is the current verdict."""
 
     def __init__(self, config: LocalizationQualityConfig = LocalizationQualityConfig()) -> None:
-        if not isinstance(config, LocalizationQualityConfig):
-            raise ValueError(f"config must be a LocalizationQualityConfig, got {type(config).__name__}")
+        require_instance("config", config, LocalizationQualityConfig)
         self.config = config
         self.localized = False
         self._streak = 0
@@ -331,8 +331,7 @@ class StationaryUpdatePolicy:
     """
 
     def __init__(self, config: LocalizationQualityConfig = LocalizationQualityConfig()) -> None:
-        if not isinstance(config, LocalizationQualityConfig):
-            raise ValueError(f"config must be a LocalizationQualityConfig, got {type(config).__name__}")
+        require_instance("config", config, LocalizationQualityConfig)
         self.config = config
         self.relocalizing = False
         self._last_s: Optional[float] = None

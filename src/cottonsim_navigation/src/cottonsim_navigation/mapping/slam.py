@@ -46,6 +46,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
+from cottonsim_common.validation import require_instance
 
 from ..core.grid import GridSpec
 from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
@@ -149,8 +150,7 @@ class SlamConfig:
                 raise ValueError(f"need finite {lo} < {hi}, got {a}, {b}")
         if not isinstance(self.heading_track_rate, bool):
             raise ValueError(f"heading_track_rate must be true or false, got {self.heading_track_rate!r}")
-        if not isinstance(self.matcher, ScanMatcherConfig):
-            raise ValueError(f"matcher must be a ScanMatcherConfig, got {type(self.matcher).__name__}")
+        require_instance("matcher", self.matcher, ScanMatcherConfig)
 
     def motion_config(self) -> OdometryMotionModelConfig:
         """gmapping's noise as the alpha model: rot<-rot stt^2, rot<-trans str^2, trans<-trans srr^2, trans<-rot srt^2."""
@@ -191,8 +191,7 @@ class RbpfSlam:
     """
 
     def __init__(self, config: SlamConfig = SlamConfig(), rng: Optional[np.random.Generator] = None) -> None:
-        if not isinstance(config, SlamConfig):
-            raise ValueError(f"config must be a SlamConfig, got {type(config).__name__}")
+        require_instance("config", config, SlamConfig)
         self.config = config
         self.rng = rng if rng is not None else np.random.default_rng()
         self.spec = config.map_spec()
@@ -228,8 +227,7 @@ class RbpfSlam:
         Given, the particles move with the odometry whose heading the IMU holds (:class:`HeadingFuser`);
         call with every scan (also those not processed) so that the filter sees the whole odometry.
         """
-        if not isinstance(scan, Scan):
-            raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
+        require_instance("scan", scan, Scan)
         raw = _as_pose_array(odom_pose, "odom_pose")
         if not (isinstance(stamp_s, (int, float)) and math.isfinite(stamp_s)):
             raise ValueError(f"stamp_s must be a finite number, got {stamp_s!r}")

@@ -64,6 +64,7 @@ import numpy as np
 
 from cottonsim_common.angles import shortest_angular_distance, wrap_angle
 from cottonsim_common.pose import Pose2D, as_pose, compose, inverse, transform_points
+from cottonsim_common.validation import require_instance
 from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
 from cottonsim_navigation.move_base.goal_checks import blocked_goal_reason, plan_blocked_at
 from cottonsim_navigation.move_base.recovery import RecoveryBehaviour, RotateRecoveryConfig, make_recovery
@@ -147,8 +148,7 @@ class MoveBase:
                  recoveries: Optional[Sequence[RecoveryBehaviour]] = None,
                  vision: VisionBiasConfig = VisionBiasConfig(),
                  rotate: RotateRecoveryConfig = RotateRecoveryConfig()):
-        if not isinstance(config, MoveBaseConfig):
-            raise ValueError(f"config must be a MoveBaseConfig, got {type(config).__name__}")
+        require_instance("config", config, MoveBaseConfig)
         self.config = config
         self.vision = vision
         self.global_costmap = global_costmap

@@ -33,6 +33,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.farm.model import PlantModel, Primitive, SemanticClass, TriangleMesh
 
 GOLDEN_ANGLE_RAD = math.pi * (3.0 - math.sqrt(5.0))   # ~137.5 deg, cotton's spiral phyllotaxy
@@ -251,8 +252,7 @@ def build_cotton_plant(config: CottonPlantConfig = CottonPlantConfig(),
     rng: a numpy Generator (consumed) or an integer seed.
     Returns a PlantModel in plant-local coordinates (stem foot at the origin).
     """
-    if not isinstance(config, CottonPlantConfig):
-        raise ValueError(f"config must be a CottonPlantConfig, got {type(config).__name__}")
+    require_instance("config", config, CottonPlantConfig)
     if rng is None or isinstance(rng, (int, np.integer)):
         rng = np.random.default_rng(rng)
     elif not isinstance(rng, np.random.Generator):

@@ -29,6 +29,7 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.faults.schedule import (ALL_CAMERAS, FIX_TYPE_STATUS, GPS_KINDS, GPS_STATUS_NO_FIX,
                                              FaultScheduleConfig, FaultSpec)
 
@@ -73,8 +74,7 @@ class FaultInjector:
 
     def __init__(self, schedule: FaultScheduleConfig, cameras: Sequence[str], radius_north_m: float,
                  radius_east_m: float):
-        if not isinstance(schedule, FaultScheduleConfig):
-            raise ValueError(f"schedule must be a FaultScheduleConfig, got {type(schedule).__name__}")
+        require_instance("schedule", schedule, FaultScheduleConfig)
         for name, v in (("radius_north_m", radius_north_m), ("radius_east_m", radius_east_m)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a radius > 0 [m], got {v!r}")

@@ -36,6 +36,7 @@ from typing import Optional, Tuple
 import numpy as np
 import pybullet as pb
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.fast.image_compose import compose_image, fill_cloud_xyzrgb, tile_texture
 from cottonsim_world.sensors.fast.raster import draw_plants
@@ -190,10 +191,8 @@ class CameraModel:
     """
 
     def __init__(self, scene: SensorScene, config: CameraConfig = CameraConfig()) -> None:
-        if not isinstance(scene, SensorScene):
-            raise ValueError(f"scene must be a SensorScene, got {type(scene).__name__}")
-        if not isinstance(config, CameraConfig):
-            raise ValueError(f"config must be a CameraConfig, got {type(config).__name__}")
+        require_instance("scene", scene, SensorScene)
+        require_instance("config", config, CameraConfig)
         self.scene = scene
         self.config = config
         self._intr = self._make_intrinsics()
