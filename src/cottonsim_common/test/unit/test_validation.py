@@ -53,3 +53,27 @@ def test_require_instance_returns_the_value_or_names_both_types():
         require_instance("config", [], dict)
     with pytest.raises(ValueError, match=r"^amcl must be an int, got str$"):
         require_instance("amcl", "x", int)
+
+
+def test_assert_config_rejects_fails_for_an_accepted_value_or_an_error_that_does_not_name_the_key():
+    from dataclasses import dataclass
+
+    from cottonsim_common.testing import assert_config_rejects
+
+    @dataclass
+    class Config:
+        rate_hz: float = 1.0
+        name: str = "a"
+
+        def __post_init__(self):
+            require_positive("rate_hz", self.rate_hz)
+            if self.name not in ("a", "b"):
+                raise ValueError("bad value")          # does not name the key
+
+    assert_config_rejects(Config, ("rate_hz", 0.0), ("rate_hz", -1.0, r"rate_hz must be a finite number > 0"))
+    with pytest.raises(AssertionError, match=r"Config\(rate_hz=2.0\) was accepted"):
+        assert_config_rejects(Config, ("rate_hz", 2.0))
+    with pytest.raises(AssertionError, match="does not name 'name'"):
+        assert_config_rejects(Config, ("name", "c"))
+    with pytest.raises(AssertionError, match="does not name 'rate_hz'"):
+        assert_config_rejects(Config, ("rate_hz", 0.0, "no such text"))
