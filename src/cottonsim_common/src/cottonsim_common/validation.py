@@ -80,15 +80,18 @@ def require_min_max(name: str, value, low: float = -math.inf, high: float = math
     return lo, hi
 
 
-def require_finite_values(name: str, value, count: int) -> Tuple[float, ...]:
-    """Exactly ``count`` finite numbers as a tuple of floats (e.g. a map origin [x, y, yaw])."""
+def require_finite_values(name: str, value, count: int, low: float = -math.inf) -> Tuple[float, ...]:
+    """Exactly ``count`` finite numbers >= ``low`` as a tuple of floats (e.g. a map origin [x, y, yaw])."""
     try:
         values = tuple(value)
     except TypeError:
         raise ValueError(f"{name} must be {count} numbers, got {value!r}") from None
     if len(values) != count:
         raise ValueError(f"{name} must be {count} numbers, got {value!r}")
-    return tuple(require_finite(f"{name}[{i}]", v) for i, v in enumerate(values))
+    values = tuple(require_finite(f"{name}[{i}]", v) for i, v in enumerate(values))
+    if any(v < low for v in values):
+        raise ValueError(f"{name} must be {count} finite numbers >= {low:g}, got {value!r}")
+    return values
 
 
 def require_finite_array(name: str, value, shape: Optional[Sequence[Optional[int]]] = None) -> np.ndarray:

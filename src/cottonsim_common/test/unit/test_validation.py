@@ -39,6 +39,8 @@ def test_integers_pairs_and_arrays():
         require_finite_values("origin", [1, math.nan, 0], 3)
     with pytest.raises(ValueError, match="origin must be 3 numbers"):
         require_finite_values("origin", [1, 2], 3)
+    with pytest.raises(ValueError, match=r"covariance must be 2 finite numbers >= 0, got \(0.1, -0.1\)"):
+        require_finite_values("covariance", (0.1, -0.1), 2, low=0.0)
     assert require_finite_array("points", [[1, 2]], (None, 2)).shape == (1, 2)
     with pytest.raises(ValueError, match=r"points must have shape \(N, 2\)"):
         require_finite_array("points", [1, 2, 3], (None, 2))

@@ -29,6 +29,7 @@ import numpy as np
 
 from cottonsim_common.angles import shortest_angular_distance
 from cottonsim_common.pose import Pose2D
+from cottonsim_common.validation import require_positive
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE
 from cottonsim_navigation.planning.costmap import Costmap2D, ObstacleLayer
 
@@ -133,13 +134,9 @@ class RotateRecoveryConfig:
 
     def __post_init__(self) -> None:
         for name in ("max_rotational_vel", "acc_lim_th", "sim_granularity_rad", "lookahead_rad"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         for name in ("min_in_place_rotational_vel", "tolerance_rad"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         if self.min_in_place_rotational_vel > self.max_rotational_vel:
             raise ValueError(f"min_in_place_rotational_vel ({self.min_in_place_rotational_vel}) exceeds "
                              f"max_rotational_vel ({self.max_rotational_vel})")

@@ -359,13 +359,3 @@ class AmclNode:
         t = self._map_to_odom
         self.tf_pub.sendTransform(transform_msg(self.map_frame, self.odom_frame, (t.x_m, t.y_m, 0.0),
                                                 yaw_to_quaternion(t.yaw_rad), stamp))
-
-
-def main():
-    rospy.init_node("amcl")
-    try:
-        AmclNode()
-    except ValueError as exc:
-        rospy.logfatal(f"amcl: {exc}")
-        raise SystemExit(2)
-    rospy.spin()
