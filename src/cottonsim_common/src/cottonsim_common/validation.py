@@ -107,3 +107,17 @@ def require_finite_array(name: str, value, shape: Optional[Sequence[Optional[int
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} contains NaN or infinite values")
     return arr
+
+
+def require_unit_vector(name: str, value, size: int, zero_name: str = "zero") -> np.ndarray:
+    """``size`` finite numbers, not all zero, scaled to unit length (a direction, a quaternion) as an array.
+
+    zero_name: what a zero vector is called in the error (``"{name} must not be {zero_name}"``).
+    """
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
+    norm = float(np.linalg.norm(arr))
+    if norm < 1e-9:
+        raise ValueError(f"{name} must not be {zero_name}")
+    return arr / norm

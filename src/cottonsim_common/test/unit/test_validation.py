@@ -79,3 +79,15 @@ def test_assert_config_rejects_fails_for_an_accepted_value_or_an_error_that_does
         assert_config_rejects(Config, ("name", "c"))
     with pytest.raises(AssertionError, match="does not name 'rate_hz'"):
         assert_config_rejects(Config, ("rate_hz", 0.0, "no such text"))
+
+
+def test_require_unit_vector_scales_to_length_one_and_names_a_zero_or_bad_vector():
+    from cottonsim_common.validation import require_unit_vector
+
+    np.testing.assert_allclose(require_unit_vector("axis", [0.0, 3.0, 4.0], 3), [0.0, 0.6, 0.8])
+    with pytest.raises(ValueError, match=r"axis must be 3 finite numbers"):
+        require_unit_vector("axis", [0.0, math.inf, 1.0], 3)
+    with pytest.raises(ValueError, match=r"q must be 4 finite numbers"):
+        require_unit_vector("q", [0.0, 0.0, 1.0], 4)
+    with pytest.raises(ValueError, match="q must not be the zero quaternion"):
+        require_unit_vector("q", [0.0] * 4, 4, "the zero quaternion")
