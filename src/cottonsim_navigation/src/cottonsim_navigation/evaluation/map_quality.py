@@ -42,7 +42,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.signal import fftconvolve
 
-from cottonsim_common.validation import require_instance
+from cottonsim_common.validation import require_finite_values, require_instance, require_positive
 
 OCCUPIED_DEFAULT = 65     # OccupancyGrid values >= this are occupied (map_server occupied_thresh 0.65)
 
@@ -123,16 +123,9 @@ def _check_grid(name: str, grid, resolution_m, origin) -> Tuple[np.ndarray, floa
         raise ValueError(f"{name} grid must be a non-empty 2-D array, got shape {g.shape}")
     if not np.issubdtype(g.dtype, np.integer):
         raise ValueError(f"{name} grid must hold integers (-1 / 0..100), got {g.dtype}")
-    if isinstance(resolution_m, bool) or not isinstance(resolution_m, (int, float)) \
-            or not math.isfinite(resolution_m) or resolution_m <= 0:
-        raise ValueError(f"{name} resolution_m must be a finite number > 0, got {resolution_m!r}")
-    try:
-        o = tuple(float(v) for v in origin)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} origin must be (x_m, y_m, yaw_rad), got {origin!r}") from None
-    if len(o) != 3 or not all(math.isfinite(v) for v in o):
-        raise ValueError(f"{name} origin must be 3 finite numbers (x_m, y_m, yaw_rad), got {origin!r}")
-    return g.astype(np.int16), float(resolution_m), o
+    resolution_m = require_positive(f"{name} resolution_m", resolution_m)
+    origin = require_finite_values(f"{name} origin (x_m, y_m, yaw_rad)", origin, 3)
+    return g.astype(np.int16), resolution_m, origin
 
 
 def _resample(grid: np.ndarray, res: float, origin, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
