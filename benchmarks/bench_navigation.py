@@ -10,7 +10,6 @@ import math
 import os
 import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +24,7 @@ from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
 from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402
 from cottonsim_navigation.planning.global_planners.navfn import NavfnPlanner  # noqa: E402
 from cottonsim_navigation.planning.local_planners.dwa import DWAConfig, DWAPlanner  # noqa: E402
+from timing import wall_and_cpu_ms  # noqa: E402
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/config"
 
@@ -41,13 +41,7 @@ class Timing(float):
 def timed(fn, repeats=7):
     """Median wall and CPU (time.process_time) milliseconds; CPU time is the figure to trust on a
     shared machine, where other jobs stretch the wall clock."""
-    fn()                                   # warm-up (numba compile / caches)
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
-        fn()
-        cpu.append((time.process_time() - c) * 1000.0)
-        wall.append((time.perf_counter() - t) * 1000.0)
+    wall, cpu = wall_and_cpu_ms(fn, repeats)
     out = Timing(statistics.median(wall))
     out.cpu_ms = statistics.median(cpu)
     return out

@@ -3,11 +3,26 @@
 ``assert_config_rejects`` is the test every config dataclass gets: a bad
 value for one key, the others left at their defaults, must raise a
 ValueError that names that key (the house rule for config errors).
+``load_script`` imports an executable of a package's ``scripts/`` (a file
+without the .py suffix) as a module, so a test can call its ``main``.
 """
 from __future__ import annotations
 
+import importlib.machinery
+import importlib.util
+import pathlib
 import re
+from types import ModuleType
 from typing import Tuple
+
+
+def load_script(path) -> ModuleType:
+    """The Python script at ``path`` (any file name) loaded as a module named after the file."""
+    path = pathlib.Path(path)
+    loader = importlib.machinery.SourceFileLoader(f"{path.name}_script", str(path))
+    module = importlib.util.module_from_spec(importlib.util.spec_from_loader(loader.name, loader))
+    loader.exec_module(module)
+    return module
 
 
 def assert_config_rejects(config_cls: type, *cases: Tuple) -> None:

@@ -166,6 +166,11 @@ class FaultInjector:
                                    longitude_deg=reading.longitude_deg + east * self._deg_per_m_east,
                                    altitude_m=reading.altitude_m + up, position_variance_m2=variance, status=status)
 
+    def _count_and_drop(self, kind: str, faults) -> bool:
+        """Count a reading that active ``faults`` of ``kind`` change; True when one of them drops it."""
+        self.affected[kind] += 1
+        return any(f.spec.mode == "drop" for f in faults)
+
     def camera(self, reading):
         """A CameraReading (fields stamp_s, camera, frame, cloud_*) after the blackouts of its camera;
         None when one drops it, black pixels and no depth points for mode black."""
@@ -173,8 +178,7 @@ class FaultInjector:
                   if f.spec.camera in (ALL_CAMERAS, reading.camera)]
         if not faults:
             return reading
-        self.affected["camera_blackout"] += 1
-        if any(f.spec.mode == "drop" for f in faults):
+        if self._count_and_drop("camera_blackout", faults):
             return None
         frame = reading.frame
         black = dataclasses.replace(frame, rgb=np.zeros_like(frame.rgb),
@@ -191,8 +195,7 @@ class FaultInjector:
         faults = self._active(reading.stamp_s, ("lidar_dropout",))
         if not faults:
             return reading
-        self.affected["lidar_dropout"] += 1
-        if any(f.spec.mode == "drop" for f in faults):
+        if self._count_and_drop("lidar_dropout", faults):
             return None
         scan = reading.scan
         empty = dataclasses.replace(scan, **{f.name: getattr(scan, f.name)[:0] for f in dataclasses.fields(scan)})

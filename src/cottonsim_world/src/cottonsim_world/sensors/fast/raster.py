@@ -119,6 +119,16 @@ def _raster_triangle(u0, v0, w0, u1, v1, w1, u2, v2, w2, gid, zb, ib, w_min, w_m
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _facing_id(from_behind, fi, gb, draw_local, draw_twin):  # pragma: no cover
+    """Global triangle id of the side of drawn face ``fi`` that faces the camera (gb: the plant's first id):
+    its reverse-wound twin when seen from behind, -1 when it has none (a one-sided face: culled)."""
+    if from_behind:
+        twin = draw_twin[fi]
+        return -1 if twin < 0 else gb + twin
+    return gb + draw_local[fi]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _project_draw(p, fx, fy, cx, cy, gid, zb, ib, w_min, w_max):  # pragma: no cover
     """Project a camera-frame triangle p (3, 3) with z > 0 and draw it."""
     iz0, iz1, iz2 = 1.0 / p[0, 2], 1.0 / p[1, 2], 1.0 / p[2, 2]
@@ -234,13 +244,9 @@ def draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_vc
                     area = (ub - ua) * (vc - va) - (vb_ - va) * (uc - ua)
                     if area == 0.0 or not math.isfinite(area):
                         continue
-                    if area > 0.0:                                      # seen from behind
-                        twin = draw_twin[fi]
-                        if twin < 0:
-                            continue
-                        gid = gb + twin
-                    else:
-                        gid = gb + draw_local[fi]
+                    gid = _facing_id(area > 0.0, fi, gb, draw_local, draw_twin)     # area > 0: seen from behind
+                    if gid < 0:
+                        continue
                     _fill(ua, va, sw[ia], ub, vb_, sw[ib_], uc, vc, sw[ic], area, x_lo, x_hi, y_lo, y_hi,
                           gid, zb, ib, w_min, w_max)
                     continue
@@ -251,12 +257,8 @@ def draw_plants(visible, vis_model, vis_gbase, plant_pose, model_vbase, model_vc
                 nx = e1y * e2z - e1z * e2y
                 ny = e1z * e2x - e1x * e2z
                 nz = e1x * e2y - e1y * e2x
-                if nx * sx[ia] + ny * sy[ia] + nz * za >= 0.0:     # seen from behind
-                    twin = draw_twin[fi]
-                    if twin < 0:
-                        continue
-                    gid = gb + twin
-                else:
-                    gid = gb + draw_local[fi]
+                gid = _facing_id(nx * sx[ia] + ny * sy[ia] + nz * za >= 0.0, fi, gb, draw_local, draw_twin)
+                if gid < 0:
+                    continue
                 _clip_near_and_draw(sx[ia], sy[ia], za, sx[ib_], sy[ib_], zb_, sx[ic], sy[ic], zc, near, fx, fy, cx,
                                     cy, gid, zb, ib, w_min, w_max)
