@@ -128,6 +128,14 @@ def navfn_cost_table(config: NavfnConfig = NavfnConfig()) -> np.ndarray:
 TIE_BREAK = 1e-10
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _heap_put(heap, hkey, where, i, cell, key):  # pragma: no cover - compiled
+    """Put ``cell`` with ``key`` in slot ``i`` of the search's binary heap and note the slot in ``where``."""
+    heap[i] = cell
+    hkey[i] = key
+    where[cell] = i
+
+
 @njit(cache=True, nogil=True)
 def _search(costs, cost_lut, start, target_mask, n_targets, bx0, bx1, by0, by1, h_scale):
     """8-connected Dijkstra / A* over a (h, w) costmap grid from flat index ``start``.
@@ -188,15 +196,11 @@ def _search(costs, cost_lut, start, target_mask, n_targets, bx0, bx1, by0, by1, 
                 if l + 1 < size and hkey[l + 1] < hkey[l]:
                     c = l + 1
                 if hkey[c] < lkey:
-                    heap[i] = heap[c]
-                    hkey[i] = hkey[c]
-                    where[heap[i]] = i
+                    _heap_put(heap, hkey, where, i, heap[c], hkey[c])
                     i = c
                 else:
                     break
-            heap[i] = last
-            hkey[i] = lkey
-            where[last] = i
+            _heap_put(heap, hkey, where, i, last, lkey)
         done[u] = True
         uy = u // w
         ux = u - uy * w
@@ -240,15 +244,11 @@ def _search(costs, cost_lut, start, target_mask, n_targets, bx0, bx1, by0, by1, 
                 while i > 0:
                     p = (i - 1) // 2
                     if hkey[p] > key:
-                        heap[i] = heap[p]
-                        hkey[i] = hkey[p]
-                        where[heap[i]] = i
+                        _heap_put(heap, hkey, where, i, heap[p], hkey[p])
                         i = p
                     else:
                         break
-                heap[i] = v
-                hkey[i] = key
-                where[v] = i
+                _heap_put(heap, hkey, where, i, v, key)
     flat[start] = start_value
     for i in range(n):
         if not done[i]:
