@@ -72,13 +72,9 @@ class MapQualityConfig:
 
     def __post_init__(self) -> None:
         for name in ("max_rotation_deg", "max_shift_m", "tolerance_m", "cell_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         for name in ("coarse_step_deg", "fine_step_deg"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         if self.fine_step_deg > self.coarse_step_deg:
             raise ValueError(f"fine_step_deg ({self.fine_step_deg}) must not exceed coarse_step_deg "
                              f"({self.coarse_step_deg})")

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cottonsim_common.validation import require_instance
+from cottonsim_common.validation import require_instance, require_positive
 from ..core.grid import GridSpec
 
 try:
@@ -76,14 +76,9 @@ class ScanMatcherConfig:
     def __post_init__(self) -> None:
         for name in ("sigma_m", "max_dist_m", "linear_step_m", "angular_step_rad", "prior_sigma_along_m",
                      "prior_sigma_lateral_m", "prior_sigma_yaw_rad"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value <= 0:
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+            require_positive(name, getattr(self, name))
         for name in ("min_score", "prior_weight"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         for name in ("refinements", "max_moves", "min_points"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < (0 if name == "refinements" else 1):

@@ -46,7 +46,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
-from cottonsim_common.validation import require_instance
+from cottonsim_common.validation import require_instance, require_int, require_positive
 
 from ..core.grid import GridSpec
 from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
@@ -116,22 +116,14 @@ class SlamConfig:
     matcher: ScanMatcherConfig = field(default_factory=ScanMatcherConfig)
 
     def __post_init__(self) -> None:
-        if isinstance(self.particles, bool) or not isinstance(self.particles, int) or self.particles < 1:
-            raise ValueError(f"particles must be an integer >= 1, got {self.particles!r}")
-        if isinstance(self.match_max_beams, bool) or not isinstance(self.match_max_beams, int) \
-                or self.match_max_beams < 3:
-            raise ValueError(f"match_max_beams must be an integer >= 3, got {self.match_max_beams!r}")
-        if isinstance(self.lskip, bool) or not isinstance(self.lskip, int) or self.lskip < 0:
-            raise ValueError(f"lskip must be an integer >= 0, got {self.lskip!r}")
+        require_int("particles", self.particles, 1)
+        require_int("match_max_beams", self.match_max_beams, 3)
+        require_int("lskip", self.lskip, 0)
         for name in ("max_urange_m", "max_range_m", "delta_m", "lsigma_m", "ogain", "logodds_hit",
                      "logodds_clamp", "heading_tau_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         for name in ("linear_update_m", "angular_update_rad", "srr", "srt", "str_", "stt", "heading_sigma_rad"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         if not (isinstance(self.temporal_update_s, (int, float)) and not math.isnan(self.temporal_update_s)):
             raise ValueError(f"temporal_update_s must be a number, got {self.temporal_update_s!r}")
         if self.max_urange_m > self.max_range_m:
