@@ -34,7 +34,7 @@ from cottonsim_navigation.localization.free_space_model import FreeSpaceConfig  
 from cottonsim_navigation.localization.quality import LocalizationQualityConfig  # noqa: E402
 from cottonsim_navigation.localization.sensor_models import Scan  # noqa: E402
 from cottonsim_navigation.localization.supervisor import LocalizationSupervisor, SupervisorConfig  # noqa: E402
-from cottonsim_navigation.ros.params import config_from_params  # noqa: E402
+from cottonsim_common.ros.params import config_from_params  # noqa: E402
 
 NAV = ROOT / "src/cottonsim_navigation"
 SPEED_M_S = 0.5

@@ -37,7 +37,8 @@ from bench_sim import _callgrind  # noqa: E402
 from cottonsim_world.config_io import simulator_config_from_dict  # noqa: E402
 from cottonsim_world.robot.urdf_model import UrdfModel  # noqa: E402
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel  # noqa: E402
-from cottonsim_world.simulator import CAMERA_NAMES, Simulator  # noqa: E402
+from cottonsim_world.simulator import Simulator  # noqa: E402
+from cottonsim_world.simulator_config import CAMERA_NAMES  # noqa: E402
 
 SHORT = {"realsense_p": "front", "realsense_secondary": "side L", "realsense_tertiary": "side R"}
 

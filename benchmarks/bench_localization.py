@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
 
-from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
+from cottonsim_navigation.core.grid import GridSpec, disc_occupancy  # noqa: E402
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig  # noqa: E402
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField  # noqa: E402
 from cottonsim_navigation.localization.sensor_models import simulate_scan  # noqa: E402
@@ -28,12 +28,8 @@ from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig  # noqa: E402
 def farm_map():
     """9 rows x 20 plants (0.6 m discs), rows along +y 1.8 m apart, 0.05 m cells."""
     spec = GridSpec(0.05, 600, 600, -20.0, -5.0)
-    occ = np.zeros(spec.shape, np.int8)
-    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(600), np.arange(600)))
-    for r in range(9):
-        for i in range(20):
-            occ[(gx - (-2.35 - 1.8 * r)) ** 2 + (gy - (9.0 + 0.7 * i)) ** 2 <= 0.3 ** 2] = 100
-    return spec, occ
+    stems = [(-2.35 - 1.8 * r, 9.0 + 0.7 * i) for r in range(9) for i in range(20)]
+    return spec, disc_occupancy(spec, stems, 0.3)
 
 
 def main():

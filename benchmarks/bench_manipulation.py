@@ -38,6 +38,7 @@ from cottonsim_manipulation.harvest.targets import BollDetection3D, TargetFusion
 from cottonsim_manipulation.planning.approach import plan_approach  # noqa: E402
 from cottonsim_manipulation.planning.collision import ArmCollisionModel, CapsuleSet  # noqa: E402
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf  # noqa: E402
+from timing import wall_and_cpu_ms  # noqa: E402
 
 GROUND_Z_M = -(0.13228 + 0.245 + 0.006)      # the ground in the arm's base frame
 STOW_RAD = np.array([math.pi / 2, -2.2, 2.4, -1.77, -math.pi / 2, 0.0])
@@ -62,13 +63,7 @@ def machine():
 
 def timed(fn, repeats):
     """Median and p95 wall / CPU milliseconds of fn() (one warm-up call first)."""
-    fn()
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
-        fn()
-        cpu.append((time.process_time() - c) * 1e3)
-        wall.append((time.perf_counter() - t) * 1e3)
+    wall, cpu = wall_and_cpu_ms(fn, repeats)
     return statistics.median(wall), float(np.percentile(wall, 95)), statistics.median(cpu)
 
 

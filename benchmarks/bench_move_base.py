@@ -20,7 +20,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/src"))
 
 from cottonsim_common.pose import Pose2D  # noqa: E402
-from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
+from cottonsim_navigation.core.grid import GridSpec, disc_occupancy  # noqa: E402
 from cottonsim_navigation.move_base.config import MoveBaseConfig  # noqa: E402
 from cottonsim_navigation.move_base.state_machine import MoveBase  # noqa: E402
 from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402
@@ -29,13 +29,8 @@ from cottonsim_navigation.planning.costmap import make_global_costmap, make_loca
 def farm_map():
     """The default farm's layout as an occupancy map (rows along +x here: the robot drives along +x)."""
     spec = GridSpec(0.05, 700, 400, -5.0, -10.0)
-    occ = np.zeros(spec.shape, np.int8)
-    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(spec.width), np.arange(spec.height)))
-    for r in range(9):
-        for i in range(20):
-            x, y = 3.0 + 0.7 * i, -0.9 - 1.8 * r + 1.8 * 4
-            occ[(gx - x) ** 2 + (gy - y) ** 2 <= 0.3 ** 2] = 100
-    return spec, occ
+    stems = [(3.0 + 0.7 * i, -0.9 - 1.8 * r + 1.8 * 4) for r in range(9) for i in range(20)]
+    return spec, disc_occupancy(spec, stems, 0.3)
 
 
 def vlp16_cloud(pose, n_rings=16, n_az=1800, sensor_z=0.6):

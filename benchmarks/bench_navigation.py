@@ -10,7 +10,6 @@ import math
 import os
 import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -21,10 +20,11 @@ for _pkg in ("cottonsim_navigation", "cottonsim_common"):
 from cottonsim_common.config.yaml_files import load_yaml_file  # noqa: E402
 
 from cottonsim_common.pose import Pose2D  # noqa: E402
-from cottonsim_navigation.core.grid import GridSpec  # noqa: E402
+from cottonsim_navigation.core.grid import GridSpec, disc_occupancy  # noqa: E402
 from cottonsim_navigation.planning.costmap import make_global_costmap, make_local_costmap  # noqa: E402
 from cottonsim_navigation.planning.global_planners.navfn import NavfnPlanner  # noqa: E402
 from cottonsim_navigation.planning.local_planners.dwa import DWAConfig, DWAPlanner  # noqa: E402
+from timing import wall_and_cpu_ms  # noqa: E402
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "src/cottonsim_navigation/config"
 
@@ -41,13 +41,7 @@ class Timing(float):
 def timed(fn, repeats=7):
     """Median wall and CPU (time.process_time) milliseconds; CPU time is the figure to trust on a
     shared machine, where other jobs stretch the wall clock."""
-    fn()                                   # warm-up (numba compile / caches)
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
-        fn()
-        cpu.append((time.process_time() - c) * 1000.0)
-        wall.append((time.perf_counter() - t) * 1000.0)
+    wall, cpu = wall_and_cpu_ms(fn, repeats)
     out = Timing(statistics.median(wall))
     out.cpu_ms = statistics.median(cpu)
     return out
@@ -56,13 +50,8 @@ def timed(fn, repeats=7):
 def farm_map():
     """40 x 40 m at 0.05 m: 9 rows x 20 plants (0.7 m wide discs) along +y, 1.8 m apart."""
     spec = GridSpec(0.05, 800, 800, -30.0, -10.0)
-    occ = np.zeros(spec.shape, np.int8)
-    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(800), np.arange(800)))
-    for r in range(9):
-        for i in range(20):
-            x, y = -2.35 - 1.8 * r, 9.0 + 0.7 * i
-            occ[(gx - x) ** 2 + (gy - y) ** 2 <= 0.3 ** 2] = 100
-    return spec, occ
+    stems = [(-2.35 - 1.8 * r, 9.0 + 0.7 * i) for r in range(9) for i in range(20)]
+    return spec, disc_occupancy(spec, stems, 0.3)
 
 
 def vlp16_cloud(n_rings=16, n_az=1800):

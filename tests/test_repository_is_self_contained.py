@@ -10,11 +10,11 @@ labelled images: ``--original-data`` / ``$COTTONSIM_PAPER_DATA``).
 """
 import pathlib
 import re
-import subprocess
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+from repository_files import ROOT, repository_files
+
 OUTSIDE_PATH = re.compile(r"/work/|\.\./shared\b|\bshared/(?:reference|datasets|seed|tools)\b"
                           r"|\bparents?\b.*[\"']shared[\"']")
 CHECKED_SUFFIXES = {".py", ".sh", ".launch", ".test", ".yaml", ".yml", ".xml", ".txt", ".cfg", ""}
@@ -23,17 +23,8 @@ CHECKED_SUFFIXES = {".py", ".sh", ".launch", ".test", ".yaml", ".yml", ".xml", "
 CHECKED_FOLDERS = ("src", "tests", "scripts", "benchmarks", "docker", ".ci")
 
 
-def repository_files():
-    """The files git tracks under CHECKED_FOLDERS; in a copy without .git (the Docker image), every file there."""
-    listing = subprocess.run(["git", "ls-files", *CHECKED_FOLDERS], cwd=ROOT, capture_output=True, text=True)
-    if listing.returncode == 0 and (ROOT / ".git").exists():
-        return listing.stdout.split()
-    return [str(p.relative_to(ROOT)) for folder in CHECKED_FOLDERS for p in sorted((ROOT / folder).rglob("*"))
-            if p.is_file() and "__pycache__" not in p.parts]
-
-
 def tracked_text_files():
-    for name in repository_files():
+    for name in repository_files(*CHECKED_FOLDERS):
         path = ROOT / name
         if path.suffix in CHECKED_SUFFIXES and path.is_file() and path != pathlib.Path(__file__).resolve():
             yield path

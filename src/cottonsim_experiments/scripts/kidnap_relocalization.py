@@ -19,7 +19,7 @@ import sys
 
 import numpy as np
 
-from cottonsim_navigation.core.grid import GridSpec
+from cottonsim_navigation.core.grid import GridSpec, disc_occupancy
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.free_space_model import FreeSpaceCheckedField
 from cottonsim_navigation.localization.quality import LocalizationQualityConfig, respread_after_kidnap
@@ -29,12 +29,8 @@ from cottonsim_navigation.localization.sensor_models import simulate_scan
 def farm_map():
     """The default farm: 9 rows x 20 plants (0.7 m discs), rows along +y at x = -2.33 - 1.8 k, y 8.95..22.25."""
     spec = GridSpec(0.05, 440, 640, -22.0, -4.0)
-    occ = np.zeros(spec.shape, np.int8)
-    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(spec.width), np.arange(spec.height)))
-    for r in range(9):
-        for i in range(20):
-            occ[(gx - (-2.33 - 1.8 * r)) ** 2 + (gy - (8.95 + 0.7 * i)) ** 2 <= 0.35 ** 2] = 100
-    return spec, occ
+    stems = [(-2.33 - 1.8 * r, 8.95 + 0.7 * i) for r in range(9) for i in range(20)]
+    return spec, disc_occupancy(spec, stems, 0.35)
 
 
 UP = math.pi / 2

@@ -37,13 +37,14 @@ from cottonsim_navigation.localization.free_space_model import FreeSpaceConfig  
 from cottonsim_navigation.localization.quality import LocalizationQualityConfig  # noqa: E402
 from cottonsim_navigation.localization.sensor_models import Scan  # noqa: E402
 from cottonsim_navigation.localization.supervisor import LocalizationSupervisor, SupervisorConfig  # noqa: E402
-from cottonsim_navigation.ros.params import config_from_params  # noqa: E402
+from cottonsim_common.ros.params import config_from_params  # noqa: E402
 from cottonsim_world.config_io import simulator_config_from_dict  # noqa: E402
 from cottonsim_world.farm.config import FarmConfig  # noqa: E402
 from cottonsim_world.farm.export import load_map_yaml, world_to_frame  # noqa: E402
 from cottonsim_world.farm.generator import generate_farm  # noqa: E402
 from cottonsim_world.robot.urdf_model import UrdfModel  # noqa: E402
-from cottonsim_world.simulator import LidarReading, Simulator  # noqa: E402
+from cottonsim_world.readings import LidarReading  # noqa: E402
+from cottonsim_world.simulator import Simulator  # noqa: E402
 
 NAV = Path(package_path("cottonsim_navigation"))
 LANDING_WORLD = (-1.43, 7.0, math.pi / 2)      # lane 1's entry, 1.95 m before the first stems (y 8.95)

@@ -20,6 +20,14 @@ def is_number(value) -> bool:
     return isinstance(value, _NUMBER_TYPES) and not isinstance(value, bool)
 
 
+def require_instance(name: str, value, cls: type):
+    """``value`` itself when it is an instance of ``cls``, else ValueError naming ``name`` and both types."""
+    if not isinstance(value, cls):
+        article = "an" if cls.__name__[:1].lower() in "aeiou" else "a"
+        raise ValueError(f"{name} must be {article} {cls.__name__}, got {type(value).__name__}")
+    return value
+
+
 def require_number(name: str, value, low: float = -math.inf, high: float = math.inf) -> float:
     """A finite number in [low, high] as a float."""
     if not is_number(value):
@@ -72,15 +80,18 @@ def require_min_max(name: str, value, low: float = -math.inf, high: float = math
     return lo, hi
 
 
-def require_finite_values(name: str, value, count: int) -> Tuple[float, ...]:
-    """Exactly ``count`` finite numbers as a tuple of floats (e.g. a map origin [x, y, yaw])."""
+def require_finite_values(name: str, value, count: int, low: float = -math.inf) -> Tuple[float, ...]:
+    """Exactly ``count`` finite numbers >= ``low`` as a tuple of floats (e.g. a map origin [x, y, yaw])."""
     try:
         values = tuple(value)
     except TypeError:
         raise ValueError(f"{name} must be {count} numbers, got {value!r}") from None
     if len(values) != count:
         raise ValueError(f"{name} must be {count} numbers, got {value!r}")
-    return tuple(require_finite(f"{name}[{i}]", v) for i, v in enumerate(values))
+    values = tuple(require_finite(f"{name}[{i}]", v) for i, v in enumerate(values))
+    if any(v < low for v in values):
+        raise ValueError(f"{name} must be {count} finite numbers >= {low:g}, got {value!r}")
+    return values
 
 
 def require_finite_array(name: str, value, shape: Optional[Sequence[Optional[int]]] = None) -> np.ndarray:
@@ -96,3 +107,17 @@ def require_finite_array(name: str, value, shape: Optional[Sequence[Optional[int
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} contains NaN or infinite values")
     return arr
+
+
+def require_unit_vector(name: str, value, size: int, zero_name: str = "zero") -> np.ndarray:
+    """``size`` finite numbers, not all zero, scaled to unit length (a direction, a quaternion) as an array.
+
+    zero_name: what a zero vector is called in the error (``"{name} must not be {zero_name}"``).
+    """
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
+    norm = float(np.linalg.norm(arr))
+    if norm < 1e-9:
+        raise ValueError(f"{name} must not be {zero_name}")
+    return arr / norm

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from cottonsim_common.kinematics.ur5e import forward_kinematics
+from cottonsim_common.testing import assert_config_rejects
 from cottonsim_common.vacuum_capture import CaptureConfig, check_capture, find_capture, nozzle_tip
 
 BOLL = np.array([0.6, 0.1, 0.2])
@@ -52,10 +53,7 @@ def test_nozzle_tip_on_the_flange():
 
 
 def test_bad_input():
-    with pytest.raises(ValueError, match="capture_radius_m"):
-        CaptureConfig(capture_radius_m=0.0)
-    with pytest.raises(ValueError, match="cone_half_angle_rad"):
-        CaptureConfig(cone_half_angle_rad=4.0)
+    assert_config_rejects(CaptureConfig, ("capture_radius_m", 0.0), ("cone_half_angle_rad", 4.0))
     with pytest.raises(ValueError, match="nozzle tip"):
         check_capture([np.nan, 0, 0], [1, 0, 0], BOLL, OUTWARD)
     with pytest.raises(ValueError, match="axis must not be zero"):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cottonsim_common.validation import (is_number, require_finite, require_finite_array, require_finite_values,
-                                         require_int, require_min_max, require_number, require_positive)
+                                         require_instance, require_int, require_min_max, require_number, require_positive)
 
 
 def test_numbers_and_bounds():
@@ -39,8 +39,55 @@ def test_integers_pairs_and_arrays():
         require_finite_values("origin", [1, math.nan, 0], 3)
     with pytest.raises(ValueError, match="origin must be 3 numbers"):
         require_finite_values("origin", [1, 2], 3)
+    with pytest.raises(ValueError, match=r"covariance must be 2 finite numbers >= 0, got \(0.1, -0.1\)"):
+        require_finite_values("covariance", (0.1, -0.1), 2, low=0.0)
     assert require_finite_array("points", [[1, 2]], (None, 2)).shape == (1, 2)
     with pytest.raises(ValueError, match=r"points must have shape \(N, 2\)"):
         require_finite_array("points", [1, 2, 3], (None, 2))
     with pytest.raises(ValueError, match="points contains NaN"):
         require_finite_array("points", [math.nan])
+
+
+def test_require_instance_returns_the_value_or_names_both_types():
+    config = {"a": 1}
+    assert require_instance("config", config, dict) is config
+    with pytest.raises(ValueError, match=r"^config must be a dict, got list$"):
+        require_instance("config", [], dict)
+    with pytest.raises(ValueError, match=r"^amcl must be an int, got str$"):
+        require_instance("amcl", "x", int)
+
+
+def test_assert_config_rejects_fails_for_an_accepted_value_or_an_error_that_does_not_name_the_key():
+    from dataclasses import dataclass
+
+    from cottonsim_common.testing import assert_config_rejects
+
+    @dataclass
+    class Config:
+        rate_hz: float = 1.0
+        name: str = "a"
+
+        def __post_init__(self):
+            require_positive("rate_hz", self.rate_hz)
+            if self.name not in ("a", "b"):
+                raise ValueError("bad value")          # does not name the key
+
+    assert_config_rejects(Config, ("rate_hz", 0.0), ("rate_hz", -1.0, r"rate_hz must be a finite number > 0"))
+    with pytest.raises(AssertionError, match=r"Config\(rate_hz=2.0\) was accepted"):
+        assert_config_rejects(Config, ("rate_hz", 2.0))
+    with pytest.raises(AssertionError, match="does not name 'name'"):
+        assert_config_rejects(Config, ("name", "c"))
+    with pytest.raises(AssertionError, match="does not name 'rate_hz'"):
+        assert_config_rejects(Config, ("rate_hz", 0.0, "no such text"))
+
+
+def test_require_unit_vector_scales_to_length_one_and_names_a_zero_or_bad_vector():
+    from cottonsim_common.validation import require_unit_vector
+
+    np.testing.assert_allclose(require_unit_vector("axis", [0.0, 3.0, 4.0], 3), [0.0, 0.6, 0.8])
+    with pytest.raises(ValueError, match=r"axis must be 3 finite numbers"):
+        require_unit_vector("axis", [0.0, math.inf, 1.0], 3)
+    with pytest.raises(ValueError, match=r"q must be 4 finite numbers"):
+        require_unit_vector("q", [0.0, 0.0, 1.0], 4)
+    with pytest.raises(ValueError, match="q must not be the zero quaternion"):
+        require_unit_vector("q", [0.0] * 4, 4, "the zero quaternion")

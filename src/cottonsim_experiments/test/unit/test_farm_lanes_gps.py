@@ -1,8 +1,7 @@
 """rosrun cottonsim_experiments farm_lanes_gps: writes the farm's lane centre lines; bad settings exit 2 with one line."""
-import importlib.machinery
-import importlib.util
 import pathlib
 
+from cottonsim_common.testing import load_script
 from cottonsim_experiments.reproduce.packages import package_path
 from cottonsim_navigation.waypoints.files import load_gps_lanes
 
@@ -10,16 +9,8 @@ PKG = pathlib.Path(__file__).resolve().parents[2]
 NAVIGATION = pathlib.Path(package_path("cottonsim_navigation"))
 
 
-def load_script():
-    loader = importlib.machinery.SourceFileLoader("farm_lanes_gps", str(PKG / "scripts" / "farm_lanes_gps"))
-    spec = importlib.util.spec_from_loader("farm_lanes_gps", loader)
-    mod = importlib.util.module_from_spec(spec)
-    loader.exec_module(mod)
-    return mod
-
-
 def test_default_farm_gives_the_committed_file_and_a_smaller_farm_fewer_lanes(tmp_path, capsys):
-    mod = load_script()
+    mod = load_script(PKG / "scripts" / "farm_lanes_gps")
     out = tmp_path / "lanes.txt"
     assert mod.main([str(out)]) == 0
     committed = load_gps_lanes(NAVIGATION / "config/waypoints/farm_lanes_gps.txt")
@@ -33,7 +24,7 @@ def test_default_farm_gives_the_committed_file_and_a_smaller_farm_fewer_lanes(tm
 
 
 def test_bad_settings_exit_2_with_a_message(tmp_path, capsys):
-    mod = load_script()
+    mod = load_script(PKG / "scripts" / "farm_lanes_gps")
     cfg = tmp_path / "sim.yaml"
     cfg.write_text("farm: {rows: -3}\n")
     assert mod.main([str(tmp_path / "lanes.txt"), "--sim-config", str(cfg)]) == 2

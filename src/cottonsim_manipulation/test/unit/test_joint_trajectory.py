@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from cottonsim_common.testing import assert_config_rejects
 from cottonsim_manipulation.planning.trajectory import (
     JointTrajectory,
     TrajectoryConfig,
@@ -107,16 +108,9 @@ def test_bad_waypoints_are_named():
 
 
 def test_config_is_validated():
-    with pytest.raises(ValueError, match="velocity_scale"):
-        TrajectoryConfig(velocity_scale=0.0)
-    with pytest.raises(ValueError, match="velocity_scale"):
-        TrajectoryConfig(velocity_scale=1.5)
-    with pytest.raises(ValueError, match="max_acceleration_rad_s2"):
-        TrajectoryConfig(max_acceleration_rad_s2=(4.0,) * 5 + (-1.0,))
-    with pytest.raises(ValueError, match="max_velocity_rad_s"):
-        TrajectoryConfig(max_velocity_rad_s=(float("nan"),) * 6)
-    with pytest.raises(ValueError, match="sample_rate_hz"):
-        TrajectoryConfig(sample_rate_hz=0)
+    assert_config_rejects(TrajectoryConfig, ("velocity_scale", 0.0), ("velocity_scale", 1.5),
+                          ("max_acceleration_rad_s2", (4.0,) * 5 + (-1.0,)),
+                          ("max_velocity_rad_s", (float("nan"),) * 6), ("sample_rate_hz", 0))
     with pytest.raises(ValueError, match="lower"):
         TrajectoryConfig(lower_limits_rad=(1.0,) * 6, upper_limits_rad=(0.0,) * 6)
 

@@ -1,7 +1,7 @@
 """Fake planners, a counting recovery and empty costmaps for the move_base state machine's unit tests."""
 import numpy as np
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.move_base.recovery import RecoveryBehaviour
 from cottonsim_navigation.move_base.state_machine import Outcome

@@ -1,7 +1,7 @@
 """Synthetic maps shared by the localisation and mapping tests (a corridor and a two-row crop field)."""
 import numpy as np
 
-from cottonsim_navigation.core.grid import GridSpec
+from cottonsim_navigation.core.grid import GridSpec, disc_occupancy
 
 
 def corridor_map(res=0.05):
@@ -19,9 +19,5 @@ def corridor_map(res=0.05):
 def field_map(res=0.05, n_rows=2):
     """Rows of 0.6 m plant discs every 0.7 m along +y (y 1.0..14.3), rows at x = -0.9 + 1.8 k."""
     spec = GridSpec(res, int(12 / res), int(24 / res), -6.0, -4.0)
-    occ = np.zeros(spec.shape, np.int8)
-    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(spec.width), np.arange(spec.height)))
-    for r in range(n_rows):
-        for i in range(20):
-            occ[(gx - (-0.9 + 1.8 * r)) ** 2 + (gy - (1.0 + 0.7 * i)) ** 2 <= 0.3 ** 2] = 100
-    return spec, occ
+    stems = [(-0.9 + 1.8 * r, 1.0 + 0.7 * i) for r in range(n_rows) for i in range(20)]
+    return spec, disc_occupancy(spec, stems, 0.3)

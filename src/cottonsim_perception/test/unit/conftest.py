@@ -1,6 +1,4 @@
 """Fixtures shared by the perception unit tests."""
-import importlib.machinery
-import importlib.util
 import os
 import pathlib
 
@@ -8,6 +6,8 @@ import cv2
 import numpy as np
 import pytest
 import torch
+
+from cottonsim_common.testing import load_script
 
 SCRIPTS = pathlib.Path(__file__).resolve().parents[2] / "scripts"
 TINY_W, TINY_H = 128, 96
@@ -17,13 +17,7 @@ TINY_W, TINY_H = 128, 96
 def perception_script():
     """load(name) -> the executable scripts/<name> as a module (its file has no .py suffix)."""
 
-    def load(name):
-        loader = importlib.machinery.SourceFileLoader(f"{name}_script", str(SCRIPTS / name))
-        module = importlib.util.module_from_spec(importlib.util.spec_from_loader(loader.name, loader))
-        loader.exec_module(module)
-        return module
-
-    return load
+    return lambda name: load_script(SCRIPTS / name)
 
 
 def _save_untrained(path, preset_name):

@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from cottonsim_common.testing import assert_config_rejects
 from cottonsim_perception.data.yolo_format import polygon_to_mask
 from cottonsim_perception.row_centring import (RowCentringConfig, compute_row_centring,
                                                draw_row_centring, mask_line_points)
@@ -137,12 +138,8 @@ def test_band_median_ignores_a_stray_tip_row():
 
 
 def test_config_validation_names_the_parameter():
-    with pytest.raises(ValueError, match="max_correction_rad"):
-        RowCentringConfig(max_correction_rad=0.0)
-    with pytest.raises(ValueError, match="band_rows"):
-        RowCentringConfig(band_rows=0)
-    with pytest.raises(ValueError, match="dead_band_px"):
-        RowCentringConfig(dead_band_px=float("nan"))
+    assert_config_rejects(RowCentringConfig, ("max_correction_rad", 0.0), ("band_rows", 0),
+                          ("dead_band_px", float("nan")))
 
 
 def test_overlay_draws_without_changing_the_input():

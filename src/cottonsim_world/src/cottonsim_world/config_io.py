@@ -54,7 +54,7 @@ def simulator_config_from_dict(mapping: Mapping[str, Any]):
     are left out of the simulation. ``faults`` is a list of sensor faults
     (``cottonsim_world.faults.schedule``), each checked against its kind's keys.
     """
-    from cottonsim_world.simulator import SimulatorConfig   # local: simulator imports this module's users
+    from cottonsim_world.simulator_config import SimulatorConfig   # local: it imports this module's users
 
     base = SimulatorConfig()
     mapping = dict(mapping or {})

@@ -32,7 +32,7 @@ from typing import Tuple, Union
 
 import numpy as np
 
-from cottonsim_common.validation import require_finite_array
+from cottonsim_common.validation import require_finite_array, require_finite_values, require_instance
 
 WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
@@ -161,15 +161,8 @@ class GpsNoiseConfig:
             value = getattr(self, name)
             if np.ndim(value) == 0:
                 value = (value,) * 3
-            try:
-                arr = tuple(float(v) for v in value)
-            except (TypeError, ValueError):
-                raise ValueError(f"{name} must be a number or 3 numbers, got {value!r}") from None
-            if len(arr) != 3 or not all(math.isfinite(v) for v in arr):
-                raise ValueError(f"{name} must be 3 finite numbers (x, y, z), got {value!r}")
-            if name != "offset_m" and any(v < 0 for v in arr):
-                raise ValueError(f"{name} must be >= 0, got {value!r}")
-            object.__setattr__(self, name, arr)
+            low = -math.inf if name == "offset_m" else 0.0
+            object.__setattr__(self, name, require_finite_values(f"{name} (x, y, z)", value, 3, low))
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
 
@@ -183,8 +176,7 @@ class GpsNoiseModel:
     """
 
     def __init__(self, config: GpsNoiseConfig = GpsNoiseConfig()) -> None:
-        if not isinstance(config, GpsNoiseConfig):
-            raise ValueError(f"config must be a GpsNoiseConfig, got {type(config).__name__}")
+        require_instance("config", config, GpsNoiseConfig)
         self.config = config
         self._offset = tuple(config.offset_m)
         self._freq = np.array(config.drift_frequency_hz)

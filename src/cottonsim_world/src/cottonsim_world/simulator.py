@@ -32,14 +32,15 @@ from typing import Callable, Deque, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from cottonsim_common.transforms import matrix_to_quaternion, pose_matrix
+from cottonsim_common.transforms import pose_matrix
 from cottonsim_world.estimation.odometry_ekf import OdometryEkf
 from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Farm, Pose2D
 from cottonsim_world.faults import FaultInjector
 from cottonsim_world.geodesy import GpsNoiseModel, HectorGeodesy
-from cottonsim_world.physics.imu_model import ImuMeasurement, ImuModel
+from cottonsim_world.physics.imu_model import ImuModel
+from cottonsim_world.physics.imu_mount import ImuMount
 from cottonsim_world.physics.ode_world import OdeWorld
 from cottonsim_world.physics.physics_config import ContactEvent, RobotState
 from cottonsim_world.physics.wheel_odometry import WheelOdometry, WheelOdometryConfig
@@ -50,12 +51,10 @@ from cottonsim_world.sensors.camera import CameraModel
 from cottonsim_world.sensors.cloud_filters import cloud_to_laserscans, original_passthrough
 from cottonsim_world.sensors.lidar import Vlp16Model
 from cottonsim_world.sensors.scene import BollVisibility, SensorScene
-# the simulator's public names, importable from here as before the config and readings had modules of their own
-from cottonsim_world.simulator_config import (ARM_JOINT_NAMES, ARM_PERIOD_S, ARM_PREFIX, BASE_FRAME,  # noqa: F401
-                                              CAMERA_NAMES, IMU_FRAME, LIDAR_FRAME, MAX_SENSOR_WORKERS,
+from cottonsim_world.readings import (CameraReading, ContactsReading, GpsReading, GroundTruthReading, ImuReading,
+                                      JointStatesReading, LidarReading, OdometryReading)
+from cottonsim_world.simulator_config import (ARM_JOINT_NAMES, ARM_PREFIX, BASE_FRAME, IMU_FRAME, LIDAR_FRAME,
                                               WHEEL_JOINTS, SimulatorConfig, optical_frame)
-from cottonsim_world.readings import (CameraReading, ContactsReading, GpsReading, GroundTruthReading,  # noqa: F401
-                                      ImuReading, JointStatesReading, LidarReading, OdometryReading)
 from cottonsim_world.sensor_schedule import HeldReading, Schedule, timed_job
 
 
@@ -100,12 +99,7 @@ class Simulator:
             self.lidar = Vlp16Model(self.sensor_scene, cfg.lidar)
             self.base_T_sensor[LIDAR_FRAME] = urdf.fixed_transform(BASE_FRAME, LIDAR_FRAME)
         self.base_T_sensor[IMU_FRAME] = urdf.fixed_transform(BASE_FRAME, IMU_FRAME)
-        # imu_link mount, as plain floats for the 50 Hz IMU path (numpy per-call overhead)
-        r_base_imu = self.base_T_sensor[IMU_FRAME][:3, :3]
-        self._r_base_imu = r_base_imu
-        self._r_base_imu_rows = tuple(tuple(float(v) for v in row) for row in r_base_imu)
-        self._q_base_imu = tuple(float(v) for v in matrix_to_quaternion(r_base_imu))
-        self._imu_cov_cache: Dict[bytes, np.ndarray] = {}
+        self.imu_mount = ImuMount(self.base_T_sensor[IMU_FRAME][:3, :3])
         self._joint_names = list(WHEEL_JOINTS) + list(ARM_JOINT_NAMES)
 
         self._schedules: Dict[str, Schedule] = {}
@@ -383,7 +377,7 @@ class Simulator:
             if math.isfinite(m.angular_velocity_rad_s[2]):
                 self.ekf.update_imu(float(m.angular_velocity_rad_s[2]), float(m.angular_velocity_covariance[8]),
                                     accel_body_m_s2=m.linear_acceleration_m_s2, orientation_xyzw=m.orientation_xyzw)
-            return ImuReading(now, IMU_FRAME, self._in_imu_axes(m))
+            return ImuReading(now, IMU_FRAME, self.imu_mount.in_imu_axes(m))
         if name == "gps":
             dt = now - self._last_gps_s
             self._last_gps_s = now
@@ -413,51 +407,6 @@ class Simulator:
             return ContactsReading(now, events, self.physics.total_contact_events,
                                    sorted(self.physics.plants_touched))
         raise KeyError(name)
-
-    def _in_imu_axes(self, m: ImuMeasurement) -> ImuMeasurement:
-        """Express a base_link-axes IMU sample in the imu_link frame of the URDF (paper Table 1 mount).
-
-        Rates and specific force rotate with R_base_imu^T, covariances with R^T C R, and the
-        orientation becomes that of imu_link in the world (q_world_base * q_base_imu), as a
-        real IMU mounted that way reports; consumers use TF base_link <- imu_link.
-        Runs at the IMU rate on 3-vectors: plain floats, and the (constant) covariances
-        are rotated once and cached.
-        """
-        (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = self._r_base_imu_rows
-
-        def rotate(v):   # R^T v
-            x, y, z = v.tolist() if isinstance(v, np.ndarray) else v
-            return np.array((a00 * x + a10 * y + a20 * z, a01 * x + a11 * y + a21 * z, a02 * x + a12 * y + a22 * z))
-
-        def cov(c):
-            c = np.asarray(c, dtype=float)
-            key = c.tobytes()
-            out = self._imu_cov_cache.get(key)
-            if out is None:
-                r = self._r_base_imu
-                out = (r.T @ c.reshape(3, 3) @ r).reshape(9)
-                if len(self._imu_cov_cache) < 64:
-                    self._imu_cov_cache[key] = out
-            return out.copy()
-
-        # Hamilton product q_world_base * q_base_imu, sign chosen with w >= 0
-        ax, ay, az, aw = m.orientation_xyzw.tolist() if isinstance(m.orientation_xyzw, np.ndarray) \
-            else m.orientation_xyzw
-        bx, by, bz, bw = self._q_base_imu
-        q = (aw * bx + ax * bw + ay * bz - az * by,
-             aw * by - ax * bz + ay * bw + az * bx,
-             aw * bz + ax * by - ay * bx + az * bw,
-             aw * bw - ax * bx - ay * by - az * bz)
-        n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-        if q[3] < 0.0:
-            n = -n
-        return ImuMeasurement(
-            stamp_s=m.stamp_s, orientation_xyzw=np.array((q[0] / n, q[1] / n, q[2] / n, q[3] / n)),
-            angular_velocity_rad_s=rotate(m.angular_velocity_rad_s),
-            linear_acceleration_m_s2=rotate(m.linear_acceleration_m_s2),
-            orientation_covariance=cov(m.orientation_covariance),
-            angular_velocity_covariance=cov(m.angular_velocity_covariance),
-            linear_acceleration_covariance=cov(m.linear_acceleration_covariance))
 
     # Cameras and LiDAR in two halves: what they need from the main thread, taken when they fall
     # due (the sensor pose from the physics state, switches), and the work on it, which touches

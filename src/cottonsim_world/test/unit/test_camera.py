@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from cottonsim_common.testing import assert_config_rejects
 from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel
 from cottonsim_world.sensors.scene import SceneConfig, SensorScene
@@ -155,12 +156,8 @@ def test_frustum_culling_keeps_only_plants_in_view(renderer):
 
 
 def test_bad_input_raises_clear_errors():
-    with pytest.raises(ValueError, match="horizontal_fov_rad"):
-        CameraConfig(horizontal_fov_rad=4.0)
-    with pytest.raises(ValueError, match="width"):
-        CameraConfig(width=0)
-    with pytest.raises(ValueError, match="renderer.*numba"):
-        CameraConfig(renderer="vulkan")
+    assert_config_rejects(CameraConfig, ("horizontal_fov_rad", 4.0), ("width", 0),
+                          ("renderer", "vulkan", "renderer.*numba"))
     with SensorScene(make_farm([])) as scene:
         cam = CameraModel(scene, CameraConfig(width=32, height=24))
         bad = np.eye(4)

@@ -102,28 +102,25 @@ def test_write_load_unknown_and_orientation(tmp_path):
     assert pixels[3, 0] == 0 and pixels[0, 5] == 254 and pixels[1, 1] == 205
 
 
-def test_loader_errors(tmp_path):
-    with pytest.raises(ValueError, match="not found"):
-        load_map_yaml(str(tmp_path / "nope.yaml"))
+MAP_YAML = "image: t.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n"
+
+
+@pytest.mark.parametrize("yaml_text, pgm, error", [
+    (None, None, "not found"),                                               # no YAML file
+    ("image: t.pgm\nresolution: 0.05\n", None, "origin"),
+    ("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", None, "image file not found"),
+    (MAP_YAML, b"P5\n10 10\n255\n" + bytes(20), "truncated"),
+    (MAP_YAML, b"GIF89a", "not a PGM"),
+    ("image: t.pgm\nresolution: -1\norigin: [0, 0, 0]\n", b"GIF89a", "resolution"),
+    ("image: [unclosed\n", None, "YAML"),
+])
+def test_loader_errors(tmp_path, yaml_text, pgm, error):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("image: m.pgm\nresolution: 0.05\n")
-    with pytest.raises(ValueError, match="origin"):
-        load_map_yaml(str(bad))
-    bad.write_text("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
-    with pytest.raises(ValueError, match="image file not found"):
-        load_map_yaml(str(bad))
-    (tmp_path / "t.pgm").write_bytes(b"P5\n10 10\n255\n" + bytes(20))
-    bad.write_text("image: t.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
-    with pytest.raises(ValueError, match="truncated"):
-        load_map_yaml(str(bad))
-    (tmp_path / "t.pgm").write_bytes(b"GIF89a")
-    with pytest.raises(ValueError, match="not a PGM"):
-        load_map_yaml(str(bad))
-    bad.write_text("image: t.pgm\nresolution: -1\norigin: [0, 0, 0]\n")
-    with pytest.raises(ValueError, match="resolution"):
-        load_map_yaml(str(bad))
-    bad.write_text("image: [unclosed\n")
-    with pytest.raises(ValueError, match="YAML"):
+    if yaml_text is not None:
+        bad.write_text(yaml_text)
+    if pgm is not None:
+        (tmp_path / "t.pgm").write_bytes(pgm)
+    with pytest.raises(ValueError, match=error):
         load_map_yaml(str(bad))
 
 

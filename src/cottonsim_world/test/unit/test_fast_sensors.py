@@ -100,7 +100,7 @@ def test_near_plane_clipping_of_a_wall_through_the_camera():
 
 
 def _draw_one_model(xyz, faces, near_m=0.05):
-    """``raster._draw_plants`` on one plant (identity pose) of one model, camera at the origin looking
+    """``raster.draw_plants`` on one plant (identity pose) of one model, camera at the origin looking
     along +z (optical = world); returns the thread buffers (1/z, triangle id) of a 64 x 48 frame."""
     from cottonsim_world.sensors.fast import raster
 
@@ -109,7 +109,7 @@ def _draw_one_model(xyz, faces, near_m=0.05):
     zbuf = np.zeros((1, 48, 64), np.float32)
     ibuf = np.zeros((1, 48, 64), np.int32)
     one = np.zeros(1, np.int64)
-    raster._draw_plants(one, one, one, np.array([[0.0, 0.0, 1.0, 0.0]]), one, np.array([xyz.shape[1]]), one,
+    raster.draw_plants(one, one, one, np.array([[0.0, 0.0, 1.0, 0.0]]), one, np.array([xyz.shape[1]]), one,
                         np.array([len(faces)]), xyz, faces, np.arange(len(faces), dtype=np.int32),
                         np.full(len(faces), -1, np.int32), np.eye(3), np.zeros(3), 40.0, 40.0, 31.5, 23.5,
                         near_m, 50.0, zbuf, ibuf, np.zeros((1, 6, xyz.shape[1])))
@@ -136,24 +136,24 @@ def test_vertices_on_and_behind_the_camera_plane_leave_the_visible_faces_alone()
 
 
 def test_ground_texels_and_blend_match_the_per_channel_bilinear_rule():
-    # _compose reads the 2 x 2 texels of a ground point from the tiled, spread texture (with shortcuts for the
+    # compose_image reads the 2 x 2 texels of a ground point from the tiled, spread texture (with shortcuts for the
     # neighbours across tile edges) and blends the three channels in 16-bit lanes of one integer; both must give
     # exactly OpenCV's reflected-border texel choice and the per-channel (w00 p00 + ... + 2^15) >> 16
     from numba import njit
 
-    from cottonsim_world.sensors.fast import raster
+    from cottonsim_world.sensors.fast import image_compose
 
     @njit
     def quads_and_blends(tex_flat, ixs, iys, axs, ays, tiles_x, tile_row, tex_w, tex_h):
         out = np.empty((len(ixs), 3), np.int64)
         for i in range(len(ixs)):
-            p00, p01, p10, p11 = raster._texel_quad(tex_flat, ixs[i], iys[i], tiles_x, tile_row, tex_w, tex_h)
-            out[i, 0], out[i, 1], out[i, 2] = raster._bilinear_spread(p00, p01, p10, p11, axs[i], ays[i])
+            p00, p01, p10, p11 = image_compose._texel_quad(tex_flat, ixs[i], iys[i], tiles_x, tile_row, tex_w, tex_h)
+            out[i, 0], out[i, 1], out[i, 2] = image_compose._bilinear_spread(p00, p01, p10, p11, axs[i], ays[i])
         return out
 
     rng = np.random.default_rng(5)
     image = rng.integers(0, 256, (37, 45, 3), dtype=np.uint8)        # not a multiple of the 8-texel tiles
-    tiled = raster.tile_texture(image)
+    tiled = image_compose.tile_texture(image)
     ixs = np.concatenate([rng.integers(-50, 95, 3000), np.arange(0, 45), np.full(37, 7), [-1, 44, 100]])
     iys = np.concatenate([rng.integers(-40, 80, 3000), np.full(45, 15), np.arange(0, 37), [36, -1, -100]])
     axs = np.concatenate([rng.integers(0, 257, 3000), np.full(45 + 37 + 3, 256)])

@@ -11,7 +11,7 @@ from cottonsim_world.geodesy import HectorGeodesy
 from cottonsim_world.sensors.camera import CameraFrame
 from cottonsim_world.sensors.cloud_filters import LaserScanConfig
 from cottonsim_world.sensors.lidar import LidarScan
-from cottonsim_world.simulator import CameraReading, GpsReading, LidarReading
+from cottonsim_world.readings import CameraReading, GpsReading, LidarReading
 
 GEO = HectorGeodesy()
 CAMERAS = ("realsense_p", "realsense_secondary")

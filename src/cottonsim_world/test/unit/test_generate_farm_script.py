@@ -1,22 +1,13 @@
 """scripts/generate_farm: --geodesy-reference puts the GPS exports at another farm's reference."""
 import csv
-import importlib.machinery
-import importlib.util
 import pathlib
 
 import numpy as np
 
+from cottonsim_common.testing import load_script
 from cottonsim_world.geodesy import HectorGeodesy
 
 PKG = pathlib.Path(__file__).resolve().parents[2]
-
-
-def load_script():
-    loader = importlib.machinery.SourceFileLoader("generate_farm", str(PKG / "scripts" / "generate_farm"))
-    spec = importlib.util.spec_from_loader("generate_farm", loader)
-    mod = importlib.util.module_from_spec(spec)
-    loader.exec_module(mod)
-    return mod
 
 
 def _route(out):
@@ -26,7 +17,7 @@ def _route(out):
 
 
 def test_geodesy_reference_moves_the_gps_route_only(tmp_path, capsys):
-    mod = load_script()
+    mod = load_script(PKG / "scripts" / "generate_farm")
     cfg = tmp_path / "farm.yaml"
     cfg.write_text("rows: 3\nplants_per_row: 5\nplant_detail: low\nplant_variants: 2\n")
     assert mod.main(["--config", str(cfg), "--out", str(tmp_path / "default")]) == 0
@@ -42,6 +33,6 @@ def test_geodesy_reference_moves_the_gps_route_only(tmp_path, capsys):
 
 
 def test_bad_geodesy_reference_exits_2_with_a_message(tmp_path, capsys):
-    mod = load_script()
+    mod = load_script(PKG / "scripts" / "generate_farm")
     assert mod.main(["--out", str(tmp_path / "x"), "--geodesy-reference", "95", "0", "0", "0"]) == 2
     assert "reference_latitude_deg" in capsys.readouterr().err

@@ -17,9 +17,10 @@ import pytest
 from cottonsim_world.farm.generator import FarmConfig, generate_farm
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.camera import CameraConfig, CameraModel
-from cottonsim_world.sensors.fast.level_of_detail import (_fan_decimations, _model_arrays, _pair_reversed_faces,
-                                                    _point_mesh_distance, _surface_distance, part_levels,
-                                                    proxy_model_arrays, simplified_model_arrays)
+from cottonsim_world.sensors.fast.level_of_detail import (_fan_decimations, part_levels, proxy_model_arrays,
+                                                           simplified_model_arrays)
+from cottonsim_world.sensors.fast.mesh_arrays import model_arrays, pair_reversed_faces
+from cottonsim_world.sensors.fast.surface_distance import point_mesh_distance, surface_distance
 from cottonsim_world.sensors.lidar import LidarConfig, Vlp16Model
 from cottonsim_world.sensors.scene import SensorScene
 from world_camera_poses import optical_pose
@@ -75,7 +76,7 @@ def test_proxies_keep_area_class_and_colour_of_each_part():
         assert area(pv, pf[sel]) == pytest.approx(a_full, rel=1e-9)
     green = np.all(np.isclose(prgb, [0.2, 0.5, 0.1]), axis=1)
     assert green.sum() == 4 and area(pv, pf[green]) == pytest.approx(area(disc_v, disc_f), rel=1e-9)
-    assert (_pair_reversed_faces(pf[green])[1] >= 0).all()     # still drawn from both sides
+    assert (pair_reversed_faces(pf[green])[1] >= 0).all()     # still drawn from both sides
     brown = np.all(np.isclose(prgb, [0.4, 0.4, 0.3]), axis=1)
     assert brown.sum() == 6 and area(pv, pf[brown]) == pytest.approx(area(tube_v, tube_f), rel=1e-9)
     # the octahedron's faces point outwards
@@ -89,7 +90,7 @@ def test_proxies_keep_area_class_and_colour_of_each_part():
 def test_generated_plants_have_far_fewer_triangles_and_the_same_area_per_class():
     farm = generate_farm(FarmConfig(rows=1, plants_per_row=2, plant_variants=2, seed=5))
     for plant in farm.plants:
-        v, f, sem, rgb, _ = _model_arrays(plant.model)
+        v, f, sem, rgb, _ = model_arrays(plant.model)
         pv, pf, psem, prgb, _, error_m = proxy_model_arrays(v, f, sem, rgb)
         assert len(pf) < 0.3 * len(f)
         for cls in (SemanticClass.PLANT, SemanticClass.BOLL):
@@ -174,13 +175,13 @@ def test_middle_levels_keep_plant_and_boll_pixels_in_a_lane(farm_scene, width):
 
 def test_middle_levels_stay_within_their_tolerance_with_fewer_faces():
     farm = generate_farm(FarmConfig(rows=1, plants_per_row=1, plant_variants=1, seed=5))
-    v, f, sem, rgb, _ = _model_arrays(farm.plants[0].model)
+    v, f, sem, rgb, _ = model_arrays(farm.plants[0].model)
     versions = part_levels(v, f, 0.025)
-    drawn = len(_pair_reversed_faces(f)[0])
+    drawn = len(pair_reversed_faces(f)[0])
     previous = drawn
     for tol in (0.01, 0.025):
         mv, mf, msem, mrgb, mn, error_m = simplified_model_arrays(v, f, sem, rgb, tol, versions)
-        now = len(_pair_reversed_faces(mf)[0])
+        now = len(pair_reversed_faces(mf)[0])
         assert 0.0 < error_m <= tol and now < 0.8 * previous
         previous = now
         assert np.allclose(np.linalg.norm(mn, axis=1), 1.0)
@@ -203,16 +204,16 @@ def test_fan_decimations_keep_the_area_and_the_surface_distance_is_a_distance():
     for sv, sf in steps:
         assert area(sv, sf) == pytest.approx(area(v, f), rel=1e-9)
         assert np.array_equal(sv[0], v[0])                                  # the hub stays
-    errors = [_surface_distance(v, f, sv, sf) for sv, sf in steps]
+    errors = [surface_distance(v, f, sv, sf) for sv, sf in steps]
     assert 0.0 < errors[0] < errors[-1] < 0.1
     assert _fan_decimations(v, f, max_step_m=1e-4) == []
     assert _fan_decimations(v, fan, max_step_m=1.0) == []                  # one-sided: not a leaf blade
     # a square and the same square 1 cm above it: 1 cm apart; a point's distance to a triangle
     sq = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
     quad = np.array([(0, 1, 2), (0, 2, 3)])
-    assert _surface_distance(sq, quad, sq + [0, 0, 0.01], quad) == pytest.approx(0.01, abs=1e-12)
+    assert surface_distance(sq, quad, sq + [0, 0, 0.01], quad) == pytest.approx(0.01, abs=1e-12)
     pts = np.array([[0.5, 0.2, 0.3], [2.0, 0.5, 0.0], [-1.0, -1.0, 1.0]])
-    np.testing.assert_allclose(_point_mesh_distance(pts, sq[quad]), [0.3, 1.0, math.sqrt(3.0)], rtol=1e-12)
+    np.testing.assert_allclose(point_mesh_distance(pts, sq[quad]), [0.3, 1.0, math.sqrt(3.0)], rtol=1e-12)
 
 
 def test_lod_config_is_validated():
@@ -294,10 +295,10 @@ def test_camera_kernels_release_the_gil_and_render_alike_in_threads(farm_scene):
     # the simulator may run the sensor kernels in a worker thread next to the physics: they must not hold the GIL
     import threading
 
-    from cottonsim_world.sensors.fast import raster
+    from cottonsim_world.sensors.fast import image_compose, raster
 
-    for kernel in (raster._draw_plants, raster._clip_near_and_draw, raster._compose,
-                   raster._fill_cloud_xyzrgb):
+    for kernel in (raster.draw_plants, raster._clip_near_and_draw, image_compose.compose_image,
+                   image_compose.fill_cloud_xyzrgb):
         assert kernel.targetoptions.get("nogil") is True, kernel
     cams = [CameraModel(farm_scene, CameraConfig(width=160, height=120)) for _ in range(2)]
     lane = farm_scene.farm.lanes[1]

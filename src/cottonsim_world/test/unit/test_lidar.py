@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from cottonsim_common.testing import assert_config_rejects
 from cottonsim_world.farm.model import Farm, Plant, PlantModel, Pose2D, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.cloud_filters import (LaserScanConfig, PassThroughConfig, cloud_to_laserscan,
                                                    cloud_to_laserscans, original_passthrough, original_passthrough_mask,
@@ -282,12 +283,8 @@ def test_compiled_cloud_filters_match_the_numpy_masks():
 
 
 def test_lidar_config_validation():
-    with pytest.raises(ValueError, match="samples_per_ring"):
-        LidarConfig(samples_per_ring=0)
-    with pytest.raises(ValueError, match="min_range_m"):
-        LidarConfig(min_range_m=200.0)
-    with pytest.raises(ValueError, match="backend.*numba.*pybullet"):
-        LidarConfig(backend="optix")
+    assert_config_rejects(LidarConfig, ("samples_per_ring", 0), ("min_range_m", 200.0),
+                          ("backend", "optix", "backend.*numba.*pybullet"))
     with SensorScene(wall_farm(5.0)) as scene:
         with pytest.raises(ValueError, match="world_T_sensor"):
             Vlp16Model(scene, LidarConfig(samples_per_ring=8)).scan(np.full((4, 4), np.nan))

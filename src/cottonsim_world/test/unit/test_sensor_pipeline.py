@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from cottonsim_world.config_io import simulator_config_from_dict
-from cottonsim_world.simulator import CameraReading, LidarReading, Simulator, SimulatorConfig
+from cottonsim_world.readings import CameraReading, LidarReading
+from cottonsim_world.simulator import Simulator
+from cottonsim_world.simulator_config import SimulatorConfig
 
 
 def config(workers, seed=5):

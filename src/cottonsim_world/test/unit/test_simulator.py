@@ -8,8 +8,10 @@ import pytest
 
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.farm.config import FarmConfig
-from cottonsim_world.simulator import (CameraReading, GpsReading, GroundTruthReading, ImuReading, LidarReading,
-                                       OdometryReading, Simulator, SimulatorConfig)
+from cottonsim_world.readings import (CameraReading, GpsReading, GroundTruthReading, ImuReading, LidarReading,
+                                      OdometryReading)
+from cottonsim_world.simulator import Simulator
+from cottonsim_world.simulator_config import SimulatorConfig
 from cottonsim_common.transforms import quaternion_to_matrix
 
 

@@ -9,7 +9,8 @@ from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.farm.bolls import BollState
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.robot.urdf_model import UrdfModel
-from cottonsim_world.simulator import CameraReading, LidarReading, Simulator
+from cottonsim_world.readings import CameraReading, LidarReading
+from cottonsim_world.simulator import Simulator
 
 URDF = pathlib.Path(__file__).resolve().parents[3] / "cottonsim_description" / "urdf" / "cottonsim_robot.urdf"
 CHANGE_S = 0.5

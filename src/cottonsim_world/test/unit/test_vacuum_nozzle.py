@@ -1,4 +1,4 @@
-"""The vacuum nozzle (robot/vacuum.py), the farm's boll store (robot/boll_store.py) and a pick through
+"""The vacuum nozzle (robot/vacuum.py), its view of the boll field (robot/boll_store.py) and a pick through
 SimulatedArm: a trajectory goal brings the nozzle to a boll, the vacuum captures it, the boll travels with
 the tool and goes into the bin."""
 import math
@@ -8,11 +8,13 @@ import numpy as np
 import pytest
 
 from cottonsim_common.kinematics.ur5e import inverse_kinematics
+from cottonsim_common.pose import Pose2D
 from cottonsim_manipulation.planning.approach import tool_rotations
-from cottonsim_world.farm.model import Plant, PlantModel
+from cottonsim_world.farm.bolls import BollField
+from cottonsim_world.farm.model import Farm, Plant, PlantModel
 from cottonsim_world.robot.arm_goal import TrajectoryGoal, TrajectoryPoint
 from cottonsim_world.robot.arm_tracker import ArmControllerConfig
-from cottonsim_world.robot.boll_store import DROPPED, HELD, IN_BIN, OPEN, FarmBollStore
+from cottonsim_world.robot.boll_store import DROPPED, HELD, IN_BIN, OPEN, BollFieldStore
 from cottonsim_world.robot.sim_arm import SimulatedArm
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.robot.vacuum import VacuumConfig, VacuumNozzle
@@ -29,6 +31,11 @@ def plant(x, y, bolls_local, plant_id=0):
     return Plant(plant_id, 0, plant_id, x, y, 0.0, model)
 
 
+def field_store(*plants):
+    """The nozzle's view (BollFieldStore) of a boll field made of these plants."""
+    return BollFieldStore(BollField(Farm(None, list(plants), [], Pose2D(0.0, 0.0, 0.0))))
+
+
 def pose(position, z_axis):
     """A 4x4 pose at position whose z axis is z_axis."""
     t = np.eye(4)
@@ -37,19 +44,19 @@ def pose(position, z_axis):
 
 
 def test_store_views_bolls_with_their_outward_direction_and_refuses_bad_transitions():
-    store = FarmBollStore([plant(1.0, 2.0, [[0.2, 0.0, 0.5], [0.0, -0.1, 0.7]]), plant(3.0, 2.0, [[0, 0, 0.4]], 1)])
+    store = field_store(plant(1.0, 2.0, [[0.2, 0.0, 0.5], [0.0, -0.1, 0.7]]), plant(3.0, 2.0, [[0, 0, 0.4]], 1))
     assert len(store) == 3
     view = store.nearest_open([1.19, 2.0, 0.52])
     assert view.boll_id == 0 and np.allclose(view.centre_m, [1.2, 2.0, 0.5]) and np.allclose(view.outward, [1, 0, 0])
     assert np.allclose(store.nearest_open([1.0, 1.9, 0.7]).outward, [0, -1, 0])
-    assert np.allclose(store.nearest_open([3.0, 2.0, 0.4]).outward, 0.0)       # on the stem axis: none
+    assert np.allclose(store.nearest_open([3.0, 2.0, 0.4]).outward, [1, 0, 0])   # on the stem axis: +x
     store.attach(0)
     assert store.state(0) == HELD and store.nearest_open([1.2, 2.0, 0.5]).boll_id != 0
-    with pytest.raises(ValueError, match="boll 0 is held, not open"):
+    with pytest.raises(ValueError, match="boll 0 cannot be detached: it is HELD, not ON_PLANT"):
         store.attach(0)
     with pytest.raises(ValueError, match="boll 1 is open, not held"):
         store.release_into_bin(1)
-    with pytest.raises(ValueError, match="no boll 7"):
+    with pytest.raises(ValueError, match="unknown boll id 7"):
         store.attach(7)
 
 
@@ -61,7 +68,7 @@ def test_store_views_bolls_with_their_outward_direction_and_refuses_bad_transiti
     ((0.0, 0.0, 0.0), (-math.cos(0.7), math.sin(0.7), 0), True),    # 40 deg: inside the 45 deg cone
 ])
 def test_capture_rule_on_the_nozzle(offset, axis, captured):
-    store = FarmBollStore([plant(1.0, 2.0, [[0.2, 0.0, 0.5]])])
+    store = field_store(plant(1.0, 2.0, [[0.2, 0.0, 0.5]]))
     nozzle = VacuumNozzle(store, VacuumConfig())
     tip = pose(np.array([1.2, 2.0, 0.5]) + offset, axis)
     assert nozzle.step(tip) is None                 # vacuum off: nothing happens
@@ -71,7 +78,7 @@ def test_capture_rule_on_the_nozzle(offset, axis, captured):
 
 
 def test_a_held_boll_travels_with_the_tool_and_is_released_into_the_bin_or_dropped():
-    store = FarmBollStore([plant(1.0, 2.0, [[0.2, 0.0, 0.5], [0.2, 0.2, 0.5]])])
+    store = field_store(plant(1.0, 2.0, [[0.2, 0.0, 0.5], [0.2, 0.2, 0.5]]))
     cfg = VacuumConfig(bin_centre_m=(0.0, 0.0, 0.6), bin_half_size_m=(0.1, 0.1, 0.1))
     nozzle = VacuumNozzle(store, cfg)
     tip = pose([1.2, 2.01, 0.5], [-1, 0, 0])
@@ -80,7 +87,7 @@ def test_a_held_boll_travels_with_the_tool_and_is_released_into_the_bin_or_dropp
     moved = pose([0.5, 0.5, 1.0], [0, 0, -1])
     nozzle.step(moved)
     offset_before = np.array([1.2, 2.0, 0.5]) - tip[:3, 3]
-    assert np.allclose(store.centres_m[0] - moved[:3, 3], moved[:3, :3] @ tip[:3, :3].T @ offset_before)
+    assert np.allclose(store.field.positions_m()[0] - moved[:3, 3], moved[:3, :3] @ tip[:3, :3].T @ offset_before)
     assert nozzle.step(pose([1.2, 2.2, 0.5], [-1, 0, 0])) is None      # holds one boll: no second capture
     base = np.eye(4)
     base[:3, 3] = [0.0, 0.0, 0.5]                    # the bin's opening is at z 1.1 in the world
@@ -90,7 +97,7 @@ def test_a_held_boll_travels_with_the_tool_and_is_released_into_the_bin_or_dropp
     assert nozzle.step(pose([1.2, 2.2, 0.5], [-1, -1, 0])) == 1
     text = nozzle.switch(False, pose([2.0, 2.0, 0.3], [-1, 0, 0]), base)
     assert store.state(1) == DROPPED and "dropped" in text
-    assert np.allclose(store.centres_m[1], [2.0, 2.0, 0.3], atol=0.02)
+    assert np.allclose(store.field.positions_m()[1], [2.0, 2.0, 0.3], atol=0.02)
 
 
 def test_vacuum_config_names_its_keys():
@@ -118,7 +125,7 @@ def test_a_pick_through_the_trajectory_controller_and_the_vacuum():
     world_T_base[:3, 3] = [5.0, 3.0, 0.13228]
     # a boll 0.75 m to the robot's left, 0.6 m above the ground; its plant's stem further left
     boll = np.array([5.4, 3.75, 0.6])
-    store = FarmBollStore([plant(5.4, 4.0, [[0.0, -0.25, 0.6]])])
+    store = field_store(plant(5.4, 4.0, [[0.0, -0.25, 0.6]]))
     sim_arm = SimulatedArm(urdf, "ur5e_", HOME, ArmControllerConfig(), VacuumConfig(), store)
     assert np.allclose(sim_arm.tip_pose(world_T_base),
                        world_T_base @ urdf.transform("base_link", "ur5e_nozzle_tip", dict(zip(NAMES, HOME))))
@@ -139,5 +146,5 @@ def test_a_pick_through_the_trajectory_controller_and_the_vacuum():
     for _ in range(int(3.5 / DT)):
         t += DT
         sim_arm.step(t, DT, lambda: world_T_base)
-    assert np.linalg.norm(store.centres_m[0] - bin_tip[:3, 3]) < 0.03     # the boll came along
+    assert np.linalg.norm(store.field.positions_m()[0] - bin_tip[:3, 3]) < 0.03     # the boll came along
     assert "into the bin" in sim_arm.switch_vacuum(False, world_T_base) and store.state(0) == IN_BIN

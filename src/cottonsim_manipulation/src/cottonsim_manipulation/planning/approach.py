@@ -38,6 +38,7 @@ from cottonsim_common.kinematics.ur5e import (
     joint_vector,
     link_frames,
 )
+from cottonsim_common.validation import require_unit_vector
 from cottonsim_manipulation.planning.collision import ArmCollisionModel, CapsuleSet
 from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
 
@@ -135,19 +136,9 @@ class ApproachResult:
         return self.reason == "ok"
 
 
-def _unit(v: np.ndarray, what: str) -> np.ndarray:
-    arr = np.asarray(v, dtype=float).reshape(-1)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what} must be 3 finite numbers, got {v!r}")
-    norm = float(np.linalg.norm(arr))
-    if norm < 1e-9:
-        raise ValueError(f"{what} must not be zero")
-    return arr / norm
-
-
 def tool_rotations(axis_z: np.ndarray, rolls_rad: np.ndarray) -> np.ndarray:
     """Rotations (R, 3, 3) with z = axis_z, turned about it by each roll [rad]."""
-    z = _unit(axis_z, "tool axis")
+    z = require_unit_vector("tool axis", axis_z, 3)
     ref = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
     x0 = np.cross(ref, z)
     x0 /= np.linalg.norm(x0)
@@ -184,7 +175,7 @@ def plan_approach(
     p = np.asarray(boll_m, dtype=float).reshape(-1)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
         raise ValueError(f"boll position must be 3 finite numbers [m], got {boll_m!r}")
-    n = _unit(outward, "outward direction")
+    n = require_unit_vector("outward direction", outward, 3)
     q0 = joint_vector(q_current_rad, "current joints")
     ik_cfg = ik_config or IkConfig(lower_limits_rad=trajectory_config.lower_limits_rad,
                                    upper_limits_rad=trajectory_config.upper_limits_rad)
@@ -210,7 +201,7 @@ def tilted_up(direction: np.ndarray, tilt_rad: float) -> np.ndarray:
     """The direction turned by tilt_rad upwards (towards +z) in its vertical plane, unit length.
 
     A vertical direction has no vertical plane of its own and is returned as it is."""
-    d = _unit(direction, "direction")
+    d = require_unit_vector("direction", direction, 3)
     horizontal = np.array([d[0], d[1], 0.0])
     h = np.linalg.norm(horizontal)
     if tilt_rad == 0.0 or h < 1e-9:

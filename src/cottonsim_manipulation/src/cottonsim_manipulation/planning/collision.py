@@ -33,6 +33,7 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 
 from cottonsim_common.kinematics.ur5e import Ur5eKinematics, link_frames
+from cottonsim_common.validation import require_instance
 from cottonsim_manipulation.planning.trajectory import interpolate_path, path_of
 
 ARM_LINKS: Tuple[str, ...] = (
@@ -303,8 +304,7 @@ class ArmCollisionModel:
                  kinematics: Optional[Ur5eKinematics] = None):
         self.config = config or ArmCollisionConfig()
         self.body = body if body is not None else BoxSet.empty()
-        if not isinstance(self.body, BoxSet):
-            raise ValueError(f"body must be a BoxSet, got {type(self.body).__name__}")
+        require_instance("body", self.body, BoxSet)
         self.kinematics = kinematics or Ur5eKinematics()
         n = len(ARM_LINKS)
         self.self_pairs = np.array([(i, j) for i in range(n) for j in range(i + SELF_COLLISION_MIN_GAP, n)])

@@ -187,3 +187,13 @@ def occupancy_to_cost(occupancy: np.ndarray, thresholds: OccupancyThresholds = O
     out[lethal] = LETHAL_OBSTACLE
     out[unknown] = NO_INFORMATION if track_unknown_space else FREE_SPACE
     return out
+
+
+def disc_occupancy(spec: GridSpec, centres_xy_m, radius_m: float) -> np.ndarray:
+    """An OccupancyGrid-valued int8 array on ``spec``: 100 in every cell whose centre lies within ``radius_m``
+    of one of the (x, y) world points ``centres_xy_m`` (plant stems seen as discs), 0 elsewhere."""
+    occ = np.zeros(spec.shape, np.int8)
+    gx, gy = spec.map_to_world(*np.meshgrid(np.arange(spec.width), np.arange(spec.height)))
+    for x, y in centres_xy_m:
+        occ[(gx - x) ** 2 + (gy - y) ** 2 <= radius_m ** 2] = 100
+    return occ

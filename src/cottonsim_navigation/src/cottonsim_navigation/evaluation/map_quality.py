@@ -42,6 +42,8 @@ import numpy as np
 from scipy import ndimage
 from scipy.signal import fftconvolve
 
+from cottonsim_common.validation import require_finite_values, require_instance, require_positive
+
 OCCUPIED_DEFAULT = 65     # OccupancyGrid values >= this are occupied (map_server occupied_thresh 0.65)
 
 
@@ -70,13 +72,9 @@ class MapQualityConfig:
 
     def __post_init__(self) -> None:
         for name in ("max_rotation_deg", "max_shift_m", "tolerance_m", "cell_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         for name in ("coarse_step_deg", "fine_step_deg"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         if self.fine_step_deg > self.coarse_step_deg:
             raise ValueError(f"fine_step_deg ({self.fine_step_deg}) must not exceed coarse_step_deg "
                              f"({self.coarse_step_deg})")
@@ -121,16 +119,9 @@ def _check_grid(name: str, grid, resolution_m, origin) -> Tuple[np.ndarray, floa
         raise ValueError(f"{name} grid must be a non-empty 2-D array, got shape {g.shape}")
     if not np.issubdtype(g.dtype, np.integer):
         raise ValueError(f"{name} grid must hold integers (-1 / 0..100), got {g.dtype}")
-    if isinstance(resolution_m, bool) or not isinstance(resolution_m, (int, float)) \
-            or not math.isfinite(resolution_m) or resolution_m <= 0:
-        raise ValueError(f"{name} resolution_m must be a finite number > 0, got {resolution_m!r}")
-    try:
-        o = tuple(float(v) for v in origin)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} origin must be (x_m, y_m, yaw_rad), got {origin!r}") from None
-    if len(o) != 3 or not all(math.isfinite(v) for v in o):
-        raise ValueError(f"{name} origin must be 3 finite numbers (x_m, y_m, yaw_rad), got {origin!r}")
-    return g.astype(np.int16), float(resolution_m), o
+    resolution_m = require_positive(f"{name} resolution_m", resolution_m)
+    origin = require_finite_values(f"{name} origin (x_m, y_m, yaw_rad)", origin, 3)
+    return g.astype(np.int16), resolution_m, origin
 
 
 def _resample(grid: np.ndarray, res: float, origin, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
@@ -230,8 +221,7 @@ def evaluate_map(map_grid, map_resolution_m: float, map_origin: Sequence[float],
                  config: MapQualityConfig = MapQualityConfig()) -> MapQuality:
     """Align ``map_grid`` to ``truth_grid`` (both OccupancyGrid-valued, origins (x_m, y_m, yaw_rad) of
     cell (0, 0)'s corner in the same nominal frame) and score it; see the module docstring."""
-    if not isinstance(config, MapQualityConfig):
-        raise ValueError(f"config must be a MapQualityConfig, got {type(config).__name__}")
+    require_instance("config", config, MapQualityConfig)
     mg, mres, mo = _check_grid("map", map_grid, map_resolution_m, map_origin)
     tg, tres, to = _check_grid("truth", truth_grid, truth_resolution_m, truth_origin)
     if not (mg >= config.occupied_value).any():

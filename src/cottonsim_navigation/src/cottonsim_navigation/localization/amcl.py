@@ -30,11 +30,18 @@ from typing import Optional
 
 import numpy as np
 
-from ..core.geometry import Pose2D, compose, inverse, normalize_angle
+from cottonsim_common.angles import wrap_angle
+from cottonsim_common.pose import Pose2D, compose, inverse
+from cottonsim_common.validation import (require_finite_values, require_instance, require_int, require_number,
+                                         require_positive)
 from ..core.grid import GridSpec
 from .motion_models import OdometryMotionModelConfig, _as_pose_array, motion_parts, sample_motion_model_odometry
 from .particle_filter import FreeSpaceSampler, ParticleFilter, ParticleFilterConfig
 from .sensor_models import LikelihoodField, LikelihoodFieldConfig, Scan
+
+
+# the sub-models' defaults, declared once in their own configs
+_MOTION, _SENSOR, _FILTER = OdometryMotionModelConfig(), LikelihoodFieldConfig(), ParticleFilterConfig()
 
 
 @dataclass(frozen=True)
@@ -61,31 +68,31 @@ class AmclConfig:
     occupied_threshold: map values above this are obstacles for the likelihood field (0..100).
     """
 
-    alpha1: float = 0.2
-    alpha2: float = 0.2
-    alpha3: float = 0.2
-    alpha4: float = 0.2
-    alpha5: float = 0.1
-    odom_model_type: str = "diff"
+    alpha1: float = _MOTION.alpha1
+    alpha2: float = _MOTION.alpha2
+    alpha3: float = _MOTION.alpha3
+    alpha4: float = _MOTION.alpha4
+    alpha5: float = _MOTION.alpha5
+    odom_model_type: str = _MOTION.model
     odom_max_step_m: float = 0.5
     odom_max_step_rad: float = 0.5
-    min_particles: int = 500
-    max_particles: int = 2000
-    kld_err: float = 0.05
-    kld_z: float = 0.99
-    max_beams: int = 60
-    laser_max_range_m: float = 12.0
-    laser_min_range_m: float = 0.0
-    z_hit: float = 0.5
-    z_rand: float = 0.5
-    sigma_hit_m: float = 0.2
-    likelihood_max_dist_m: float = 2.0
-    laser_model_type: str = "likelihood_field"
+    min_particles: int = _FILTER.min_particles
+    max_particles: int = _FILTER.max_particles
+    kld_err: float = _FILTER.kld_err
+    kld_z: float = _FILTER.kld_z
+    max_beams: int = _SENSOR.max_beams
+    laser_max_range_m: float = _SENSOR.max_range_m
+    laser_min_range_m: float = _SENSOR.min_range_m
+    z_hit: float = _SENSOR.z_hit
+    z_rand: float = _SENSOR.z_rand
+    sigma_hit_m: float = _SENSOR.sigma_hit_m
+    likelihood_max_dist_m: float = _SENSOR.likelihood_max_dist_m
+    laser_model_type: str = _SENSOR.model
     update_min_d_m: float = 0.25
     update_min_a_rad: float = 0.2
     resample_interval: int = 1
-    recovery_alpha_slow: float = 0.0
-    recovery_alpha_fast: float = 0.0
+    recovery_alpha_slow: float = _FILTER.alpha_slow
+    recovery_alpha_fast: float = _FILTER.alpha_fast
     initial_pose: tuple = (0.0, 0.0, 0.0)
     initial_cov_xx_m2: float = 0.25
     initial_cov_yy_m2: float = 0.25
@@ -99,18 +106,10 @@ class AmclConfig:
         self.filter_config()
         for name in ("update_min_d_m", "update_min_a_rad", "initial_cov_xx_m2", "initial_cov_yy_m2",
                      "initial_cov_aa_rad2"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if isinstance(self.resample_interval, bool) or not isinstance(self.resample_interval, int) \
-                or self.resample_interval < 1:
-            raise ValueError(f"resample_interval must be an integer >= 1, got {self.resample_interval!r}")
-        pose = np.asarray(self.initial_pose, dtype=float).reshape(-1)
-        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-            raise ValueError(f"initial_pose must be 3 finite values, got {self.initial_pose!r}")
-        if not (0 <= self.occupied_threshold <= 100):
-            raise ValueError(f"occupied_threshold must lie in 0..100, got {self.occupied_threshold!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
+        require_int("resample_interval", self.resample_interval, 1)
+        require_finite_values("initial_pose", self.initial_pose, 3)
+        require_number("occupied_threshold", self.occupied_threshold, 0, 100)
 
     def motion_config(self) -> OdometryMotionModelConfig:
         return OdometryMotionModelConfig(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5,
@@ -162,8 +161,7 @@ class Amcl:
     """
 
     def __init__(self, config: AmclConfig = AmclConfig(), rng: Optional[np.random.Generator] = None) -> None:
-        if not isinstance(config, AmclConfig):
-            raise ValueError(f"config must be an AmclConfig, got {type(config).__name__}")
+        require_instance("config", config, AmclConfig)
         self.config = config
         self.rng = rng if rng is not None else np.random.default_rng()
         self.filter = ParticleFilter(config.filter_config(), self.rng)
@@ -226,8 +224,7 @@ class Amcl:
         """Feed one scan with the odometry pose at its time; see the module docstring."""
         if self.field is None:
             raise ValueError("Amcl.update needs a map: call set_map first")
-        if not isinstance(scan, Scan):
-            raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
+        require_instance("scan", scan, Scan)
         odom = _as_pose_array(odom_pose, "odom_pose")
         if not self.initialised:
             self.initialise(self.config.initial_pose)
@@ -236,7 +233,7 @@ class Amcl:
             self._force_update = True
         delta = odom - self._odom_ref
         moved = (abs(delta[0]) > self.config.update_min_d_m or abs(delta[1]) > self.config.update_min_d_m
-                 or abs(normalize_angle(delta[2])) > self.config.update_min_a_rad)
+                 or abs(wrap_angle(delta[2])) > self.config.update_min_a_rad)
         updated = resampled = False
         parts = 0
         if moved or self._force_update:

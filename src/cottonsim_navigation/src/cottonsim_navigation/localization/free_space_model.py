@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from cottonsim_common.validation import require_instance
 from .sensor_models import LikelihoodField, Scan
 
 
@@ -192,10 +193,8 @@ class FreeSpaceCheckedField:
     negligible_ratio = 1e-9     # a weight below this times the best one is negligible
 
     def __init__(self, field: LikelihoodField, config: FreeSpaceConfig = FreeSpaceConfig()) -> None:
-        if not isinstance(field, LikelihoodField):
-            raise ValueError(f"field must be a LikelihoodField, got {type(field).__name__}")
-        if not isinstance(config, FreeSpaceConfig):
-            raise ValueError(f"config must be a FreeSpaceConfig, got {type(config).__name__}")
+        require_instance("field", field, LikelihoodField)
+        require_instance("config", config, FreeSpaceConfig)
         self.field = field
         self.free_space_config = config
         self.enabled = True

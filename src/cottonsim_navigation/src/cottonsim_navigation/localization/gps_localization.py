@@ -65,6 +65,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
+from cottonsim_common.validation import require_instance, require_unit_vector
 
 
 @dataclass(frozen=True)
@@ -136,16 +137,6 @@ class GpsLocalizationConfig:
                              f"({self.reference_fix_variance_m2})")
 
 
-def _quat(q: Sequence[float], name: str) -> np.ndarray:
-    arr = np.asarray(q, dtype=float).reshape(-1)
-    if arr.shape != (4,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be 4 finite numbers (x, y, z, w), got {q!r}")
-    n = float(np.linalg.norm(arr))
-    if n < 1e-9:
-        raise ValueError(f"{name} must not be the zero quaternion")
-    return arr / n
-
-
 def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -162,8 +153,8 @@ def robot_yaw_from_imu(q_world_imu: Sequence[float], q_base_imu: Sequence[float]
     q_base_imu: rotation of the IMU frame in base_link (TF base_link <- imu_link), xyzw.
     The robot's orientation is q_world_imu * q_base_imu^-1; its yaw is returned.
     """
-    qw = _quat(q_world_imu, "q_world_imu")
-    qb = _quat(q_base_imu, "q_base_imu")
+    qw = require_unit_vector("q_world_imu (x, y, z, w)", q_world_imu, 4, "the zero quaternion")
+    qb = require_unit_vector("q_base_imu (x, y, z, w)", q_base_imu, 4, "the zero quaternion")
     qb_inv = np.array([-qb[0], -qb[1], -qb[2], qb[3]])
     x, y, z, w = _quat_multiply(qw, qb_inv)
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
@@ -231,8 +222,7 @@ class GpsLocalizer:
 
     @staticmethod
     def _check(stamp_s: float, odom_pose: Pose2D, **values: float) -> None:
-        if not isinstance(odom_pose, Pose2D):
-            raise ValueError(f"odom_pose must be a Pose2D, got {type(odom_pose).__name__}")
+        require_instance("odom_pose", odom_pose, Pose2D)
         for name, v in dict(values, stamp_s=stamp_s).items():
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{name} must be a finite number, got {v!r}")

@@ -58,6 +58,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from cottonsim_common.angles import wrap_angle
+from cottonsim_common.validation import require_positive
 
 # Below this translation [m] the heading of the step is not meaningful (ROS amcl: 0.01 m).
 MIN_TRANSLATION_FOR_HEADING_M = 0.01
@@ -95,10 +96,7 @@ class OdometryMotionModelConfig:
 
     def __post_init__(self) -> None:
         for name in ("alpha1", "alpha2", "alpha3", "alpha4", "alpha5", "max_step_m", "max_step_rad"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value) or value < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         if self.model not in MOTION_MODELS:
             raise ValueError(f"model must be one of {MOTION_MODELS}, got {self.model!r}")
 

@@ -42,6 +42,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from cottonsim_common.angles import wrap_angle
+from cottonsim_common.validation import require_instance
 from ..core.grid import GridSpec
 
 
@@ -215,8 +216,7 @@ class ParticleFilter:
 
     def __init__(self, config: ParticleFilterConfig = ParticleFilterConfig(),
                  rng: Optional[np.random.Generator] = None) -> None:
-        if not isinstance(config, ParticleFilterConfig):
-            raise ValueError(f"config must be a ParticleFilterConfig, got {type(config).__name__}")
+        require_instance("config", config, ParticleFilterConfig)
         self.config = config
         self.rng = rng if rng is not None else np.random.default_rng()
         self._bins = _BinIndex(config.bin_size_xy_m, config.bin_size_yaw_rad)

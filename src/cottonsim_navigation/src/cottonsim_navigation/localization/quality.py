@@ -62,6 +62,7 @@ from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance, require_int, require_positive
 from .particle_filter import mean_resultant_length
 from .sensor_models import LikelihoodField, Scan
 
@@ -126,26 +127,17 @@ class LocalizationQualityConfig:
     def __post_init__(self) -> None:
         for name in ("max_std_xy_m", "max_std_yaw_rad", "hit_distance_m", "relocalize_std_xy_m",
                      "relocalize_std_yaw_rad", "max_crossed_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         for name in ("stationary_update_period_s", "roughen_std_xy_m", "roughen_std_yaw_rad",
                      "relocalize_std_across_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         for name in ("min_hit_fraction", "relocalize_round_fraction"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= 1.0):
                 raise ValueError(f"{name} must lie in [0, 1], got {v!r}")
-        if isinstance(self.switch_after, bool) or not isinstance(self.switch_after, int) or self.switch_after < 1:
-            raise ValueError(f"switch_after must be an integer >= 1, got {self.switch_after!r}")
-        if isinstance(self.relocalize_particles, bool) or not isinstance(self.relocalize_particles, int) \
-                or self.relocalize_particles < 0:
-            raise ValueError(f"relocalize_particles must be an integer >= 0, got {self.relocalize_particles!r}")
-        if isinstance(self.relocalize_after, bool) or not isinstance(self.relocalize_after, int) \
-                or self.relocalize_after < 0:
-            raise ValueError(f"relocalize_after must be an integer >= 0, got {self.relocalize_after!r}")
+        require_int("switch_after", self.switch_after, 1)
+        require_int("relocalize_particles", self.relocalize_particles, 0)
+        require_int("relocalize_after", self.relocalize_after, 0)
 
     def relocalize_covariance(self, yaw_rad: float = 0.0) -> np.ndarray:
         """3x3 covariance (x, y, yaw) of the re-spread after a kidnap [m^2, rad^2], the estimate's heading
@@ -249,8 +241,7 @@ class LocalizationMonitor:
     """Hysteresis over (spread, fit) checks; :attr:`localized` is the current verdict."""
 
     def __init__(self, config: LocalizationQualityConfig = LocalizationQualityConfig()) -> None:
-        if not isinstance(config, LocalizationQualityConfig):
-            raise ValueError(f"config must be a LocalizationQualityConfig, got {type(config).__name__}")
+        require_instance("config", config, LocalizationQualityConfig)
         self.config = config
         self.localized = False
         self._streak = 0
@@ -331,8 +322,7 @@ class StationaryUpdatePolicy:
     """
 
     def __init__(self, config: LocalizationQualityConfig = LocalizationQualityConfig()) -> None:
-        if not isinstance(config, LocalizationQualityConfig):
-            raise ValueError(f"config must be a LocalizationQualityConfig, got {type(config).__name__}")
+        require_instance("config", config, LocalizationQualityConfig)
         self.config = config
         self.relocalizing = False
         self._last_s: Optional[float] = None

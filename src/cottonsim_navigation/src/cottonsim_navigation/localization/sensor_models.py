@@ -35,6 +35,7 @@ from typing import Optional, Tuple
 import numpy as np
 from scipy import ndimage
 
+from cottonsim_common.validation import require_instance
 from ..core.grid import GridSpec
 
 try:
@@ -186,8 +187,7 @@ class LikelihoodFieldConfig:
 
 def validate_occupancy(occupancy, spec: GridSpec) -> np.ndarray:
     """nav_msgs/OccupancyGrid values (-1, 0..100) on ``spec`` as int16, or ValueError."""
-    if not isinstance(spec, GridSpec):
-        raise ValueError(f"spec must be a GridSpec, got {type(spec).__name__}")
+    require_instance("spec", spec, GridSpec)
     occ = np.asarray(occupancy)
     if occ.shape != spec.shape:
         raise ValueError(f"occupancy has shape {occ.shape}, the grid spec needs {spec.shape} (height, width)")
@@ -262,8 +262,7 @@ class LikelihoodField:
 
     def select_beams(self, scan: Scan) -> np.ndarray:
         """End points (K, 2) in base_link of the beams the model uses (valid, subsampled)."""
-        if not isinstance(scan, Scan):
-            raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
+        require_instance("scan", scan, Scan)
         # Unlike ROS amcl (subsample, then drop invalid beams), drop the invalid beams first and
         # subsample the rest: the 0.0-0.1 m slice of the VLP-16 returns only ~15 % of its 722 beams
         # in the farm, so amcl's order would leave ~8 of 60 beams and AMCL would not converge.

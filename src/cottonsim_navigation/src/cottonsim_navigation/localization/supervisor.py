@@ -40,7 +40,8 @@ from typing import Optional
 
 import numpy as np
 
-from ..core.geometry import Pose2D, compose
+from cottonsim_common.pose import Pose2D, compose
+from cottonsim_common.validation import require_instance
 from ..core.grid import GridSpec
 from .amcl import Amcl, AmclResult
 from .free_space_model import FreeSpaceCheckedField, FreeSpaceConfig
@@ -71,10 +72,8 @@ class SupervisorConfig:
     def __post_init__(self) -> None:
         if self.free_space_mode not in FREE_SPACE_MODES:
             raise ValueError(f"free_space_mode must be one of {FREE_SPACE_MODES}, got {self.free_space_mode!r}")
-        if not isinstance(self.free_space, FreeSpaceConfig):
-            raise ValueError(f"free_space must be a FreeSpaceConfig, got {type(self.free_space).__name__}")
-        if not isinstance(self.quality, LocalizationQualityConfig):
-            raise ValueError(f"quality must be a LocalizationQualityConfig, got {type(self.quality).__name__}")
+        require_instance("free_space", self.free_space, FreeSpaceConfig)
+        require_instance("quality", self.quality, LocalizationQualityConfig)
 
 
 @dataclass(frozen=True)
@@ -108,10 +107,8 @@ class LocalizationSupervisor:
     """Runs :class:`~.amcl.Amcl` with the localised signal and the kidnap handling (see the module doc)."""
 
     def __init__(self, amcl: Amcl, config: SupervisorConfig = SupervisorConfig()) -> None:
-        if not isinstance(amcl, Amcl):
-            raise ValueError(f"amcl must be an Amcl, got {type(amcl).__name__}")
-        if not isinstance(config, SupervisorConfig):
-            raise ValueError(f"config must be a SupervisorConfig, got {type(config).__name__}")
+        require_instance("amcl", amcl, Amcl)
+        require_instance("config", config, SupervisorConfig)
         self.amcl = amcl
         self.config = config
         self.monitor = LocalizationMonitor(config.quality)

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance, require_positive
 from ..core.grid import GridSpec
 
 try:
@@ -75,14 +76,9 @@ class ScanMatcherConfig:
     def __post_init__(self) -> None:
         for name in ("sigma_m", "max_dist_m", "linear_step_m", "angular_step_rad", "prior_sigma_along_m",
                      "prior_sigma_lateral_m", "prior_sigma_yaw_rad"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value <= 0:
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+            require_positive(name, getattr(self, name))
         for name in ("min_score", "prior_weight"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         for name in ("refinements", "max_moves", "min_points"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < (0 if name == "refinements" else 1):
@@ -253,8 +249,7 @@ def hill_climb(dist, ox, oy, res, dmax, px, py, x0, y0, t0, lin_step, ang_step, 
 def build_match_field(occupied, spec: GridSpec, max_dist_m: float) -> MatchField:
     """Distance field of a boolean occupied window (H, W) on ``spec`` (see module docstring)."""
     occ = np.asarray(occupied, dtype=bool)
-    if not isinstance(spec, GridSpec):
-        raise ValueError(f"spec must be a GridSpec, got {type(spec).__name__}")
+    require_instance("spec", spec, GridSpec)
     if occ.shape != spec.shape:
         raise ValueError(f"occupied has shape {occ.shape}, the grid spec needs {spec.shape}")
     if not (math.isfinite(max_dist_m) and max_dist_m > 0):
@@ -275,8 +270,7 @@ class ScanMatcher:
     """Hill-climbing scan matcher with an optional anisotropic odometry prior (see module docstring)."""
 
     def __init__(self, config: ScanMatcherConfig = ScanMatcherConfig()) -> None:
-        if not isinstance(config, ScanMatcherConfig):
-            raise ValueError(f"config must be a ScanMatcherConfig, got {type(config).__name__}")
+        require_instance("config", config, ScanMatcherConfig)
         self.config = config
 
     def field(self, occupied, spec: GridSpec) -> MatchField:

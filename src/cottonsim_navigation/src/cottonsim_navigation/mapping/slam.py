@@ -31,22 +31,22 @@ heading, loose sideways; see :class:`ScanMatcherConfig`), i.e. along the row
 odometry is trusted and the scan corrects the rest; poor matches fall back to
 odometry entirely.
 
-Memory: maps are stored in 64 x 64-cell int16 tiles (log-odds x 100) that
-exist only where something was observed; resampled copies share tiles and copy
-one only when they write into it (copy-on-write). 30 particles over the farm
-cost a few MB, not 30 full 4000 x 4000 grids.
+Memory: each particle's map is a ``tiled_map.TiledLogOddsMap`` (64 x 64-cell
+tiles, only where something was observed, shared copy-on-write between
+resampled particles): 30 particles over the farm cost a few MB, not 30 full
+4000 x 4000 grids.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Dict, Optional, Tuple
+from typing import Optional, Tuple
 
 import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
-from cottonsim_common.raytrace import longest_ray, trace_line
+from cottonsim_common.validation import require_instance, require_int, require_positive
 
 from ..core.grid import GridSpec
 from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
@@ -54,14 +54,7 @@ from ..localization.particle_filter import effective_sample_size, systematic_res
 from ..localization.sensor_models import Scan
 from .heading_fusion import HeadingFuser
 from .scan_matcher import ScanMatcher, ScanMatcherConfig, build_match_field
-
-try:
-    from numba import njit
-except ImportError as exc:  # pragma: no cover - numba is a declared dependency
-    raise ImportError("cottonsim_navigation needs numba (pip install numba) for SLAM") from exc
-
-TILE = 64                 # cells per tile edge
-LOGODDS_SCALE = 100.0     # int16 map value = log-odds * LOGODDS_SCALE
+from .tiled_map import LOGODDS_SCALE, TILE, TiledLogOddsMap, integrate_beams
 
 
 @dataclass(frozen=True)
@@ -123,22 +116,14 @@ class SlamConfig:
     matcher: ScanMatcherConfig = field(default_factory=ScanMatcherConfig)
 
     def __post_init__(self) -> None:
-        if isinstance(self.particles, bool) or not isinstance(self.particles, int) or self.particles < 1:
-            raise ValueError(f"particles must be an integer >= 1, got {self.particles!r}")
-        if isinstance(self.match_max_beams, bool) or not isinstance(self.match_max_beams, int) \
-                or self.match_max_beams < 3:
-            raise ValueError(f"match_max_beams must be an integer >= 3, got {self.match_max_beams!r}")
-        if isinstance(self.lskip, bool) or not isinstance(self.lskip, int) or self.lskip < 0:
-            raise ValueError(f"lskip must be an integer >= 0, got {self.lskip!r}")
+        require_int("particles", self.particles, 1)
+        require_int("match_max_beams", self.match_max_beams, 3)
+        require_int("lskip", self.lskip, 0)
         for name in ("max_urange_m", "max_range_m", "delta_m", "lsigma_m", "ogain", "logodds_hit",
                      "logodds_clamp", "heading_tau_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         for name in ("linear_update_m", "angular_update_rad", "srr", "srt", "str_", "stt", "heading_sigma_rad"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         if not (isinstance(self.temporal_update_s, (int, float)) and not math.isnan(self.temporal_update_s)):
             raise ValueError(f"temporal_update_s must be a number, got {self.temporal_update_s!r}")
         if self.max_urange_m > self.max_range_m:
@@ -157,8 +142,7 @@ class SlamConfig:
                 raise ValueError(f"need finite {lo} < {hi}, got {a}, {b}")
         if not isinstance(self.heading_track_rate, bool):
             raise ValueError(f"heading_track_rate must be true or false, got {self.heading_track_rate!r}")
-        if not isinstance(self.matcher, ScanMatcherConfig):
-            raise ValueError(f"matcher must be a ScanMatcherConfig, got {type(self.matcher).__name__}")
+        require_instance("matcher", self.matcher, ScanMatcherConfig)
 
     def motion_config(self) -> OdometryMotionModelConfig:
         """gmapping's noise as the alpha model: rot<-rot stt^2, rot<-trans str^2, trans<-trans srr^2, trans<-rot srt^2."""
@@ -171,82 +155,6 @@ class SlamConfig:
         w = int(math.ceil((self.xmax_m - self.xmin_m) / self.delta_m))
         h = int(math.ceil((self.ymax_m - self.ymin_m) / self.delta_m))
         return GridSpec(self.delta_m, w, h, self.xmin_m, self.ymin_m)
-
-
-class TiledLogOddsMap:
-    """A log-odds grid stored as copy-on-write tiles (int16, log-odds x LOGODDS_SCALE; absent = 0 = unknown)."""
-
-    def __init__(self, spec: GridSpec, tiles: Optional[Dict[Tuple[int, int], np.ndarray]] = None) -> None:
-        self.spec = spec
-        self.tiles: Dict[Tuple[int, int], np.ndarray] = {} if tiles is None else tiles
-
-    def clone(self) -> "TiledLogOddsMap":
-        """A copy sharing every tile array. Tile arrays are never changed in place (write() stores
-        new arrays), so sharing is safe: this is copy-on-write at tile granularity."""
-        return TiledLogOddsMap(self.spec, dict(self.tiles))
-
-    def tile_range(self, mx0: int, my0: int, mx1: int, my1: int) -> Tuple[int, int, int, int]:
-        """Tiles (tx0, ty0, tx1, ty1), inclusive, covering cells [mx0, mx1] x [my0, my1] clipped to the grid."""
-        nx = (self.spec.width + TILE - 1) // TILE
-        ny = (self.spec.height + TILE - 1) // TILE
-        tx0 = min(max(mx0 // TILE, 0), nx - 1)
-        ty0 = min(max(my0 // TILE, 0), ny - 1)
-        tx1 = min(max(mx1 // TILE, 0), nx - 1)
-        ty1 = min(max(my1 // TILE, 0), ny - 1)
-        return tx0, ty0, tx1, ty1
-
-    def read(self, tr: Tuple[int, int, int, int]) -> np.ndarray:
-        """Dense copy of the tiles in range ``tr`` (cell (0, 0) = first cell of tile (tx0, ty0))."""
-        tx0, ty0, tx1, ty1 = tr
-        out = np.zeros(((ty1 - ty0 + 1) * TILE, (tx1 - tx0 + 1) * TILE), dtype=np.int16)
-        for (ty, tx), tile in self.tiles.items():
-            if tx0 <= tx <= tx1 and ty0 <= ty <= ty1:
-                out[(ty - ty0) * TILE:(ty - ty0 + 1) * TILE, (tx - tx0) * TILE:(tx - tx0 + 1) * TILE] = tile
-        return out
-
-    def write(self, tr: Tuple[int, int, int, int], dense: np.ndarray, touched: np.ndarray) -> None:
-        """Store fresh copies of the tiles of ``dense`` flagged in ``touched`` [(ty1-ty0+1), (tx1-tx0+1)]."""
-        tx0, ty0, _, _ = tr
-        for iy, ix in zip(*np.nonzero(touched)):
-            key = (ty0 + int(iy), tx0 + int(ix))
-            self.tiles[key] = dense[iy * TILE:(iy + 1) * TILE, ix * TILE:(ix + 1) * TILE].copy()
-
-    def window_spec(self, tr: Tuple[int, int, int, int]) -> GridSpec:
-        tx0, ty0, tx1, ty1 = tr
-        r = self.spec.resolution_m
-        return GridSpec(r, (tx1 - tx0 + 1) * TILE, (ty1 - ty0 + 1) * TILE,
-                        self.spec.origin_x_m + tx0 * TILE * r, self.spec.origin_y_m + ty0 * TILE * r)
-
-    def nbytes(self) -> int:
-        return sum(t.nbytes for t in self.tiles.values())
-
-
-@njit(cache=True, nogil=True)
-def _integrate(grid, touched, x0, y0, ex, ey, hit, add_miss, add_hit, clamp):
-    """Ray-trace beams from cell (x0, y0) to (ex[i], ey[i]) adding log-odds; marks touched tiles."""
-    h, w = grid.shape
-    n_max = longest_ray(x0, y0, ex, ey)
-    cx = np.empty(n_max, dtype=np.int64)
-    cy = np.empty(n_max, dtype=np.int64)
-    for i in range(ex.shape[0]):
-        bx = ex[i]
-        by = ey[i]
-        n = trace_line(x0, y0, bx, by, cx, cy)
-        for k in range(n):
-            x = cx[k]
-            y = cy[k]
-            if 0 <= x < w and 0 <= y < h:
-                v = grid[y, x] + add_miss
-                grid[y, x] = v if v > -clamp else -clamp
-                touched[y // 64, x // 64] = True
-        if 0 <= bx < w and 0 <= by < h:
-            if hit[i]:
-                v = grid[by, bx] + add_hit
-                grid[by, bx] = v if v < clamp else clamp
-            else:
-                v = grid[by, bx] + add_miss
-                grid[by, bx] = v if v > -clamp else -clamp
-            touched[by // 64, bx // 64] = True
 
 
 @dataclass(frozen=True)
@@ -275,8 +183,7 @@ class RbpfSlam:
     """
 
     def __init__(self, config: SlamConfig = SlamConfig(), rng: Optional[np.random.Generator] = None) -> None:
-        if not isinstance(config, SlamConfig):
-            raise ValueError(f"config must be a SlamConfig, got {type(config).__name__}")
+        require_instance("config", config, SlamConfig)
         self.config = config
         self.rng = rng if rng is not None else np.random.default_rng()
         self.spec = config.map_spec()
@@ -312,8 +219,7 @@ class RbpfSlam:
         Given, the particles move with the odometry whose heading the IMU holds (:class:`HeadingFuser`);
         call with every scan (also those not processed) so that the filter sees the whole odometry.
         """
-        if not isinstance(scan, Scan):
-            raise ValueError(f"scan must be a Scan, got {type(scan).__name__}")
+        require_instance("scan", scan, Scan)
         raw = _as_pose_array(odom_pose, "odom_pose")
         if not (isinstance(stamp_s, (int, float)) and math.isfinite(stamp_s)):
             raise ValueError(f"stamp_s must be a finite number, got {stamp_s!r}")
@@ -460,7 +366,7 @@ class RbpfSlam:
             omx, omy = ws.world_to_map(ox, oy)
             touched = np.zeros((dense.shape[0] // TILE, dense.shape[1] // TILE), dtype=np.bool_)
             grid = dense.astype(np.int32)
-            _integrate(grid, touched, int(omx), int(omy), emx.astype(np.int64), emy.astype(np.int64), hit_u8,
+            integrate_beams(grid, touched, int(omx), int(omy), emx.astype(np.int64), emy.astype(np.int64), hit_u8,
                        add_miss, add_hit, clamp)
             m.write(tr, grid.astype(np.int16), touched)
 

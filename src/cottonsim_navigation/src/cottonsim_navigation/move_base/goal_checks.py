@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, NO_INFORMATION
 from cottonsim_navigation.planning.costmap import Costmap2D
 
@@ -21,7 +21,7 @@ def _blocking(costs: np.ndarray) -> np.ndarray:
     return (costs >= INSCRIBED_INFLATED_OBSTACLE) & (costs != NO_INFORMATION)
 
 
-def blocked_goal_reason(costmap: Costmap2D, goal: geo.Pose2D, tolerance_m: float) -> str:
+def blocked_goal_reason(costmap: Costmap2D, goal: Pose2D, tolerance_m: float) -> str:
     """Why the robot cannot stand at ``goal`` (global costmap frame), or '' when it can."""
     spec = costmap.spec
     gx, gy = (int(v) for v in spec.world_to_map(goal.x_m, goal.y_m))
@@ -36,7 +36,7 @@ def blocked_goal_reason(costmap: Costmap2D, goal: geo.Pose2D, tolerance_m: float
             f"{costmap.inscribed_radius_m:.3f} m) and no free cell within default_tolerance {tolerance_m:g} m")
 
 
-def plan_blocked_at(costmap: Costmap2D, poses: np.ndarray, robot: geo.Pose2D, ignore_near_m: float) -> int:
+def plan_blocked_at(costmap: Costmap2D, poses: np.ndarray, robot: Pose2D, ignore_near_m: float) -> int:
     """Index of the plan segment (from pose i to i + 1) ahead of the robot that crosses a blocking cell, or -1.
 
     Segments are checked at half-cell steps. Those before the pose nearest

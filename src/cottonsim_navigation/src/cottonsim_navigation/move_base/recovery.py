@@ -27,7 +27,9 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.angles import shortest_angular_distance
+from cottonsim_common.pose import Pose2D
+from cottonsim_common.validation import require_positive
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE
 from cottonsim_navigation.planning.costmap import Costmap2D, ObstacleLayer
 
@@ -38,14 +40,14 @@ class RecoveryBehaviour(abc.ABC):
     name: str = "recovery"
 
     @abc.abstractmethod
-    def start(self, local_pose: geo.Pose2D, costmaps: Sequence[Tuple[Costmap2D, geo.Pose2D]]) -> None:
+    def start(self, local_pose: Pose2D, costmaps: Sequence[Tuple[Costmap2D, Pose2D]]) -> None:
         """Begin with the robot at ``local_pose`` (local costmap frame).
 
         costmaps: (costmap, robot pose in that costmap's frame) pairs, global and local.
         """
 
     @abc.abstractmethod
-    def step(self, local_pose: geo.Pose2D, velocity: Tuple[float, float], local_costmap: Costmap2D,
+    def step(self, local_pose: Pose2D, velocity: Tuple[float, float], local_costmap: Costmap2D,
              dt_s: float) -> Tuple[float, float, bool]:
         """One cycle: -> (v m/s, w rad/s, done)."""
 
@@ -132,13 +134,9 @@ class RotateRecoveryConfig:
 
     def __post_init__(self) -> None:
         for name in ("max_rotational_vel", "acc_lim_th", "sim_granularity_rad", "lookahead_rad"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         for name in ("min_in_place_rotational_vel", "tolerance_rad"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         if self.min_in_place_rotational_vel > self.max_rotational_vel:
             raise ValueError(f"min_in_place_rotational_vel ({self.min_in_place_rotational_vel}) exceeds "
                              f"max_rotational_vel ({self.max_rotational_vel})")
@@ -164,7 +162,7 @@ class RotateRecovery(RecoveryBehaviour):
         if self._last_yaw is None:
             self.start(local_pose, ())
         # accumulate the turn actually made (counter-clockwise positive)
-        self.turned_rad += geo.shortest_angular_distance(self._last_yaw, local_pose.yaw_rad)
+        self.turned_rad += shortest_angular_distance(self._last_yaw, local_pose.yaw_rad)
         self._last_yaw = local_pose.yaw_rad
         remaining = 2.0 * math.pi - c.tolerance_rad - self.turned_rad
         if remaining <= 0.0:
@@ -173,7 +171,7 @@ class RotateRecovery(RecoveryBehaviour):
         window = min(remaining, c.lookahead_rad)
         n = max(1, int(math.ceil(window / c.sim_granularity_rad)))
         for k in range(1, n + 1):
-            pose = geo.Pose2D(local_pose.x_m, local_pose.y_m, local_pose.yaw_rad + window * k / n)
+            pose = Pose2D(local_pose.x_m, local_pose.y_m, local_pose.yaw_rad + window * k / n)
             if local_costmap.footprint_cost(pose) >= INSCRIBED_INFLATED_OBSTACLE:
                 self.blocked = True
                 return 0.0, 0.0, True

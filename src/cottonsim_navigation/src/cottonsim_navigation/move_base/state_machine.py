@@ -62,7 +62,9 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.angles import shortest_angular_distance, wrap_angle
+from cottonsim_common.pose import Pose2D, as_pose, compose, inverse, transform_points
+from cottonsim_common.validation import require_instance
 from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
 from cottonsim_navigation.move_base.goal_checks import blocked_goal_reason, plan_blocked_at
 from cottonsim_navigation.move_base.recovery import RecoveryBehaviour, RotateRecoveryConfig, make_recovery
@@ -122,9 +124,9 @@ class StepResult:
     vision_applied: bool = False
 
 
-def _finite_pose(name: str, pose) -> geo.Pose2D:
+def _finite_pose(name: str, pose) -> Pose2D:
     try:
-        p = geo.as_pose(pose)
+        p = as_pose(pose)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name}: {exc}") from None
     if not all(math.isfinite(v) for v in (p.x_m, p.y_m, p.yaw_rad)):
@@ -146,8 +148,7 @@ class MoveBase:
                  recoveries: Optional[Sequence[RecoveryBehaviour]] = None,
                  vision: VisionBiasConfig = VisionBiasConfig(),
                  rotate: RotateRecoveryConfig = RotateRecoveryConfig()):
-        if not isinstance(config, MoveBaseConfig):
-            raise ValueError(f"config must be a MoveBaseConfig, got {type(config).__name__}")
+        require_instance("config", config, MoveBaseConfig)
         self.config = config
         self.vision = vision
         self.global_costmap = global_costmap
@@ -164,7 +165,7 @@ class MoveBase:
                                                     config.conservative_reset_dist))
         self.recoveries: List[RecoveryBehaviour] = list(recoveries)
         self.state = MoveBaseState.IDLE
-        self.goal: Optional[geo.Pose2D] = None
+        self.goal: Optional[Pose2D] = None
         self.plan: Optional[Plan] = None
         self._reset_goal_state(0.0)
 
@@ -176,11 +177,11 @@ class MoveBase:
         self.last_valid_plan_s = now_s
         self.last_valid_control_s = now_s
         self.last_oscillation_reset_s = now_s
-        self.oscillation_pose: Optional[geo.Pose2D] = None
+        self.oscillation_pose: Optional[Pose2D] = None
         self.planning_retries = 0
         self._last_plan_s = -math.inf
         self._last_reason = ""
-        self._plan_tf: Optional[geo.Pose2D] = None
+        self._plan_tf: Optional[Pose2D] = None
         self.goal_blocked_since_s: Optional[float] = None
 
     def set_goal(self, goal, now_s: float) -> None:
@@ -227,7 +228,7 @@ class MoveBase:
         cfg = getattr(self.global_planner, "config", None)
         return float(getattr(cfg, "default_tolerance", 0.0))
 
-    def _blocked_goal_reason(self, goal: geo.Pose2D) -> str:
+    def _blocked_goal_reason(self, goal: Pose2D) -> str:
         return blocked_goal_reason(self.global_costmap, goal, self._tolerance_m())
 
     def _check_blocked_goal(self, now_s: float) -> Optional[StepResult]:
@@ -244,7 +245,7 @@ class MoveBase:
             return self._abort(f"{reason}, for {self.config.planner_patience:g} s (planner_patience)")
         return None
 
-    def _plan_blocked(self, gpose: geo.Pose2D) -> bool:
+    def _plan_blocked(self, gpose: Pose2D) -> bool:
         """The plan ahead of the robot crosses an obstacle the global costmap's obstacle layer saw since."""
         if self.plan is None or not self._global_costmap_clearable():
             return False
@@ -263,7 +264,7 @@ class MoveBase:
         self._running = None
         return StepResult(0.0, 0.0, MoveBaseState.IDLE, Outcome.ABORTED, reason)
 
-    def _local_plan_sync(self, global_pose: geo.Pose2D, local_pose: geo.Pose2D) -> None:
+    def _local_plan_sync(self, global_pose: Pose2D, local_pose: Pose2D) -> None:
         """Give the local planner the plan in the local frame when the plan or map -> odom changed.
 
         A new plan goes through ``set_plan``; a moved map -> odom (every GPS or
@@ -271,21 +272,21 @@ class MoveBase:
         planner keeps its progress and goal latch as move_base's does (ROS
         hands DWA the plan once and transforms it each cycle).
         """
-        t = geo.compose(global_pose, geo.inverse(local_pose))          # map -> odom
+        t = compose(global_pose, inverse(local_pose))          # map -> odom
         if (self._plan_tf is not None and math.hypot(t.x_m - self._plan_tf.x_m, t.y_m - self._plan_tf.y_m) < 0.01
-                and abs(geo.shortest_angular_distance(t.yaw_rad, self._plan_tf.yaw_rad)) < 0.01):
+                and abs(shortest_angular_distance(t.yaw_rad, self._plan_tf.yaw_rad)) < 0.01):
             return
-        to_local = geo.inverse(t)
+        to_local = inverse(t)
         poses = self.plan.poses
-        xy = geo.transform_points(to_local, poses[:, :2])
-        yaw = geo.normalize_angle(poses[:, 2] + to_local.yaw_rad)
+        xy = transform_points(to_local, poses[:, :2])
+        yaw = wrap_angle(poses[:, 2] + to_local.yaw_rad)
         if self._plan_tf is None:                       # a new plan
             self.local_planner.set_plan(np.column_stack([xy, yaw]))
         else:                                           # the same plan, map -> odom moved
             self.local_planner.update_plan_frame(np.column_stack([xy, yaw]))
         self._plan_tf = t
 
-    def _do_plan(self, now_s: float, global_pose: geo.Pose2D) -> Optional[StepResult]:
+    def _do_plan(self, now_s: float, global_pose: Pose2D) -> Optional[StepResult]:
         """Plan once; on failure decide between retry, recovery and abort. Returns an abort result or None."""
         self._last_plan_s = now_s
         plan = self.global_planner.make_plan(self.global_costmap, global_pose, self.goal)
@@ -327,7 +328,7 @@ class MoveBase:
         return (f"robot oscillating (moved less than {self.config.oscillation_distance:g} m in "
                 f"{self.config.oscillation_timeout:g} s) after {n} recovery behaviours")
 
-    def _trajectory(self, pose: geo.Pose2D, v: float, w: float) -> np.ndarray:
+    def _trajectory(self, pose: Pose2D, v: float, w: float) -> np.ndarray:
         if v == 0.0 and w == 0.0:
             return np.zeros((0, 3))
         sim_time = float(getattr(getattr(self.local_planner, "config", None), "sim_time", 1.7))
@@ -339,7 +340,7 @@ class MoveBase:
         else:
             x = pose.x_m + v / w * (np.sin(th) - math.sin(pose.yaw_rad))
             y = pose.y_m - v / w * (np.cos(th) - math.cos(pose.yaw_rad))
-        return np.column_stack([x, y, geo.normalize_angle(th)])
+        return np.column_stack([x, y, wrap_angle(th)])
 
     # ------------------------------------------------------------------ the cycle
     def step(self, now_s: float, global_pose, local_pose, velocity: Tuple[float, float] = (0.0, 0.0),

@@ -6,7 +6,7 @@ from typing import Optional
 
 import numpy as np
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import LETHAL_OBSTACLE
 from cottonsim_navigation.move_base.config import VisionBiasConfig
 from cottonsim_navigation.planning.costmap import Costmap2D
@@ -28,7 +28,7 @@ def blend_vision(w_radps: float, vision_w_radps: Optional[float], age_s: Optiona
     return w_radps + max(-config.max_vision_rate, min(config.max_vision_rate, vision_w_radps))
 
 
-def inside_crop_row(costmap: Costmap2D, pose: geo.Pose2D, reach_m: float = 1.0) -> bool:
+def inside_crop_row(costmap: Costmap2D, pose: Pose2D, reach_m: float = 1.0) -> bool:
     """True when LETHAL cells lie within ``reach_m`` to the left AND to the right of the robot.
 
     Samples lateral lines (perpendicular to the heading) at three points

@@ -39,7 +39,8 @@ from scipy import ndimage
 
 from cottonsim_common.raytrace import clear_rays
 from cottonsim_common.validation import require_positive
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.pose import Pose2D, as_pose, transform_points
+from cottonsim_navigation.core.footprint import footprint_cells, footprint_radii, pad_footprint, validate_footprint
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
                                             NO_INFORMATION, GridSpec)
 from cottonsim_navigation.planning.costmap_layer import CostmapLayer, shift_grid
@@ -87,14 +88,14 @@ class CostmapConfig:
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
         try:
-            geo.validate_footprint(self.footprint)
+            validate_footprint(self.footprint)
         except ValueError as exc:
             raise ValueError(f"footprint: {exc}") from None
         if round(self.width / self.resolution) < 1 or round(self.height / self.resolution) < 1:
             raise ValueError("width and height must hold at least one cell of the given resolution")
 
     def padded_footprint(self) -> np.ndarray:
-        return geo.pad_footprint(self.footprint, self.footprint_padding)
+        return pad_footprint(self.footprint, self.footprint_padding)
 
 
 # --- static layer ---------------------------------------------------------------
@@ -266,7 +267,7 @@ class Costmap2D:
             if not isinstance(layer, CostmapLayer):
                 raise ValueError(f"layers must be CostmapLayer instances, got {type(layer).__name__}")
         self.footprint = config.padded_footprint()
-        self.inscribed_radius_m, self.circumscribed_radius_m = geo.footprint_radii(self.footprint)
+        self.inscribed_radius_m, self.circumscribed_radius_m = footprint_radii(self.footprint)
         self._default = NO_INFORMATION if config.track_unknown_space else FREE_SPACE
         self._full_update_due = True
         self.resize(GridSpec(config.resolution, int(round(config.width / config.resolution)),
@@ -331,7 +332,7 @@ class Costmap2D:
         window_m [m]: recompute only a square of this side centred on the
         robot (a fixed, non-rolling grid only; None = the whole grid).
         """
-        pose = geo.as_pose(robot_pose)
+        pose = as_pose(robot_pose)
         if self.config.rolling_window:
             self.update_origin(pose.x_m - 0.5 * self.spec.size_x_m, pose.y_m - 0.5 * self.spec.size_y_m)
         if window_m is not None and not self.config.rolling_window and not self._full_update_due:
@@ -346,7 +347,7 @@ class Costmap2D:
         self._full_update_due = False
         return master
 
-    def _update_window(self, pose: geo.Pose2D, window_m: float) -> None:
+    def _update_window(self, pose: Pose2D, window_m: float) -> None:
         spec = self.spec
         res = spec.resolution_m
         inflation = self.inflation_layer
@@ -383,11 +384,11 @@ class Costmap2D:
         NO_INFORMATION (255) when any part is off the map; >= 253 means the
         robot would touch an obstacle.
         """
-        p = geo.as_pose(pose)
-        corners = geo.transform_points(p, self.footprint)
+        p = as_pose(pose)
+        corners = transform_points(p, self.footprint)
         if not np.all(self.spec.contains_world(corners[:, 0], corners[:, 1])):
             return NO_INFORMATION
-        fx, fy = geo.footprint_cells(self.spec, p, self.footprint)
+        fx, fy = footprint_cells(self.spec, p, self.footprint)
         if fx.size == 0:
             return NO_INFORMATION
         return int(self.costs[fy, fx].max())
@@ -410,7 +411,7 @@ def make_global_costmap(occupancy: np.ndarray, spec: GridSpec, config: Optional[
     cm = Costmap2D(config, [StaticLayer(static), InflationLayer(inflation)])
     cm.resize(spec)
     cm.static_layer.set_map(occupancy, spec, track_unknown_space=config.track_unknown_space)
-    cm.update_map(geo.Pose2D(*spec.map_to_world(0, 0), 0.0))
+    cm.update_map(Pose2D(*spec.map_to_world(0, 0), 0.0))
     return cm
 
 

@@ -5,7 +5,7 @@ import abc
 
 import numpy as np
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.pose import Pose2D
 
 
 def shift_grid(grid: np.ndarray, dx: int, dy: int, fill: int) -> np.ndarray:
@@ -34,7 +34,7 @@ class CostmapLayer(abc.ABC):
         """The rolling window moved by (dx, dy) cells: keep what stays in view. Default: nothing."""
 
     @abc.abstractmethod
-    def update_costs(self, master: np.ndarray, costmap, robot_pose: geo.Pose2D) -> None:
+    def update_costs(self, master: np.ndarray, costmap, robot_pose: Pose2D) -> None:
         """Write this layer's contribution into ``master`` (uint8, in place).
 
         ``costmap`` is the :class:`Costmap2D` or, for a window update, a view of

@@ -17,7 +17,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_navigation.core.footprint import footprint_cells
 from cottonsim_navigation.core.grid import FREE_SPACE, LETHAL_OBSTACLE, NO_INFORMATION, GridSpec
 from cottonsim_common.raytrace import clear_rays
 from cottonsim_common.validation import require_positive
@@ -163,7 +163,7 @@ class ObstacleLayer(CostmapLayer):
             self._apply(spec, pts, origin)
         self._pending.clear()
         if self.config.footprint_clearing_enabled:
-            fx, fy = geo.footprint_cells(spec, robot_pose, costmap.footprint)
+            fx, fy = footprint_cells(spec, robot_pose, costmap.footprint)
             self.grid[fy, fx] = FREE_SPACE
             self.misses[fy, fx] = 0
         grid = self.grid[costmap.window]

@@ -22,6 +22,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from cottonsim_common.validation import require_positive
+
 
 @dataclass(frozen=True)
 class BatteryConfig:
@@ -48,9 +50,7 @@ class BatteryConfig:
         for name in ("design_capacity_ah", "idle_power_w", "motion_power_w_per_mps", "turn_power_w_per_radps",
                      "voltage_full_v", "voltage_empty_v", "internal_resistance_ohm", "drain_scale",
                      "initial_percentage"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         if self.design_capacity_ah <= 0:
             raise ValueError(f"design_capacity_ah must be > 0, got {self.design_capacity_ah}")
         if not 0.0 <= self.initial_percentage <= 1.0:

@@ -21,7 +21,8 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Bool
 from std_srvs.srv import Empty, EmptyResponse
 
-from cottonsim_navigation.core.geometry import Pose2D, yaw_to_quaternion
+from cottonsim_common.pose import Pose2D
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.localization.amcl import Amcl, AmclConfig
 from cottonsim_navigation.localization.free_space_model import FreeSpaceConfig
@@ -29,7 +30,7 @@ from cottonsim_navigation.localization.quality import LocalizationQualityConfig
 from cottonsim_navigation.localization.sensor_models import Scan
 from cottonsim_navigation.localization.supervisor import LocalizationSupervisor, SupervisorConfig
 from cottonsim_navigation.ros.map_saver_node import occupancy_grid_to_array
-from cottonsim_navigation.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.ros.conversions import finite_or_none, transform_msg, yaw_from_quaternion_msg
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
@@ -358,13 +359,3 @@ class AmclNode:
         t = self._map_to_odom
         self.tf_pub.sendTransform(transform_msg(self.map_frame, self.odom_frame, (t.x_m, t.y_m, 0.0),
                                                 yaw_to_quaternion(t.yaw_rad), stamp))
-
-
-def main():
-    rospy.init_node("amcl")
-    try:
-        AmclNode()
-    except ValueError as exc:
-        rospy.logfatal(f"amcl: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -19,12 +19,12 @@ import tf2_ros
 from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import PointCloud2
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.pose import Pose2D, compose, inverse
 from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, InflationLayer, InflationLayerConfig,
                                                    StaticLayer, StaticLayerConfig)
 from cottonsim_navigation.planning.obstacle_layer import ObstacleLayer, ObstacleLayerConfig
 from cottonsim_navigation.ros.move_base_messages import costmap_msg, occupancy_from_msg, transform_matrix
-from cottonsim_navigation.ros.params import config_from_params, typed_param
+from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.ros import conversions as conv
 
 _LAYERS = {"static_layer": (StaticLayerConfig, StaticLayer), "obstacle_layer": (ObstacleLayerConfig, ObstacleLayer),
@@ -114,7 +114,7 @@ class MoveBaseCostmaps:
             if not cm.config.rolling_window:
                 cm.resize(spec)
             cm.static_layer.set_map(occ, spec, track_unknown_space=cm.config.track_unknown_space)
-            cm.update_map(geo.Pose2D(*spec.map_to_world(0, 0), 0.0))
+            cm.update_map(Pose2D(*spec.map_to_world(0, 0), 0.0))
             self.map_received = True
             self._global_dirty = True
             self._map_unsent = True
@@ -155,7 +155,7 @@ class MoveBaseCostmaps:
         gpose, lpose = self.pose_in(self.global_frame), self.pose_in(self.local_frame)
         if gpose is None or lpose is None:
             return
-        to_global = geo.compose(gpose, geo.inverse(lpose))            # global <- local
+        to_global = compose(gpose, inverse(lpose))            # global <- local
         c, s = math.cos(to_global.yaw_rad), math.sin(to_global.yaw_rad)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         shift = np.array([to_global.x_m, to_global.y_m, 0.0])

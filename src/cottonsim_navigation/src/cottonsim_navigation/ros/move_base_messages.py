@@ -8,15 +8,16 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid, Path
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.pose import Pose2D
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.planning.costmap import Costmap2D
 from cottonsim_common.ros import conversions as conv
 
 
-def transform_to_pose2d(t) -> geo.Pose2D:
+def transform_to_pose2d(t) -> Pose2D:
     """geometry_msgs/Transform (planar part) -> Pose2D."""
-    return geo.Pose2D(t.translation.x, t.translation.y, conv.yaw_from_quaternion_msg(t.rotation))
+    return Pose2D(t.translation.x, t.translation.y, conv.yaw_from_quaternion_msg(t.rotation))
 
 
 def transform_matrix(t) -> np.ndarray:
@@ -52,7 +53,7 @@ def path_msg(poses: np.ndarray, frame_id: str, stamp) -> Path:
         ps = PoseStamped()
         ps.header = msg.header
         ps.pose.position.x, ps.pose.position.y = float(x), float(y)
-        ps.pose.orientation = conv.quaternion_msg(geo.yaw_to_quaternion(float(yaw)))
+        ps.pose.orientation = conv.quaternion_msg(yaw_to_quaternion(float(yaw)))
         msg.poses.append(ps)
     return msg
 

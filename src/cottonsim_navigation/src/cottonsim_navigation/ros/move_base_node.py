@@ -24,7 +24,8 @@ from std_srvs.srv import Empty, EmptyResponse
 from cottonsim_common.ros import conversions as conv
 from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.transforms import pose_matrix
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.pose import Pose2D, compose
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
 from cottonsim_navigation.move_base.recovery import RotateRecoveryConfig
 from cottonsim_navigation.move_base.state_machine import MoveBase, Outcome
@@ -178,7 +179,7 @@ class MoveBaseNode:
         self.action_goal_pub.publish(goal)
 
     # ------------------------------------------------------------- TF
-    def _pose_in(self, frame: str) -> Optional[geo.Pose2D]:
+    def _pose_in(self, frame: str) -> Optional[Pose2D]:
         try:
             t = self.tf_buffer.lookup_transform(frame, self.base_frame, rospy.Time(0), rospy.Duration(0.1))
         except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
@@ -186,20 +187,20 @@ class MoveBaseNode:
             return None
         return transform_to_pose2d(t.transform)
 
-    def _to_global(self, ps: PoseStamped) -> Tuple[Optional[geo.Pose2D], str]:
+    def _to_global(self, ps: PoseStamped) -> Tuple[Optional[Pose2D], str]:
         """A PoseStamped in any frame -> Pose2D in the global frame, or (None, reason)."""
         ok, reason = pose_msg_is_valid(ps.pose)
         if not ok:
             return None, reason
         frame = ps.header.frame_id.lstrip("/") or self.global_frame
-        pose = geo.Pose2D(ps.pose.position.x, ps.pose.position.y, conv.yaw_from_quaternion_msg(ps.pose.orientation))
+        pose = Pose2D(ps.pose.position.x, ps.pose.position.y, conv.yaw_from_quaternion_msg(ps.pose.orientation))
         if frame == self.global_frame:
             return pose, ""
         try:
             t = self.tf_buffer.lookup_transform(self.global_frame, frame, rospy.Time(0), rospy.Duration(0.5))
         except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
             return None, f"cannot transform the goal from {frame} to {self.global_frame}: {exc}"
-        return geo.compose(transform_to_pose2d(t.transform), pose), ""
+        return compose(transform_to_pose2d(t.transform), pose), ""
 
     # ------------------------------------------------------------- services
     def _on_make_plan(self, req) -> GetPlanResponse:
@@ -244,7 +245,7 @@ class MoveBaseNode:
         ps = PoseStamped()
         ps.header = conv.header(rospy.Time.now(), self.global_frame)
         ps.pose.position.x, ps.pose.position.y = goal.x_m, goal.y_m
-        ps.pose.orientation = conv.quaternion_msg(geo.yaw_to_quaternion(goal.yaw_rad))
+        ps.pose.orientation = conv.quaternion_msg(yaw_to_quaternion(goal.yaw_rad))
         self.goal_pub.publish(ps)
         rospy.loginfo("move_base: new goal (%.2f, %.2f, %.2f rad) in %s", goal.x_m, goal.y_m, goal.yaw_rad,
                       self.global_frame)
@@ -321,6 +322,6 @@ class MoveBaseNode:
         fb = MoveBaseFeedback()
         fb.base_position.header = conv.header(now, self.global_frame)
         fb.base_position.pose.position.x, fb.base_position.pose.position.y = gpose.x_m, gpose.y_m
-        fb.base_position.pose.orientation = conv.quaternion_msg(geo.yaw_to_quaternion(gpose.yaw_rad))
+        fb.base_position.pose.orientation = conv.quaternion_msg(yaw_to_quaternion(gpose.yaw_rad))
         self.server.publish_feedback(fb)
         return True

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from cottonsim_navigation.localization.sensor_models import Scan, simulate_scan
-from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig, TiledLogOddsMap
+from cottonsim_navigation.mapping.slam import RbpfSlam, SlamConfig
+from cottonsim_navigation.mapping.tiled_map import TiledLogOddsMap
 from nav_synthetic_maps import field_map
 
 

@@ -1,7 +1,7 @@
 """move_base gives up on goals it cannot reach: blocked goals, blocked plans and a robot that makes no progress."""
 import numpy as np
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.move_base.config import MoveBaseConfig
 from cottonsim_navigation.move_base.goal_checks import blocked_goal_reason, plan_blocked_at
 from cottonsim_navigation.move_base.state_machine import MoveBase, MoveBaseState, Outcome, RecoveryTrigger

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import GridSpec
 from cottonsim_navigation.move_base.config import MoveBaseConfig, VisionBiasConfig
 from cottonsim_navigation.move_base.state_machine import MoveBase, MoveBaseState, Outcome

@@ -4,7 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_navigation.core import geometry as geo
+from cottonsim_common.angles import shortest_angular_distance, wrap_angle
+from cottonsim_common.pose import Pose2D, compose, inverse
+from cottonsim_common.transforms import quaternion_to_yaw, yaw_to_quaternion
+from cottonsim_navigation.core.footprint import footprint_cells, footprint_radii, pad_footprint, rectangle_footprint
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
                                             NO_INFORMATION, GridSpec, occupancy_to_cost)
 from cottonsim_common.raytrace import bresenham_cells
@@ -37,23 +40,23 @@ def test_occupancy_thresholds():
 
 
 def test_geometry_helpers():
-    assert geo.normalize_angle(3 * math.pi) == pytest.approx(-math.pi)
-    assert geo.shortest_angular_distance(math.radians(170), math.radians(-170)) == pytest.approx(math.radians(20))
-    a = geo.Pose2D(1.0, 2.0, 0.5)
-    b = geo.Pose2D(-0.3, 0.7, -1.2)
-    ident = geo.compose(a, geo.inverse(a))
+    assert wrap_angle(3 * math.pi) == pytest.approx(-math.pi)
+    assert shortest_angular_distance(math.radians(170), math.radians(-170)) == pytest.approx(math.radians(20))
+    a = Pose2D(1.0, 2.0, 0.5)
+    b = Pose2D(-0.3, 0.7, -1.2)
+    ident = compose(a, inverse(a))
     assert (ident.x_m, ident.y_m, ident.yaw_rad) == pytest.approx((0, 0, 0), abs=1e-12)
-    c = geo.compose(a, b)
+    c = compose(a, b)
     assert c.x_m == pytest.approx(1.0 + math.cos(0.5) * -0.3 - math.sin(0.5) * 0.7)
-    assert geo.quaternion_to_yaw(*geo.yaw_to_quaternion(2.0)) == pytest.approx(2.0)
-    fp = geo.pad_footprint(geo.rectangle_footprint(0.8, 0.4), 0.005)
+    assert quaternion_to_yaw(*yaw_to_quaternion(2.0)) == pytest.approx(2.0)
+    fp = pad_footprint(rectangle_footprint(0.8, 0.4), 0.005)
     assert np.max(fp[:, 0]) == pytest.approx(0.405)
-    ins, circ = geo.footprint_radii(fp)
+    ins, circ = footprint_radii(fp)
     assert ins == pytest.approx(0.205) and circ == pytest.approx(math.hypot(0.405, 0.205))
     with pytest.raises(ValueError, match="yaw_rad"):
-        geo.Pose2D(0, 0, float("nan"))
+        Pose2D(0, 0, float("nan"))
     s = GridSpec(0.1, 40, 40, -2, -2)
-    fx, fy = geo.footprint_cells(s, geo.Pose2D(0, 0, 0), geo.rectangle_footprint(0.8, 0.4))
+    fx, fy = footprint_cells(s, Pose2D(0, 0, 0), rectangle_footprint(0.8, 0.4))
     assert 32 <= len(fx) <= 60          # 8 x 4 cells plus the outline's rim
 
 
@@ -92,7 +95,7 @@ def test_obstacle_marking_clearing_and_height_band():
     layer = cm.obstacle_layer
     pts = np.array([[1.0, 0.0, 0.3], [0.0, 1.5, 2.0], [-1.9, 0.0, 0.3], [2.2, 2.2, 0.3], [0.0, -1.0, 0.0]])
     layer.add_observation(pts, (0.0, 0.0, 0.5))
-    cm.update_map(geo.Pose2D(0, 0, 0))
+    cm.update_map(Pose2D(0, 0, 0))
     def cost(x, y):
         return int(cm.cost_at_world(x, y))
     assert cost(1.0, 0.0) == LETHAL_OBSTACLE
@@ -102,7 +105,7 @@ def test_obstacle_marking_clearing_and_height_band():
     assert cost(0.0, -1.0) == 0           # below min height
     # a later ray through the obstacle clears it; the new end point is marked
     layer.add_observation(np.array([[1.8, 0.0, 0.3]]), (0.0, 0.0, 0.5))
-    cm.update_map(geo.Pose2D(0, 0, 0))
+    cm.update_map(Pose2D(0, 0, 0))
     assert cost(1.0, 0.0) == 0 and cost(1.8, 0.0) == LETHAL_OBSTACLE
     assert cost(-1.9, 0.0) == LETHAL_OBSTACLE     # untouched by that ray
     with pytest.raises(ValueError, match="points"):
@@ -112,9 +115,9 @@ def test_obstacle_marking_clearing_and_height_band():
 def test_rolling_window_keeps_cells_in_view():
     cm = make_local_costmap(inflation=InflationLayerConfig(enabled=False))
     cm.obstacle_layer.add_observation(np.array([[1.0, 1.0, 0.3], [-2.0, -2.0, 0.3]]), (0, 0, 0.5))
-    cm.update_map(geo.Pose2D(0, 0, 0))
+    cm.update_map(Pose2D(0, 0, 0))
     assert cm.spec.origin_x_m == pytest.approx(-2.5)
-    cm.update_map(geo.Pose2D(1.0, 0.5, 0))
+    cm.update_map(Pose2D(1.0, 0.5, 0))
     assert cm.spec.origin_x_m == pytest.approx(-1.5) and cm.spec.origin_y_m == pytest.approx(-2.0)
     assert int(cm.cost_at_world(1.0, 1.0)) == LETHAL_OBSTACLE     # still in the window, same world place
     assert int(cm.cost_at_world(-2.0, -2.0)) == NO_INFORMATION    # now off the window
@@ -126,9 +129,9 @@ def test_footprint_cost_and_config_validation():
     occ = np.zeros(spec.shape, np.int8)
     occ[30, 42] = 100                         # obstacle at x = 0.625, y = 0.025 (footprint to 0.525)
     cm = make_global_costmap(occ, spec, inflation=InflationLayerConfig(enabled=False))
-    assert cm.footprint_cost(geo.Pose2D(0, 0, 0)) == 0
-    assert cm.footprint_cost(geo.Pose2D(0.2, 0, 0)) == LETHAL_OBSTACLE
-    assert cm.footprint_cost(geo.Pose2D(5, 5, 0)) == NO_INFORMATION
+    assert cm.footprint_cost(Pose2D(0, 0, 0)) == 0
+    assert cm.footprint_cost(Pose2D(0.2, 0, 0)) == LETHAL_OBSTACLE
+    assert cm.footprint_cost(Pose2D(5, 5, 0)) == NO_INFORMATION
     with pytest.raises(ValueError, match="resolution"):
         CostmapConfig(resolution=0)
     with pytest.raises(ValueError, match="footprint"):

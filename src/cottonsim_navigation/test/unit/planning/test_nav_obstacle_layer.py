@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import FREE_SPACE, LETHAL_OBSTACLE, GridSpec
 from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, InflationLayer, StaticLayer)
 from cottonsim_navigation.planning.obstacle_layer import ObstacleLayer, ObstacleLayerConfig

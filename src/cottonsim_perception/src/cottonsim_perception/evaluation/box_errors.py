@@ -37,6 +37,7 @@ from typing import Dict, Optional
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from cottonsim_perception.evaluation.metrics import as_boxes, assign_by_score, box_iou, on_ignore_regions
 
 MISS_KINDS = ("misplaced", "weak", "unseen")
@@ -127,8 +128,7 @@ class BoxMatch:
 
     def __init__(self, pred_boxes, pred_scores, pred_classes, gt_boxes, gt_classes, ignore_boxes=None,
                  config: BoxErrorConfig = BoxErrorConfig()):
-        if not isinstance(config, BoxErrorConfig):
-            raise ValueError(f"config must be a BoxErrorConfig, got {type(config).__name__}")
+        require_instance("config", config, BoxErrorConfig)
         self.config = config
         p = as_boxes("pred_boxes", pred_boxes)
         g = as_boxes("gt_boxes", gt_boxes)

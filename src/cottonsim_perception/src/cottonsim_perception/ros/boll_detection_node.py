@@ -313,13 +313,3 @@ class BollDetectionNode:
         text = f"{len(boxes)} bolls, {int(reach.sum())} in reach"
         cv2.putText(img, text, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
         publisher.publish(conv.image_msg(img, frame.header.stamp, frame.header.frame_id))
-
-
-def main():
-    rospy.init_node("boll_detection")
-    try:
-        node = BollDetectionNode()
-    except ValueError as exc:
-        rospy.logfatal(f"boll_detection: {exc}")
-        raise SystemExit(2)
-    node.spin()

@@ -103,13 +103,3 @@ class RowCentringNode:
             overlay = draw_row_centring(image, result, ground, sky, self.config)
             self.overlay_pub.publish(conv.image_msg(np.ascontiguousarray(overlay), msg.header.stamp,
                                                     msg.header.frame_id))
-
-
-def main():
-    rospy.init_node("row_centring")
-    try:
-        RowCentringNode()
-    except (ValueError, TypeError) as exc:
-        rospy.logfatal(f"row_centring: bad parameter: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

@@ -189,13 +189,3 @@ class SegmentationNode:
             rgb = None
         overlay = colorize_labels(labels, rgb, self.overlay_alpha) if rgb is not None else colorize_labels(labels)
         self.overlay_pub.publish(conv.image_msg(overlay, stamp, frame))
-
-
-def main():
-    rospy.init_node("segmentation")
-    try:
-        SegmentationNode()
-    except ValueError as exc:
-        rospy.logfatal(f"segmentation: {exc}")
-        raise SystemExit(2)
-    rospy.spin()

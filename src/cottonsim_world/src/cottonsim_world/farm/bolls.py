@@ -34,6 +34,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.farm.model import Farm
 
 
@@ -92,8 +93,7 @@ class BollField:
     """
 
     def __init__(self, farm: Farm, config: BollFieldConfig = BollFieldConfig()) -> None:
-        if not isinstance(config, BollFieldConfig):
-            raise ValueError(f"config must be a BollFieldConfig, got {type(config).__name__}")
+        require_instance("config", config, BollFieldConfig)
         if not hasattr(farm, "plants"):
             raise ValueError("farm must be a farm.model.Farm (it has no 'plants')")
         self.config = config

@@ -28,6 +28,7 @@ from typing import List, Tuple
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.model import Farm, Lane, Plant, PlantModel, Pose2D
 from cottonsim_world.farm.plant_model import CottonPlantConfig, build_cotton_plant
@@ -35,8 +36,7 @@ from cottonsim_world.farm.plant_model import CottonPlantConfig, build_cotton_pla
 
 def generate_farm(config: FarmConfig = FarmConfig()) -> Farm:
     """Build the farm described by ``config`` (deterministic per config)."""
-    if not isinstance(config, FarmConfig):
-        raise ValueError(f"config must be a FarmConfig, got {type(config).__name__}")
+    require_instance("config", config, FarmConfig)
     # Independent random streams, so that e.g. changing missing_plant_fraction
     # does not change the plant shapes.
     layout_ss, models_ss = np.random.SeedSequence(config.seed).spawn(2)

@@ -33,6 +33,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance, require_positive
 from cottonsim_world.farm.model import PlantModel, Primitive, SemanticClass, TriangleMesh
 
 GOLDEN_ANGLE_RAD = math.pi * (3.0 - math.sqrt(5.0))   # ~137.5 deg, cotton's spiral phyllotaxy
@@ -74,9 +75,7 @@ class CottonPlantConfig:
 
     def __post_init__(self) -> None:
         for name in ("height_m", "width_m", "canopy_base_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            require_positive(name, getattr(self, name))
         if self.canopy_base_m >= 0.6 * self.height_m:
             raise ValueError(f"canopy_base_m={self.canopy_base_m} must be below 60 % of height_m={self.height_m}")
         if isinstance(self.boll_count, bool) or not isinstance(self.boll_count, (int, np.integer)) or self.boll_count < 0:
@@ -251,8 +250,7 @@ def build_cotton_plant(config: CottonPlantConfig = CottonPlantConfig(),
     rng: a numpy Generator (consumed) or an integer seed.
     Returns a PlantModel in plant-local coordinates (stem foot at the origin).
     """
-    if not isinstance(config, CottonPlantConfig):
-        raise ValueError(f"config must be a CottonPlantConfig, got {type(config).__name__}")
+    require_instance("config", config, CottonPlantConfig)
     if rng is None or isinstance(rng, (int, np.integer)):
         rng = np.random.default_rng(rng)
     elif not isinstance(rng, np.random.Generator):

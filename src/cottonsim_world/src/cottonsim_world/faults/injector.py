@@ -29,6 +29,7 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.faults.schedule import (ALL_CAMERAS, FIX_TYPE_STATUS, GPS_KINDS, GPS_STATUS_NO_FIX,
                                              FaultScheduleConfig, FaultSpec)
 
@@ -73,8 +74,7 @@ class FaultInjector:
 
     def __init__(self, schedule: FaultScheduleConfig, cameras: Sequence[str], radius_north_m: float,
                  radius_east_m: float):
-        if not isinstance(schedule, FaultScheduleConfig):
-            raise ValueError(f"schedule must be a FaultScheduleConfig, got {type(schedule).__name__}")
+        require_instance("schedule", schedule, FaultScheduleConfig)
         for name, v in (("radius_north_m", radius_north_m), ("radius_east_m", radius_east_m)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a radius > 0 [m], got {v!r}")
@@ -166,6 +166,11 @@ class FaultInjector:
                                    longitude_deg=reading.longitude_deg + east * self._deg_per_m_east,
                                    altitude_m=reading.altitude_m + up, position_variance_m2=variance, status=status)
 
+    def _count_and_drop(self, kind: str, faults) -> bool:
+        """Count a reading that active ``faults`` of ``kind`` change; True when one of them drops it."""
+        self.affected[kind] += 1
+        return any(f.spec.mode == "drop" for f in faults)
+
     def camera(self, reading):
         """A CameraReading (fields stamp_s, camera, frame, cloud_*) after the blackouts of its camera;
         None when one drops it, black pixels and no depth points for mode black."""
@@ -173,8 +178,7 @@ class FaultInjector:
                   if f.spec.camera in (ALL_CAMERAS, reading.camera)]
         if not faults:
             return reading
-        self.affected["camera_blackout"] += 1
-        if any(f.spec.mode == "drop" for f in faults):
+        if self._count_and_drop("camera_blackout", faults):
             return None
         frame = reading.frame
         black = dataclasses.replace(frame, rgb=np.zeros_like(frame.rgb),
@@ -191,8 +195,7 @@ class FaultInjector:
         faults = self._active(reading.stamp_s, ("lidar_dropout",))
         if not faults:
             return reading
-        self.affected["lidar_dropout"] += 1
-        if any(f.spec.mode == "drop" for f in faults):
+        if self._count_and_drop("lidar_dropout", faults):
             return None
         scan = reading.scan
         empty = dataclasses.replace(scan, **{f.name: getattr(scan, f.name)[:0] for f in dataclasses.fields(scan)})

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import Tuple
 
-from cottonsim_common.validation import require_positive
+from cottonsim_common.validation import require_finite_values, require_positive
 
 
 @dataclass(frozen=True)
@@ -139,6 +139,4 @@ class DriveLimits:
                      "wheel_separation_multiplier", "wheel_radius_multiplier"):
             require_positive(name, getattr(self, name))
         for name in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
-            values = getattr(self, name)
-            if len(values) != 6 or not all(math.isfinite(v) and v >= 0.0 for v in values):
-                raise ValueError(f"{name} must be 6 finite numbers >= 0, got {values!r}")
+            require_finite_values(name, getattr(self, name), 6, low=0.0)

@@ -12,91 +12,27 @@ merged contact joint per wheel, soft ERP / CFM from a spring-damper), what
 it gives (the closed-form spin rate of a skid-steer robot, checked), and
 how collisions are filtered: docs/physics.md.
 
-Note on pyode: its constants predate ODE 0.16 (Debian's libode8). The
-joint parameter indices and contact mode flags used here are the ones of
-the loaded library (see ``_motor_param_indices``); pyode's ``ode.ParamFMax``
-and ``ode.ContactSlip1`` silently set other parameters on libode 0.16.
+The bodies and geoms are built by ``ode_bodies``; the library's constants
+(pyode's own predate ODE 0.16) come from ``ode_library``.
 """
 from __future__ import annotations
 
 import ctypes
 import math
 from collections import deque
-from typing import Deque, Dict, Iterable, List, Optional, Sequence, Set, Tuple
+from typing import Deque, Dict, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
-try:
-    import ode  # Debian: python3-pyode
-except ImportError as exc:  # pragma: no cover - depends on the machine
-    raise ImportError("cottonsim_world.physics.ode_world needs python3-pyode (apt-get install python3-pyode)") from exc
-
 from ..farm.model import Plant, Pose2D, Primitive
 from .diff_drive import DiffDriveController
-from .husky_params import WHEEL_NAMES, DriveLimits, HuskyParams
+from .husky_params import DriveLimits, HuskyParams
+from .ode_bodies import build_husky, finite_tuple, plant_primitives_in_world, static_geom
+from .ode_library import (CAT_GROUND, CAT_ROBOT, MODE_APPROX1, MODE_FDIR1, MODE_MU2, MODE_SLIP1, MODE_SLIP2,
+                          MODE_SOFT_CFM, MODE_SOFT_ERP, PARAM_VEL, ode)
 from .physics_config import ContactEvent, PhysicsConfig, RobotState
 
-
-def _motor_param_indices() -> Tuple[int, int]:
-    """(ParamVel, ParamFMax) indices of the libode actually loaded.
-
-    pyode's constants predate ODE 0.16, which inserted dParamLoVel and
-    dParamHiVel before dParamFMax (so pyode's ``ode.ParamFMax`` == 3 sets
-    LoVel on Debian's libode 0.16 and the motor never gets a torque). A
-    fresh joint has FudgeFactor == 1 and every other parameter != 1; where
-    that 1 sits tells the layout.
-    """
-    probe = ode.HingeJoint(ode.World())
-    values = [probe.getParam(i) for i in range(8)]
-    if values[6] == 1.0:          # Lo, Hi, Vel, LoVel, HiVel, FMax, Fudge
-        return 2, 5
-    if values[4] == 1.0:          # Lo, Hi, Vel, FMax, Fudge (ODE < 0.16)
-        return 2, 3
-    raise RuntimeError(f"unknown ODE joint parameter layout {values}; cannot drive the wheel motors")
-
-
-PARAM_VEL, PARAM_FMAX = _motor_param_indices()
-
-# Contact mode flags. pyode's ode.ContactSlip1/2 and ode.ContactApprox1 are
-# the pre-0.12 values; ODE 0.12+ inserted dContactMotionN (0x80), moving
-# Slip1/Slip2 to 0x100/0x200 and adding Approx1_N (0x4000). With pyode's
-# constants on libode 0.16 "Slip1" sets MotionN and "Slip2" sets Slip1,
-# which makes friction anisotropic in world axes. The joint layout probe
-# above tells the two library generations apart (LoVel/HiVel came in 0.16).
-if PARAM_FMAX == 5:
-    MODE_MU2, MODE_SOFT_ERP, MODE_SOFT_CFM = 0x001, 0x008, 0x010
-    MODE_FDIR1, MODE_SLIP1, MODE_SLIP2, MODE_APPROX1 = 0x002, 0x100, 0x200, 0x7000
-else:  # pragma: no cover - old libode
-    MODE_MU2, MODE_SOFT_ERP, MODE_SOFT_CFM = ode.ContactMu2, ode.ContactSoftERP, ode.ContactSoftCFM
-    MODE_FDIR1, MODE_SLIP1, MODE_SLIP2, MODE_APPROX1 = (ode.ContactFDir1, ode.ContactSlip1,
-                                                        ode.ContactSlip2, ode.ContactApprox1)
-
 _TWO_PI = 2.0 * math.pi
-
-# Category bits of the three kinds of geoms.
-CAT_ROBOT = 0x1
-CAT_GROUND = 0x2
-CAT_PLANT = 0x4
-
-
-def _quat_mul_wxyz(a: Sequence[float], b: Sequence[float]) -> Tuple[float, float, float, float]:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw)
-
-
-def _yaw_wxyz(yaw: float) -> Tuple[float, float, float, float]:
-    return (math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0))
-
-
-def _finite_tuple(values: Iterable[float], n: int, what: str) -> Tuple[float, ...]:
-    out = tuple(float(v) for v in values)
-    if len(out) != n or not all(math.isfinite(v) for v in out):
-        raise ValueError(f"{what} must be {n} finite numbers, got {out!r}")
-    return out
 
 
 class OdeWorld:
@@ -206,59 +142,13 @@ class OdeWorld:
 
         Returns the number of geoms added. Plants are static (no body).
         """
-        count = 0
-        for plant in plants:
-            for name in ("x_m", "y_m", "yaw_rad"):
-                if not math.isfinite(getattr(plant, name)):
-                    raise ValueError(f"plant {plant.plant_id}: {name} is not finite")
-            q_yaw = _yaw_wxyz(plant.yaw_rad)
-            c, s = math.cos(plant.yaw_rad), math.sin(plant.yaw_rad)
-            world_prims = []
-            for prim in plant.model.collision:
-                px, py, pz = _finite_tuple(prim.position, 3, f"plant {plant.plant_id} primitive {prim.name!r} position")
-                qx, qy, qz, qw = _finite_tuple(prim.orientation, 4,
-                                               f"plant {plant.plant_id} primitive {prim.name!r} orientation")
-                qw_, qx_, qy_, qz_ = _quat_mul_wxyz(q_yaw, (qw, qx, qy, qz))
-                world_prims.append(Primitive(
-                    shape=prim.shape,
-                    position=(plant.x_m + c * px - s * py, plant.y_m + s * px + c * py, pz),
-                    orientation=(qx_, qy_, qz_, qw_), size=prim.size, name=prim.name))
-            count += self.add_static_obstacles(plant.plant_id, world_prims)
-        return count
+        return sum(self.add_static_obstacles(plant.plant_id, plant_primitives_in_world(plant)) for plant in plants)
 
     def add_static_obstacles(self, plant_id: int, primitives_in_world: Sequence[Primitive]) -> int:
         """Add static collision primitives (world frame) that belong to plant_id."""
-        added = []
-        for prim in primitives_in_world:
-            pos = _finite_tuple(prim.position, 3, f"plant {plant_id} primitive {prim.name!r} position")
-            qx, qy, qz, qw = _finite_tuple(prim.orientation, 4, f"plant {plant_id} primitive {prim.name!r} orientation")
-            norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-            if norm < 1e-9:
-                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: zero quaternion")
-            size = tuple(float(v) for v in prim.size)
-            if not all(math.isfinite(v) and v > 0 for v in size):
-                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: sizes must be finite and > 0, got {size}")
-            want = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1}
-            if prim.shape not in want:
-                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: unknown shape {prim.shape!r} "
-                                 f"(expected one of {sorted(want)})")
-            if len(size) != want[prim.shape]:
-                raise ValueError(f"plant {plant_id} primitive {prim.name!r}: a {prim.shape} needs "
-                                 f"{want[prim.shape]} size values, got {len(size)}")
-            if prim.shape == "box":
-                geom = ode.GeomBox(self._static_space, tuple(2.0 * v for v in size))
-            elif prim.shape == "cylinder":
-                geom = ode.GeomCylinder(self._static_space, size[0], size[1])
-            elif prim.shape == "capsule":
-                geom = ode.GeomCapsule(self._static_space, size[0], size[1])
-            else:
-                geom = ode.GeomSphere(self._static_space, size[0])
-            geom.setPosition(pos)
-            geom.setQuaternion((qw / norm, qx / norm, qy / norm, qz / norm))
-            geom.setCategoryBits(CAT_PLANT)
-            geom.setCollideBits(CAT_ROBOT)
+        added = [static_geom(self._static_space, plant_id, prim) for prim in primitives_in_world]
+        for geom in added:
             self._geom_info[id(geom)] = ("plant", int(plant_id))
-            added.append(geom)
         self._static_geoms.extend(added)
         self._plant_ids.add(int(plant_id))
         return len(added)
@@ -273,66 +163,21 @@ class OdeWorld:
 
         Spawning again removes the previous robot and resets the controller.
         """
-        x, y, yaw = _finite_tuple((pose.x_m, pose.y_m, pose.yaw_rad), 3, "spawn pose (x_m, y_m, yaw_rad)")
+        x, y, yaw = finite_tuple((pose.x_m, pose.y_m, pose.yaw_rad), 3, "spawn pose (x_m, y_m, yaw_rad)")
         if self._chassis is not None:
             self._remove_robot()
-        hp = self.husky
-        q = _yaw_wxyz(yaw)
-        rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-        base = np.array([x, y, hp.base_link_height_m])
-
-        chassis = ode.Body(self._world)
-        mass = ode.Mass()
-        ixx, iyy, izz = hp.chassis_inertia_kg_m2
-        mass.setParameters(hp.chassis_mass_kg, 0.0, 0.0, 0.0, ixx, iyy, izz, 0.0, 0.0, 0.0)
-        chassis.setMass(mass)
-        com_offset = np.array([0.0, 0.0, hp.chassis_com_height_m])
-        chassis.setPosition(tuple(base + rot @ com_offset))
-        chassis.setQuaternion(q)
-        geoms = []
-        for part, centre, size in (("chassis", hp.lower_box_centre_m, hp.lower_box_size_m),
-                                   ("chassis", hp.upper_box_centre_m, hp.upper_box_size_m)):
-            g = ode.GeomBox(self._robot_space, size)
-            g.setBody(chassis)
-            g.setOffsetPosition(tuple(np.asarray(centre) - com_offset))
-            geoms.append((g, part, chassis))
-
-        wheels, hinges = [], []
-        # GeomCylinder's axis is its local z; turn it onto the wheel axle (y).
-        q_axle = (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0)
-        for name, wpos in zip(WHEEL_NAMES, hp.wheel_positions_base_link()):
-            body = ode.Body(self._world)
-            m = ode.Mass()
-            m.setCylinderTotal(hp.wheel_mass_kg, 2, hp.wheel_radius_m, hp.wheel_width_m)
-            body.setMass(m)
-            centre = base + rot @ np.asarray(wpos)
-            body.setPosition(tuple(centre))
-            body.setQuaternion(q)
-            g = ode.GeomCylinder(self._robot_space, hp.wheel_radius_m, hp.wheel_width_m)
-            g.setBody(body)
-            g.setOffsetQuaternion(q_axle)
-            geoms.append((g, name, body))
-            hinge = ode.HingeJoint(self._world)
-            hinge.attach(body, chassis)       # rate = wheel minus chassis: > 0 rolls forward
-            hinge.setAnchor(tuple(centre))
-            hinge.setAxis(tuple(rot @ np.array([0.0, 1.0, 0.0])))
-            hinge.setParam(PARAM_VEL, 0.0)
-            hinge.setParam(PARAM_FMAX, self.config.wheel_max_torque_n_m)
-            wheels.append(body)
-            hinges.append(hinge)
-        for g, part, body in geoms:
-            g.setCategoryBits(CAT_ROBOT)
-            g.setCollideBits(CAT_GROUND | CAT_PLANT)
+        husky = build_husky(self._world, self._robot_space, self.husky, x, y, yaw, self.config.wheel_max_torque_n_m)
+        for g, part, body in husky.geoms:
             self._geom_info[id(g)] = ("robot", part, body, part != "chassis")
-        self._chassis = chassis
-        self._wheels = wheels
-        self._hinges = hinges
-        self._robot_geoms = [g for g, _, _ in geoms]
-        self._ground_pairs = [(g, body, part != "chassis") for g, part, body in geoms]
-        self._com_offset = com_offset
+        self._chassis = husky.chassis
+        self._wheels = husky.wheels
+        self._hinges = husky.hinges
+        self._robot_geoms = [g for g, _, _ in husky.geoms]
+        self._ground_pairs = [(g, body, part != "chassis") for g, part, body in husky.geoms]
+        com_offset = husky.com_offset_m
         self._base_offset = (-float(com_offset[0]), -float(com_offset[1]), -float(com_offset[2]))
         self._wheel_angle = [0.0] * 4
-        self._wheel_raw_prev = [h.getAngle() for h in hinges]
+        self._wheel_raw_prev = [h.getAngle() for h in self._hinges]
         self._vel_history.clear()
         self._controller.reset()
         self._wheel_targets = (0.0, 0.0)

@@ -23,35 +23,35 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from cottonsim_common.transforms import yaw_to_quaternion
+from cottonsim_common.validation import require_finite_values, require_positive
 
 from .husky_params import DriveLimits, HuskyParams
 
 
+_HUSKY, _LIMITS = HuskyParams(), DriveLimits()     # the defaults, declared once there
+
+
 @dataclass(frozen=True)
 class WheelOdometryConfig:
-    """Kinematic parameters of the odometry.
+    """Kinematic parameters of the odometry (defaults: the Husky's, ``HuskyParams`` and ``DriveLimits``).
 
     wheel_radius_m, track_m: URDF values; wheel_separation_multiplier and
     wheel_radius_multiplier: control.yaml's corrections. Covariance
     diagonals are (x, y, z, roll, pitch, yaw) as in control.yaml.
     """
 
-    wheel_radius_m: float = 0.1651
-    track_m: float = 0.5708
-    wheel_separation_multiplier: float = 1.875
-    wheel_radius_multiplier: float = 1.0
-    pose_covariance_diagonal: Tuple[float, ...] = (0.001, 0.001, 0.001, 0.001, 0.001, 0.03)
-    twist_covariance_diagonal: Tuple[float, ...] = (0.001, 0.001, 0.001, 0.001, 0.001, 0.03)
+    wheel_radius_m: float = _HUSKY.wheel_radius_m
+    track_m: float = _HUSKY.track_m
+    wheel_separation_multiplier: float = _LIMITS.wheel_separation_multiplier
+    wheel_radius_multiplier: float = _LIMITS.wheel_radius_multiplier
+    pose_covariance_diagonal: Tuple[float, ...] = _LIMITS.pose_covariance_diagonal
+    twist_covariance_diagonal: Tuple[float, ...] = _LIMITS.twist_covariance_diagonal
 
     def __post_init__(self) -> None:
         for name in ("wheel_radius_m", "track_m", "wheel_separation_multiplier", "wheel_radius_multiplier"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"WheelOdometryConfig.{name} must be a finite number > 0, got {v!r}")
+            require_positive(f"WheelOdometryConfig.{name}", getattr(self, name))
         for name in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
-            values = getattr(self, name)
-            if len(values) != 6 or not all(math.isfinite(v) and v >= 0 for v in values):
-                raise ValueError(f"WheelOdometryConfig.{name} must be 6 finite numbers >= 0, got {values!r}")
+            require_finite_values(f"WheelOdometryConfig.{name}", getattr(self, name), 6, low=0.0)
 
     @classmethod
     def from_husky(cls, husky: HuskyParams = HuskyParams(), limits: DriveLimits = DriveLimits()) -> "WheelOdometryConfig":

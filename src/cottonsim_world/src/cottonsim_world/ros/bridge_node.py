@@ -100,9 +100,10 @@ from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.ros.boll_topics import BollTopics
 from cottonsim_world.ros.arm_interface import ArmRosInterface
-from cottonsim_world.simulator import (ARM_JOINT_NAMES, CameraReading, ContactsReading, GpsReading,
-                                       GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
-                                       OdometryReading, Simulator)
+from cottonsim_world.readings import (CameraReading, ContactsReading, GpsReading, GroundTruthReading, ImuReading,
+                                      JointStatesReading, LidarReading, OdometryReading)
+from cottonsim_world.simulator import Simulator
+from cottonsim_world.simulator_config import ARM_JOINT_NAMES
 
 
 _XYZRGB_FIELDS = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)

@@ -27,7 +27,7 @@ from typing import Dict, List, Sequence, Tuple
 import numpy as np
 
 from cottonsim_world.farm.model import Plant, PlantModel, SemanticClass, TriangleMesh
-from cottonsim_world.sensors.fast.level_of_detail import _mesh_parts
+from cottonsim_world.sensors.fast.mesh_arrays import mesh_components
 
 
 def _boll_part_meshes(model: PlantModel) -> List[Dict[str, TriangleMesh]]:
@@ -39,7 +39,7 @@ def _boll_part_meshes(model: PlantModel) -> List[Dict[str, TriangleMesh]]:
             continue
         v = np.asarray(mesh.vertices, dtype=float)
         f = np.asarray(mesh.faces, dtype=np.int64)
-        n_parts, face_part = _mesh_parts(v, f)
+        n_parts, face_part = mesh_components(v, f)
         owner = np.zeros(n_parts, dtype=np.int64)
         for part in range(n_parts):
             corners = v[f[face_part == part]].reshape(-1, 3)

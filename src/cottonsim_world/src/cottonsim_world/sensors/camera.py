@@ -36,8 +36,10 @@ from typing import Optional, Tuple
 import numpy as np
 import pybullet as pb
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.farm.model import SemanticClass
-from cottonsim_world.sensors.fast.raster import _compose, _draw_plants, _fill_cloud_xyzrgb, tile_texture
+from cottonsim_world.sensors.fast.image_compose import compose_image, fill_cloud_xyzrgb, tile_texture
+from cottonsim_world.sensors.fast.raster import draw_plants
 from cottonsim_world.sensors.scene import BollVisibility, SensorScene, check_pose
 
 _RENDERERS = ("numba", "tiny", "egl")
@@ -156,7 +158,7 @@ class CameraFrame:
 _WARM_UP_POSE = np.array([[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
 
 
-# per scene its soil texture in _compose's tiled layout (8 bytes a texel: built once, shared by the cameras)
+# per scene its soil texture in compose_image's tiled layout (8 bytes a texel: built once, shared by the cameras)
 _TILED_SOIL = weakref.WeakKeyDictionary()
 
 
@@ -173,7 +175,7 @@ class _FastBuffers:
         threads = numba.get_num_threads()
         self.zbuf = np.zeros((threads, height, width), np.float32)     # 1/z [1/m], 0 = empty
         self.ibuf = np.zeros((threads, height, width), np.int32)       # global triangle id
-        self.scratch = np.zeros((threads, 6, max(1, self.plants.max_model_verts)))   # see _draw_plants
+        self.scratch = np.zeros((threads, 6, max(1, self.plants.max_model_verts)))   # see draw_plants
 
 
 class CameraModel:
@@ -189,10 +191,8 @@ class CameraModel:
     """
 
     def __init__(self, scene: SensorScene, config: CameraConfig = CameraConfig()) -> None:
-        if not isinstance(scene, SensorScene):
-            raise ValueError(f"scene must be a SensorScene, got {type(scene).__name__}")
-        if not isinstance(config, CameraConfig):
-            raise ValueError(f"config must be a CameraConfig, got {type(config).__name__}")
+        require_instance("scene", scene, SensorScene)
+        require_instance("config", config, CameraConfig)
         self.scene = scene
         self.config = config
         self._intr = self._make_intrinsics()
@@ -325,7 +325,7 @@ class CameraModel:
         rot = pose[:3, :3].T                                  # optical_R_world
         trans = -rot @ pose[:3, 3]
         intr = self._intr
-        _draw_plants(visible, slot, gbase, inst.plant_pose,
+        draw_plants(visible, slot, gbase, inst.plant_pose,
                      inst.model_vbase, inst.model_vcount, inst.draw_base, inst.draw_count, inst.model_xyz, inst.draw_faces,
                      inst.draw_local, inst.draw_twin, rot, trans, intr.fx, intr.fy, intr.cx, intr.cy,
                      cfg.near_m, cfg.far_m, fb.zbuf, fb.ibuf, fb.scratch)
@@ -334,7 +334,7 @@ class CameraModel:
         semantic = np.empty((cfg.height, cfg.width), np.uint8)
         plant_id = np.empty((cfg.height, cfg.width), np.int32)
         tex, tex_w, tex_h, x0, y0, rx, ry, sky = fb.background
-        _compose(fb.zbuf, fb.ibuf, inst.g_rgb, inst.g_semantic, inst.g_plant, np.ascontiguousarray(pose[:3, :3]),
+        compose_image(fb.zbuf, fb.ibuf, inst.g_rgb, inst.g_semantic, inst.g_plant, np.ascontiguousarray(pose[:3, :3]),
                  np.ascontiguousarray(pose[:3, 3]), intr.fx, intr.fy, intr.cx, intr.cy, cfg.near_m, cfg.far_m,
                  tex, tex_w, tex_h, x0, y0, rx, ry, sky, int(SemanticClass.GROUND), int(SemanticClass.SKY),
                  rgb, depth, semantic, plant_id)
@@ -380,6 +380,6 @@ class CameraModel:
         room = (-(-cfg.height // stride)) * (-(-cfg.width // stride))
         out = np.empty((room, 4), np.uint32)
         colours = np.empty((room, 3), np.uint8)
-        n = _fill_cloud_xyzrgb(depth, rgb, self._ray_x, self._ray_y, stride, lo, hi, out.view(np.float32), out,
+        n = fill_cloud_xyzrgb(depth, rgb, self._ray_x, self._ray_y, stride, lo, hi, out.view(np.float32), out,
                                colours)
         return out[:n].view(np.float32), colours[:n]

@@ -32,6 +32,7 @@ from typing import Optional, Tuple
 import numpy as np
 import pybullet as pb
 
+from cottonsim_common.validation import require_instance
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.fast.raycast import HIT_GROUND, cast_rays, gather_returns
 from cottonsim_world.sensors.scene import BollVisibility, SensorScene, check_pose
@@ -129,10 +130,8 @@ class Vlp16Model:
     """
 
     def __init__(self, scene: SensorScene, config: LidarConfig = LidarConfig()) -> None:
-        if not isinstance(scene, SensorScene):
-            raise ValueError(f"scene must be a SensorScene, got {type(scene).__name__}")
-        if not isinstance(config, LidarConfig):
-            raise ValueError(f"config must be a LidarConfig, got {type(config).__name__}")
+        require_instance("scene", scene, SensorScene)
+        require_instance("config", config, LidarConfig)
         self.scene = scene
         self.config = config
         n = config.samples_per_ring

@@ -49,6 +49,7 @@ import cv2
 import numpy as np
 
 from cottonsim_common.transforms import yaw_to_quaternion
+from cottonsim_common.validation import require_instance
 from cottonsim_world.farm.model import Farm, Plant, SemanticClass, TriangleMesh
 from cottonsim_world.sensors.boll_instances import SplitFarm
 from cottonsim_world.sensors.ray_world import PybulletRayWorld, merge_meshes
@@ -174,8 +175,7 @@ class SensorScene:
     """
 
     def __init__(self, farm: Farm, config: SceneConfig = SceneConfig()) -> None:
-        if not isinstance(config, SceneConfig):
-            raise ValueError(f"config must be a SceneConfig, got {type(config).__name__}")
+        require_instance("config", config, SceneConfig)
         if not hasattr(farm, "plants"):
             raise ValueError("farm must be a farm.model.Farm (it has no 'plants')")
         self.farm = farm

@@ -60,6 +60,7 @@ except ImportError as exc:  # pragma: no cover
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, as_pose
+from cottonsim_common.validation import require_positive
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, NO_INFORMATION
 from cottonsim_navigation.planning.base import GlobalPlanner, Plan, register_global_planner
 
@@ -98,9 +99,7 @@ class NavfnConfig:
             raise ValueError(f"goal_approach_max_angle_rad must be in [0, pi/2], got "
                              f"{self.goal_approach_max_angle_rad!r}")
         for name in ("default_tolerance", "cost_factor", "orientation_window_m", "goal_approach_join_m"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            require_positive(name, getattr(self, name), allow_zero=True)
         if not (math.isfinite(self.neutral_cost) and self.neutral_cost > 0):
             raise ValueError(f"neutral_cost must be > 0, got {self.neutral_cost!r}")
 
@@ -126,6 +125,14 @@ def navfn_cost_table(config: NavfnConfig = NavfnConfig()) -> np.ndarray:
 # equal g + h the one nearer the goal comes first; the path then costs at most (1 + 1e-10)
 # times the optimum, far below what matters, yet above float64 rounding noise of the keys.
 TIE_BREAK = 1e-10
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heap_put(heap, hkey, where, i, cell, key):  # pragma: no cover - compiled
+    """Put ``cell`` with ``key`` in slot ``i`` of the search's binary heap and note the slot in ``where``."""
+    heap[i] = cell
+    hkey[i] = key
+    where[cell] = i
 
 
 @njit(cache=True, nogil=True)
@@ -188,15 +195,11 @@ def _search(costs, cost_lut, start, target_mask, n_targets, bx0, bx1, by0, by1, 
                 if l + 1 < size and hkey[l + 1] < hkey[l]:
                     c = l + 1
                 if hkey[c] < lkey:
-                    heap[i] = heap[c]
-                    hkey[i] = hkey[c]
-                    where[heap[i]] = i
+                    _heap_put(heap, hkey, where, i, heap[c], hkey[c])
                     i = c
                 else:
                     break
-            heap[i] = last
-            hkey[i] = lkey
-            where[last] = i
+            _heap_put(heap, hkey, where, i, last, lkey)
         done[u] = True
         uy = u // w
         ux = u - uy * w
@@ -240,15 +243,11 @@ def _search(costs, cost_lut, start, target_mask, n_targets, bx0, bx1, by0, by1, 
                 while i > 0:
                     p = (i - 1) // 2
                     if hkey[p] > key:
-                        heap[i] = heap[p]
-                        hkey[i] = hkey[p]
-                        where[heap[i]] = i
+                        _heap_put(heap, hkey, where, i, heap[p], hkey[p])
                         i = p
                     else:
                         break
-                heap[i] = v
-                hkey[i] = key
-                where[v] = i
+                _heap_put(heap, hkey, where, i, v, key)
     flat[start] = start_value
     for i in range(n):
         if not done[i]:

@@ -47,16 +47,12 @@ from dataclasses import dataclass, fields
 from typing import Optional, Tuple
 
 import numpy as np
-from scipy import ndimage
 
-try:
-    from numba import njit
-except ImportError as exc:  # pragma: no cover
-    raise ImportError("the DWA planner needs numba (pip install numba)") from exc
-
-from cottonsim_navigation.core import geometry as geo
-from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
+from cottonsim_common.angles import shortest_angular_distance
+from cottonsim_common.pose import Pose2D, as_pose
 from cottonsim_navigation.planning.base import LocalPlanner, LocalPlannerStatus, register_local_planner
+from cottonsim_navigation.planning.local_planners.trajectories import (distance_fields, footprint_collides,
+                                                                     polyline_distance, simulate_arcs)
 
 
 @dataclass(frozen=True)
@@ -142,20 +138,6 @@ class DWAConfig:
                 raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
 
 
-def simulate_arcs(x: float, y: float, yaw: float, v: np.ndarray, w: np.ndarray, t: np.ndarray
-                  ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact unicycle poses for constant (v[s], w[s]) at times t[k]: arrays (S, K)."""
-    v = np.asarray(v, dtype=float)[:, None]
-    w = np.asarray(w, dtype=float)[:, None]
-    t = np.asarray(t, dtype=float)[None, :]
-    th = yaw + w * t
-    small = np.abs(w) < 1e-9
-    wsafe = np.where(small, 1.0, w)
-    xs = np.where(small, x + v * t * np.cos(yaw), x + v / wsafe * (np.sin(th) - np.sin(yaw)))
-    ys = np.where(small, y + v * t * np.sin(yaw), y - v / wsafe * (np.cos(th) - np.cos(yaw)))
-    return xs, ys, np.broadcast_to(th, xs.shape)
-
-
 class DWAPlanner(LocalPlanner):
     """dwa_local_planner/DWAPlannerROS equivalent; see the module docstring.
 
@@ -225,7 +207,7 @@ class DWAPlanner(LocalPlanner):
         return self.plan[-1] if len(self.plan) else None
 
     # --- goal checks -----------------------------------------------------------
-    def _xy_reached(self, pose: geo.Pose2D) -> bool:
+    def _xy_reached(self, pose: Pose2D) -> bool:
         g = self.goal
         if g is None:
             return False
@@ -237,19 +219,19 @@ class DWAPlanner(LocalPlanner):
         return reached
 
     def is_goal_reached(self, pose, velocity) -> bool:
-        pose = geo.as_pose(pose)
+        pose = as_pose(pose)
         v, w = (float(velocity[0]), float(velocity[1]))
         g = self.goal
         if g is None:
             return False
         if not self._xy_reached(pose):
             return False
-        if abs(geo.shortest_angular_distance(pose.yaw_rad, g[2])) > self.config.yaw_goal_tolerance:
+        if abs(shortest_angular_distance(pose.yaw_rad, g[2])) > self.config.yaw_goal_tolerance:
             return False
         return abs(v) <= self.config.trans_stopped_vel and abs(w) <= self.config.theta_stopped_vel
 
     # --- helpers -----------------------------------------------------------------
-    def _local_plan(self, pose: geo.Pose2D, spec) -> np.ndarray:
+    def _local_plan(self, pose: Pose2D, spec) -> np.ndarray:
         """Plan from the point nearest the robot (never going backwards) while inside the map."""
         # nearest of the next points (a bounded look-ahead, so a path that later
         # passes near the robot again is not cut short); progress never goes back
@@ -263,12 +245,12 @@ class DWAPlanner(LocalPlanner):
         leave = np.flatnonzero(~inside)
         return rest[: leave[0]] if leave.size else rest
 
-    def _update_oscillation(self, pose: geo.Pose2D) -> None:
+    def _update_oscillation(self, pose: Pose2D) -> None:
         if self._osc_ref is None:
             return
         x, y, th = self._osc_ref
         if (math.hypot(pose.x_m - x, pose.y_m - y) >= self.config.oscillation_reset_dist
-                or abs(geo.shortest_angular_distance(th, pose.yaw_rad)) >= self.config.oscillation_reset_angle):
+                or abs(shortest_angular_distance(th, pose.yaw_rad)) >= self.config.oscillation_reset_angle):
             self._osc_sign = 0
             self._osc_ref = None
 
@@ -281,7 +263,7 @@ class DWAPlanner(LocalPlanner):
             nv = math.copysign(max(0.0, abs(v) - c.acc_lim_x * dt), v)
             nw = math.copysign(max(0.0, abs(w) - c.acc_lim_theta * dt), w)
             return nv, nw, LocalPlannerStatus.ROTATING_TO_GOAL
-        err = geo.shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))
+        err = shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))
         # fastest speed from which we can still stop at the goal yaw, counting that the command is
         # held for a whole control period before the next one can brake: w dt + w^2 / (2 a) = |err|.
         # (ROS's sqrt(2 a |err|) assumes braking starts at once; at 5 Hz it overshoots by up to
@@ -291,8 +273,8 @@ class DWAPlanner(LocalPlanner):
         w_cmd = min(c.max_rot_vel, w_stop, abs(w) + c.acc_lim_theta * dt)
         w_cmd = max(c.min_rot_vel, w_cmd)
         w_cmd = math.copysign(w_cmd, err)
-        turned = geo.Pose2D(pose.x_m, pose.y_m, pose.yaw_rad + w_cmd * dt)
-        if _footprint_collides(costmap, np.array([[turned.x_m]]), np.array([[turned.y_m]]),
+        turned = Pose2D(pose.x_m, pose.y_m, pose.yaw_rad + w_cmd * dt)
+        if footprint_collides(costmap, np.array([[turned.x_m]]), np.array([[turned.y_m]]),
                                np.array([[turned.yaw_rad]]))[0]:
             return 0.0, 0.0, LocalPlannerStatus.NO_VALID_TRAJECTORY
         return 0.0, w_cmd, LocalPlannerStatus.ROTATING_TO_GOAL
@@ -300,7 +282,7 @@ class DWAPlanner(LocalPlanner):
     # --- main -------------------------------------------------------------------------
     def compute_velocity(self, pose, velocity, costmap) -> Tuple[float, float, LocalPlannerStatus]:
         c = self.config
-        pose = geo.as_pose(pose)
+        pose = as_pose(pose)
         try:
             v0, w0 = float(velocity[0]), float(velocity[1])
         except (TypeError, IndexError, ValueError):
@@ -316,7 +298,7 @@ class DWAPlanner(LocalPlanner):
         if self._xy_reached(pose):
             if self.is_goal_reached(pose, (v0, w0)):
                 return 0.0, 0.0, LocalPlannerStatus.GOAL_REACHED
-            if abs(geo.shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))) <= c.yaw_goal_tolerance:
+            if abs(shortest_angular_distance(pose.yaw_rad, float(self.goal[2]))) <= c.yaw_goal_tolerance:
                 # aligned: just brake to a stop
                 dt = 1.0 / c.controller_frequency
                 nv = math.copysign(max(0.0, abs(v0) - c.acc_lim_x * dt), v0)
@@ -360,16 +342,16 @@ class DWAPlanner(LocalPlanner):
         xs, ys, ths = simulate_arcs(pose.x_m, pose.y_m, pose.yaw_rad, V, W, t)
 
         # 5. scores
-        collide, occ = _footprint_collides(costmap, xs, ys, ths, return_cost=True)
+        collide, occ = footprint_collides(costmap, xs, ys, ths, return_cost=True)
         ex, ey, eth = xs[:, -1], ys[:, -1], ths[:, -1]
         fx = ex + c.forward_point_distance * np.cos(eth)
         fy = ey + c.forward_point_distance * np.sin(eth)
         if c.exact_distances:
             def path_distance(qx, qy):
-                return _polyline_distance(qx, qy, local[:, :2])
+                return polyline_distance(qx, qy, local[:, :2])
             goal_cost = np.hypot(ex - local[-1, 0], ey - local[-1, 1])
         else:
-            path_d, goal_d = _distance_fields(spec, local)
+            path_d, goal_d = distance_fields(spec, local)
 
             def lookup(field, qx, qy):
                 mx, my = spec.world_to_map(qx, qy)
@@ -408,99 +390,6 @@ class DWAPlanner(LocalPlanner):
                 self._osc_sign = int(np.sign(bw))
                 self._osc_ref = (pose.x_m, pose.y_m, pose.yaw_rad)
         return bv, bw, LocalPlannerStatus.OK
-
-
-def _polyline_distance(qx: np.ndarray, qy: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Exact distance [m] of each query point (S,) to the polyline ``poly`` (K, 2)."""
-    if len(poly) == 1:
-        return np.hypot(qx - poly[0, 0], qy - poly[0, 1])
-    a = poly[:-1]
-    ab = poly[1:] - a
-    l2 = np.einsum("ij,ij->i", ab, ab)
-    l2 = np.where(l2 > 0.0, l2, 1.0)
-    rx = qx[:, None] - a[None, :, 0]
-    ry = qy[:, None] - a[None, :, 1]
-    t = np.clip((rx * ab[None, :, 0] + ry * ab[None, :, 1]) / l2[None, :], 0.0, 1.0)
-    dx = rx - t * ab[None, :, 0]
-    dy = ry - t * ab[None, :, 1]
-    return np.sqrt(np.min(dx * dx + dy * dy, axis=1))
-
-
-def _distance_fields(spec, local):
-    """Euclidean distance [m] of every cell to the local plan and to the local goal."""
-    res = spec.resolution_m
-    pmx, pmy = spec.world_to_map(local[:, 0], local[:, 1])
-    mask = np.ones(spec.shape, dtype=bool)
-    mask[pmy, pmx] = False
-    path_d = ndimage.distance_transform_edt(mask) * res
-    gmask = np.ones(spec.shape, dtype=bool)
-    gmask[pmy[-1], pmx[-1]] = False
-    goal_d = ndimage.distance_transform_edt(gmask) * res
-    return path_d, goal_d
-
-
-@njit(cache=True, nogil=True)
-def _scan_trajectories(costs, ox, oy, res, xs, ys, ths, outline):
-    """Per trajectory: (collides, highest footprint cost) over all its poses.
-
-    costs: (H, W) uint8 grid with origin (ox, oy) [m] and cell size res [m];
-    xs, ys, ths: (S, K) poses; outline: (M, 2) footprint outline points in the
-    robot frame. Rules as in the module docstring; a trajectory stops being
-    scanned at its first colliding pose.
-    """
-    h, w = costs.shape
-    S, K = xs.shape
-    M = outline.shape[0]
-    collide = np.zeros(S, dtype=np.bool_)
-    occ = np.zeros(S)
-    for s in range(S):
-        worst = 0
-        bad = False
-        for k in range(K):
-            x = xs[s, k]
-            y = ys[s, k]
-            mx = int(np.floor((x - ox) / res))
-            my = int(np.floor((y - oy) / res))
-            if mx < 0 or mx >= w or my < 0 or my >= h or costs[my, mx] >= 253:
-                bad = True
-                break
-            cc = costs[my, mx]
-            if cc > worst:
-                worst = cc
-            c = np.cos(ths[s, k])
-            si = np.sin(ths[s, k])
-            for m in range(M):
-                px = x + c * outline[m, 0] - si * outline[m, 1]
-                py = y + si * outline[m, 0] + c * outline[m, 1]
-                mx = int(np.floor((px - ox) / res))
-                my = int(np.floor((py - oy) / res))
-                if mx < 0 or mx >= w or my < 0 or my >= h:
-                    bad = True
-                    break
-                cc = costs[my, mx]
-                if cc == 254 or cc == 255:
-                    bad = True
-                    break
-                if cc > worst:
-                    worst = cc
-            if bad:
-                break
-        collide[s] = bad
-        occ[s] = worst
-    return collide, occ
-
-
-def _footprint_collides(costmap, xs, ys, ths, return_cost: bool = False):
-    """Collision flags (S,) and highest footprint cost (S,) of trajectories (S, K) of poses."""
-    spec = costmap.spec
-    outline = geo.footprint_outline_points(np.asarray(costmap.footprint, dtype=float), spec.resolution_m)
-    collide, occ = _scan_trajectories(np.ascontiguousarray(costmap.costs, dtype=np.uint8),
-                                      float(spec.origin_x_m), float(spec.origin_y_m), float(spec.resolution_m),
-                                      np.ascontiguousarray(xs, dtype=float), np.ascontiguousarray(ys, dtype=float),
-                                      np.ascontiguousarray(ths, dtype=float), outline)
-    if return_cost:
-        return collide, occ
-    return collide
 
 
 register_local_planner(["dwa_local_planner/DWAPlannerROS", "dwa", "DWAPlannerROS"],

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Optional, Tuple
 
 
-from cottonsim_common.validation import require_int, require_min_max, require_number
+from cottonsim_common.validation import require_instance, require_int, require_min_max, require_number
 from cottonsim_world.farm.config import FarmConfig
 
 TASKS = ("seg", "det")
@@ -301,8 +301,7 @@ class DatasetConfig:
         require_int("images_per_scene", self.images_per_scene, 1)
         require_int("dataset_seed", self.dataset_seed, 0)
         for name, cls in (("base_farm", FarmConfig), ("variation", VariationConfig), ("labels", LabelConfig)):
-            if not isinstance(getattr(self, name), cls):
-                raise ValueError(f"{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+            require_instance(name, getattr(self, name), cls)
         require_number("ground_margin_m", self.ground_margin_m, 0.0, 1000.0)
         if not os.path.isfile(self.urdf_path):
             raise ValueError(f"urdf_path {self.urdf_path!r} is not a file")

@@ -20,6 +20,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import cv2
 import numpy as np
 
+from cottonsim_common.validation import require_instance
 from cottonsim_perception.data import yolo_format as yf
 from cottonsim_world.farm.generator import generate_farm
 
@@ -323,8 +324,7 @@ def generate_dataset(config: DatasetConfig, progress: bool = True, ray_engine=No
     ``out_dir`` are left alone. Raises ValueError for an unusable camera
     configuration (e.g. an unknown renderer) before any rendering starts.
     """
-    if not isinstance(config, DatasetConfig):
-        raise ValueError(f"config must be a DatasetConfig, got {type(config).__name__}")
+    require_instance("config", config, DatasetConfig)
     config.camera_config()                     # fail early on a bad renderer / size
     jobs = plan_jobs(config)
     total = sum(j.total for j in jobs)

@@ -27,8 +27,9 @@ from typing import Dict, List, Sequence, Tuple
 import numpy as np
 
 from cottonsim_world.farm.model import Plant
-from cottonsim_world.sensors.fast.level_of_detail import (_cached_part_levels, _model_arrays, _pair_reversed_faces,
-                                                           proxy_model_arrays, simplified_model_arrays)
+from cottonsim_world.sensors.fast.level_of_detail import (_cached_part_levels, proxy_model_arrays,
+                                                           simplified_model_arrays)
+from cottonsim_world.sensors.fast.mesh_arrays import model_arrays, pair_reversed_faces
 
 
 class InstancedPlants:
@@ -77,7 +78,7 @@ class InstancedPlants:
             key = id(plant.model)
             if key not in index_of:
                 index_of[key] = len(per_model)
-                per_model.append(_model_arrays(plant.model))
+                per_model.append(model_arrays(plant.model))
             plant_model[i] = index_of[key]
         m = len(per_model)
         self.model_count = m
@@ -113,7 +114,7 @@ class InstancedPlants:
         # that takes the twin's id when seen from behind; faces without a twin are culled from behind
         draw_faces, draw_local, draw_twin, draw_count = [], [], [], []
         for k, a in enumerate(per_slot):
-            first, twin = _pair_reversed_faces(a[1])
+            first, twin = pair_reversed_faces(a[1])
             draw_faces.append(a[1][first] + self.model_vbase[k])
             draw_local.append(first)
             draw_twin.append(twin)

@@ -9,7 +9,7 @@ far plants with fewer triangles, made here from the full model:
     faces) in its fewest-face version whose surface stays within a
     tolerance of the full part (``part_levels``: fan decimations of leaf
     outlines and ellipsoid proxies, measured by a sampled two-sided surface
-    distance, ``_surface_distance``);
+    distance, ``surface_distance``);
 ``proxy_model_arrays``
     each part replaced by a few triangles of the same area, for plants far
     enough that a part is only a few pixels.
@@ -25,46 +25,10 @@ import threading
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
-from numba import njit
 
-from cottonsim_world.farm.model import PlantModel
-
-
-def _model_arrays(model: PlantModel) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """One model's meshes merged: vertices, faces, face semantic, face rgb, face unit normal."""
-    verts, faces, sem, rgb = [], [], [], []
-    offset = 0
-    for mesh in model.meshes.values():
-        v = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
-        f = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
-        if len(f) == 0:
-            continue
-        verts.append(v)
-        faces.append(f + offset)
-        sem.append(np.full(len(f), int(mesh.semantic), dtype=np.uint8))
-        rgb.append(np.tile(np.asarray(mesh.rgba[:3], dtype=np.float64), (len(f), 1)))
-        offset += len(v)
-    if not faces:
-        return (np.zeros((0, 3)), np.zeros((0, 3), np.int32), np.zeros(0, np.uint8), np.zeros((0, 3)),
-                np.zeros((0, 3)))
-    v = np.concatenate(verts)
-    f = np.concatenate(faces)
-    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.where(length > 0.0, n / np.maximum(length, 1e-300), 0.0)
-    return v, f.astype(np.int32), np.concatenate(sem), np.concatenate(rgb), n
-
-
-def _hull_area(points: np.ndarray) -> float:
-    """Surface area of the convex hull of 3-D points [m^2]; 0 if they are (nearly) coplanar or too few."""
-    from scipy.spatial import ConvexHull, QhullError
-
-    if len(points) < 4:
-        return 0.0
-    try:
-        return float(ConvexHull(points).area)
-    except (QhullError, ValueError):
-        return 0.0
+from cottonsim_world.sensors.fast.mesh_arrays import (assemble_parts, convex_hull_area, pair_reversed_faces,
+                                                      split_parts, wind_outward)
+from cottonsim_world.sensors.fast.surface_distance import surface_distance
 
 
 def _octahedron_faces() -> np.ndarray:
@@ -75,57 +39,6 @@ def _octahedron_faces() -> np.ndarray:
             for sz in (4, 5):
                 out.append((sx, sy, sz))
     return np.array(out, dtype=np.int64)
-
-
-def _mesh_parts(v: np.ndarray, f: np.ndarray) -> Tuple[int, np.ndarray]:
-    """Connected components of a mesh: (count, part label per face)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    n = len(v)
-    rows = np.concatenate([f[:, 0], f[:, 1]])
-    cols = np.concatenate([f[:, 1], f[:, 2]])
-    n_parts, label = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n)),
-                                          directed=False)
-    return n_parts, label[f[:, 0]]
-
-
-def _split_parts(v: np.ndarray, f: np.ndarray):
-    """Each connected part of a mesh, in label order: (its face indices, its vertices, its faces indexing
-    those vertices, its surface area [m^2])."""
-    n_parts, face_part = _mesh_parts(v, f)
-    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    face_area = 0.5 * np.linalg.norm(cross, axis=1)
-    for part in range(n_parts):
-        fi = np.nonzero(face_part == part)[0]
-        if len(fi) == 0:
-            continue
-        vi = np.unique(f[fi])
-        remap = np.full(len(v), -1, dtype=np.int64)
-        remap[vi] = np.arange(len(vi))
-        yield fi, v[vi], remap[f[fi]], float(face_area[fi].sum())
-
-
-def _wind_outward(corners: np.ndarray, faces: np.ndarray, centre: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """(corners, faces) with every face of a closed proxy around ``centre`` counter-clockwise seen from outside."""
-    nrm = np.cross(corners[faces[:, 1]] - corners[faces[:, 0]], corners[faces[:, 2]] - corners[faces[:, 0]])
-    outward = np.einsum("ij,ij->i", nrm, corners[faces].mean(axis=1) - centre) > 0.0
-    return corners, np.where(outward[:, None], faces, faces[:, ::-1])
-
-
-def _assemble_parts(parts, sem: np.ndarray, rgb: np.ndarray) -> Tuple[np.ndarray, ...]:
-    """One model from (vertices, faces, first face of the source part) per part: the five arrays of
-    ``_model_arrays``, each part with the semantic class and base colour of its source part's first face."""
-    out_v, out_f, out_sem, out_rgb = [], [], [], []
-    count = 0
-    for pv, pf, face0 in parts:
-        out_v.append(pv)
-        out_f.append(pf + count)
-        out_sem.append(np.full(len(pf), sem[face0], dtype=np.uint8))
-        out_rgb.append(np.tile(rgb[face0], (len(pf), 1)))
-        count += len(pv)
-    return _with_normals(np.concatenate(out_v), np.concatenate(out_f), np.concatenate(out_sem),
-                         np.concatenate(out_rgb))
 
 
 def _part_proxy(pts: np.ndarray, part_faces: np.ndarray, area: float, flat_ratio: float, thin_ratio: float
@@ -139,7 +52,7 @@ def _part_proxy(pts: np.ndarray, part_faces: np.ndarray, area: float, flat_ratio
     lam, axes = np.linalg.eigh(np.cov((pts - centre).T) if len(pts) > 1 else np.zeros((3, 3)))
     lam = np.maximum(lam[::-1], 0.0)                  # descending
     axes = axes[:, ::-1]
-    hull_area = _hull_area(pts)
+    hull_area = convex_hull_area(pts)
     proxy = None
     error_m = 0.0
     if lam[0] > 0.0 and lam[1] < thin_ratio * lam[0]:
@@ -166,7 +79,7 @@ def _part_proxy(pts: np.ndarray, part_faces: np.ndarray, area: float, flat_ratio
             off_axis = (pts - centre) - np.outer(along, axes[:, 0])
             error_m = 2.0 * float(np.linalg.norm(off_axis, axis=1).max()) + circ
     elif lam[0] > 0.0:
-        _, twin = _pair_reversed_faces(part_faces)
+        _, twin = pair_reversed_faces(part_faces)
         two_sided = np.count_nonzero(twin >= 0) * 2 == len(part_faces)
         if lam[2] < flat_ratio * lam[1]:
             if two_sided:
@@ -182,7 +95,7 @@ def _part_proxy(pts: np.ndarray, part_faces: np.ndarray, area: float, flat_ratio
             half = [k * math.sqrt(lam[a]) * axes[:, a] for a in range(3)]
             corners = np.array([centre + half[0], centre - half[0], centre + half[1], centre - half[1],
                                 centre + half[2], centre - half[2]])
-            proxy = _wind_outward(corners, _octahedron_faces(), centre)
+            proxy = wind_outward(corners, _octahedron_faces(), centre)
         if proxy is not None:
             error_m = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     return proxy, error_m
@@ -218,7 +131,7 @@ def proxy_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.nd
 
     A part keeps its semantic class and base colour, so bolls stay white
     and leaves green; shading follows the proxy's own normals. Returns the
-    same five arrays as ``_model_arrays`` (vertices, faces int32, face
+    same five arrays as ``model_arrays`` (vertices, faces int32, face
     semantic, face rgb, face unit normal) and ``error_m``, a bound on how
     far the proxy's outline may stray from the part's [m]: the largest
     bounding-box diagonal of a replaced flat or solid part, and for a thin
@@ -229,113 +142,14 @@ def proxy_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.nd
         return v, f, sem, rgb, np.zeros((0, 3)), 0.0
     error_m = 0.0
     parts = []
-    for fi, pts, pf, area in _split_parts(v, f):
+    for fi, pts, pf, area in split_parts(v, f):
         proxy, part_error_m = _part_proxy(pts, pf, area, flat_ratio, thin_ratio)
         if proxy is None:                                 # keep the part as it is
             proxy = pts, pf
         else:
             error_m = max(error_m, part_error_m)
         parts.append((*proxy, fi[0]))
-    return (*_assemble_parts(parts, sem, rgb), error_m)
-
-
-def _with_normals(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: np.ndarray) -> Tuple[np.ndarray, ...]:
-    """(vertices, faces int32, semantic, rgb, unit face normals) of a mesh."""
-    nrm = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    length = np.linalg.norm(nrm, axis=1, keepdims=True)
-    nrm = np.where(length > 0.0, nrm / np.maximum(length, 1e-300), 0.0)
-    return v, f.astype(np.int32), sem, rgb, nrm
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _point_triangle_d2(px, py, pz, tri, j):  # pragma: no cover - compiled
-    """Squared distance of point p to triangle j of tri (T, 3, 3): the closest point by the triangle's
-    Voronoi regions (vertex, edge or face; Ericson, Real-Time Collision Detection, 5.1.5)."""
-    ax, ay, az = tri[j, 0, 0], tri[j, 0, 1], tri[j, 0, 2]
-    abx, aby, abz = tri[j, 1, 0] - ax, tri[j, 1, 1] - ay, tri[j, 1, 2] - az
-    acx, acy, acz = tri[j, 2, 0] - ax, tri[j, 2, 1] - ay, tri[j, 2, 2] - az
-    apx, apy, apz = px - ax, py - ay, pz - az
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    bpx, bpy, bpz = apx - abx, apy - aby, apz - abz
-    d3 = abx * bpx + aby * bpy + abz * bpz
-    d4 = acx * bpx + acy * bpy + acz * bpz
-    cpx, cpy, cpz = apx - acx, apy - acy, apz - acz
-    d5 = abx * cpx + aby * cpy + abz * cpz
-    d6 = acx * cpx + acy * cpy + acz * cpz
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    if d1 <= 0.0 and d2 <= 0.0:                                  # vertex a
-        s, t = 0.0, 0.0
-    elif d3 >= 0.0 and d4 <= d3:                                 # vertex b
-        s, t = 1.0, 0.0
-    elif d6 >= 0.0 and d5 <= d6:                                 # vertex c
-        s, t = 0.0, 1.0
-    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:                  # edge ab
-        s, t = d1 / (d1 - d3), 0.0
-    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:                  # edge ac
-        s, t = 0.0, d2 / (d2 - d6)
-    elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:    # edge bc
-        u = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        s, t = 1.0 - u, u
-    else:                                                        # inside
-        den = va + vb + vc
-        if den == 0.0:                                           # degenerate: its first corner
-            s, t = 0.0, 0.0
-        else:
-            s, t = vb / den, vc / den
-    dx = apx - s * abx - t * acx
-    dy = apy - s * aby - t * acy
-    dz = apz - s * abz - t * acz
-    return dx * dx + dy * dy + dz * dz
-
-
-@njit(cache=True, nogil=True)
-def _point_mesh_distance(points, tri):  # pragma: no cover - compiled
-    """Distance of each point (N, 3) to the nearest of the triangles tri (T, 3, 3) [m]: (N,)."""
-    out = np.empty(points.shape[0])
-    for i in range(points.shape[0]):
-        best = np.inf
-        for j in range(tri.shape[0]):
-            best = min(best, _point_triangle_d2(points[i, 0], points[i, 1], points[i, 2], tri, j))
-        out[i] = math.sqrt(best)
-    return out
-
-
-_SAMPLE_STEPS = 3          # a face is sampled at the barycentric grid (i / 3, j / 3), i + j <= 3: 10 points
-
-
-@njit(cache=True, nogil=True)
-def _directed_surface_distance(tri_a, tri_b):  # pragma: no cover - compiled
-    """Largest distance from the sample points of triangles tri_a (A, 3, 3) to the surface tri_b [m]."""
-    worst = 0.0
-    n = _SAMPLE_STEPS
-    for k in range(tri_a.shape[0]):
-        for i in range(n + 1):
-            for j in range(n + 1 - i):
-                s, t = i / n, j / n
-                px = tri_a[k, 0, 0] + s * (tri_a[k, 1, 0] - tri_a[k, 0, 0]) + t * (tri_a[k, 2, 0] - tri_a[k, 0, 0])
-                py = tri_a[k, 0, 1] + s * (tri_a[k, 1, 1] - tri_a[k, 0, 1]) + t * (tri_a[k, 2, 1] - tri_a[k, 0, 1])
-                pz = tri_a[k, 0, 2] + s * (tri_a[k, 1, 2] - tri_a[k, 0, 2]) + t * (tri_a[k, 2, 2] - tri_a[k, 0, 2])
-                best = np.inf
-                for m in range(tri_b.shape[0]):
-                    best = min(best, _point_triangle_d2(px, py, pz, tri_b, m))
-                    if best <= worst * worst:                    # cannot raise the maximum
-                        break
-                worst = max(worst, math.sqrt(best))
-    return worst
-
-
-def _surface_distance(va: np.ndarray, fa: np.ndarray, vb: np.ndarray, fb: np.ndarray) -> float:
-    """Symmetric Hausdorff distance of two small meshes [m], estimated on a grid of 10 points per face.
-
-    If every point of one surface is within d of the other and back, their
-    outlines seen from any camera are within d too (d f / z pixels at depth z).
-    """
-    ta = np.ascontiguousarray(va[fa], dtype=np.float64)
-    tb = np.ascontiguousarray(vb[fb], dtype=np.float64)
-    return float(max(_directed_surface_distance(ta, tb), _directed_surface_distance(tb, ta)))
+    return (*assemble_parts(parts, sem, rgb), error_m)
 
 
 def _fan_outline(faces: np.ndarray) -> Optional[Tuple[int, List[int], bool]]:
@@ -385,7 +199,7 @@ def _fan_decimations(pts: np.ndarray, faces: np.ndarray, max_step_m: float) -> L
     (its mean silhouette). Returns (vertices, two-sided faces) per step,
     finest first; [] if the part is not a two-sided fan.
     """
-    first, twin = _pair_reversed_faces(faces)
+    first, twin = pair_reversed_faces(faces)
     if len(first) * 2 != len(faces) or np.any(twin < 0):
         return []
     one = faces[first]
@@ -462,7 +276,7 @@ def _ellipsoid_proxy(pts: np.ndarray, surface_m2: float, n_lon: int = 6, n_lat: 
     area = 0.5 * float(np.linalg.norm(np.cross(local[faces[:, 1]] - local[faces[:, 0]],
                                                local[faces[:, 2]] - local[faces[:, 0]]), axis=1).sum())
     corners = centre + (math.sqrt(surface_m2 / area) * local) @ axes.T
-    return _wind_outward(corners, faces, centre)
+    return wind_outward(corners, faces, centre)
 
 
 def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: float = 0.05,
@@ -474,13 +288,13 @@ def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: fl
     ``_fan_decimations`` (outline steps up to ``max_error_m``); for any
     other part its far proxy (``proxy_model_arrays``), for a solid part
     (boll) an ``_ellipsoid_proxy`` instead of the octahedron. error is the
-    ``_surface_distance`` of the version from the part, a bound on how far
+    ``surface_distance`` of the version from the part, a bound on how far
     its outline strays seen from anywhere. Drawn faces count a two-sided
     pair once, as the rasteriser draws it.
     """
     out = []
-    for fi, pts, pf, area in _split_parts(v, f):
-        first, twin = _pair_reversed_faces(pf)
+    for fi, pts, pf, area in split_parts(v, f):
+        first, twin = pair_reversed_faces(pf)
         versions = [(len(first), 0.0, pts, pf)]
         two_sided = len(first) * 2 == len(pf) and np.all(twin >= 0)
         alternatives = _fan_decimations(pts, pf, max_error_m) if two_sided else []
@@ -489,13 +303,13 @@ def part_levels(v: np.ndarray, f: np.ndarray, max_error_m: float, flat_ratio: fl
             # lobed blade's own, which the decimated fans keep)
             proxy, _ = _part_proxy(pts, pf, area, flat_ratio, thin_ratio)
             if proxy is not None and len(proxy[1]) == 8:        # a solid part's octahedron: a round one instead
-                proxy = _ellipsoid_proxy(pts, _hull_area(pts))
+                proxy = _ellipsoid_proxy(pts, convex_hull_area(pts))
             if proxy is not None and len(proxy[1]) < len(pf):
                 alternatives.append(proxy)
         for av, af in alternatives:
             # the fans and the flat proxies are two-sided (pairs drawn once), the other proxies one-sided
             drawn = len(af) // 2 if two_sided else len(af)
-            versions.append((drawn, _surface_distance(pts, pf, av, af), av, af))
+            versions.append((drawn, surface_distance(pts, pf, av, af), av, af))
         out.append((fi[0], versions))
     return out
 
@@ -529,8 +343,8 @@ def simplified_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: 
 
     The versions are ``part_levels``'s (pass ``levels`` to reuse them for
     several tolerances); a part keeps its semantic class and base colour.
-    Returns the five arrays of ``_model_arrays`` and the level's error
-    bound [m]: the largest ``_surface_distance`` of a chosen version.
+    Returns the five arrays of ``model_arrays`` and the level's error
+    bound [m]: the largest ``surface_distance`` of a chosen version.
     """
     if len(f) == 0:
         return v, f, sem, rgb, np.zeros((0, 3)), 0.0
@@ -541,29 +355,6 @@ def simplified_model_arrays(v: np.ndarray, f: np.ndarray, sem: np.ndarray, rgb: 
         drawn, err, pv, pf = min((x for x in versions if x[1] <= tolerance_m), key=lambda x: (x[0], x[1]))
         error_m = max(error_m, err)
         parts.append((pv, pf, face0))
-    return (*_assemble_parts(parts, sem, rgb), error_m)
+    return (*assemble_parts(parts, sem, rgb), error_m)
 
 
-def _pair_reversed_faces(faces: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """Faces to draw and, per drawn face, the index of its reverse-wound twin (-1 if none)."""
-    if len(faces) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    # a cyclic rotation that starts at the smallest index identifies a winding; its reverse is the twin
-    rot = np.argmin(faces, axis=1)
-    idx = np.arange(len(faces))
-    fwd = np.stack([faces[idx, rot], faces[idx, (rot + 1) % 3], faces[idx, (rot + 2) % 3]], axis=1)
-    rev = fwd[:, [0, 2, 1]]
-    lookup = {tuple(f): i for i, f in enumerate(fwd.tolist())}
-    first, twin, used = [], [], np.zeros(len(faces), bool)
-    for i in range(len(faces)):
-        if used[i]:
-            continue
-        j = lookup.get(tuple(rev[i].tolist()), -1)
-        if j >= 0 and (used[j] or j == i):
-            j = -1
-        used[i] = True
-        if j >= 0:
-            used[j] = True
-        first.append(i)
-        twin.append(j)
-    return np.array(first, np.int64), np.array(twin, np.int64)

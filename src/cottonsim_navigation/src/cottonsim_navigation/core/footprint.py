@@ -3,9 +3,7 @@
 Angles in radians, positions in metres. Footprints are (N, 2) polygons in the
 robot frame (base_link: x forward, y left), given counter-clockwise or
 clockwise. The pose algebra, angle wrap and quaternions live in
-cottonsim_common (``pose``, ``angles``, ``transforms``); this module re-exports
-them under their former names for the callers in ``navigation/`` and
-``ros/amcl_node.py`` until those import cottonsim_common themselves.
+cottonsim_common (``pose``, ``angles``, ``transforms``).
 """
 from __future__ import annotations
 
@@ -14,13 +12,9 @@ from typing import Tuple
 
 import numpy as np
 
-from cottonsim_common.angles import shortest_angular_distance  # noqa: F401  (re-export)
-from cottonsim_common.angles import wrap_angle as normalize_angle  # noqa: F401  (re-export)
-from cottonsim_common.pose import Pose2D, as_pose, compose, inverse, transform_points  # noqa: F401
-from cottonsim_common.transforms import quaternion_to_yaw, yaw_to_quaternion  # noqa: F401  (re-export)
+from cottonsim_common.pose import Pose2D, transform_points
 
 
-# --- footprints ----------------------------------------------------------------
 def rectangle_footprint(length_m: float, width_m: float, centre_x_m: float = 0.0) -> np.ndarray:
     """Corners (4, 2) of a length x width rectangle around (centre_x_m, 0), counter-clockwise."""
     if not (length_m > 0 and width_m > 0):
