@@ -2,9 +2,10 @@
 
 A goal is blocked when the robot cannot stand there: its cell and every cell
 within the planner's goal tolerance cost INSCRIBED_INFLATED_OBSTACLE or more
-(an obstacle lies within the footprint's inscribed radius: the goal is in or
-next to an obstacle). A plan is blocked when one of its poses still ahead of
-the robot lies on such a cell (an obstacle was seen on it after planning).
+(an obstacle lies within the costmap's lethal radius, by default the
+footprint's inscribed radius: the goal is in or next to an obstacle). A plan
+is blocked when one of its poses still ahead of the robot lies on such a
+cell (an obstacle was seen on it after planning).
 """
 from __future__ import annotations
 
@@ -32,8 +33,8 @@ def blocked_goal_reason(costmap: Costmap2D, goal: Pose2D, tolerance_m: float) ->
     if win.size == 0 or not np.all(_blocking(win)):
         return ""
     return (f"goal ({goal.x_m:.2f}, {goal.y_m:.2f}) is in or next to an obstacle (cost "
-            f"{int(costmap.costs[gy, gx])}: within the footprint's inscribed radius "
-            f"{costmap.inscribed_radius_m:.3f} m) and no free cell within default_tolerance {tolerance_m:g} m")
+            f"{int(costmap.costs[gy, gx])}: within {costmap.lethal_radius_m:.3f} m of it, the global "
+            f"costmap's lethal radius) and no free cell within default_tolerance {tolerance_m:g} m")
 
 
 def plan_blocked_at(costmap: Costmap2D, poses: np.ndarray, robot: Pose2D, ignore_near_m: float) -> int:
@@ -42,8 +43,8 @@ def plan_blocked_at(costmap: Costmap2D, poses: np.ndarray, robot: Pose2D, ignore
     Segments are checked at half-cell steps. Those before the pose nearest
     the robot are behind it; points within ``ignore_near_m`` of the robot are
     skipped too (the robot stands there, and its own inflation or a recovery
-    deals with that), and so are points within the costmap's inscribed
-    radius of the goal (the last pose, left to :func:`blocked_goal_reason`).
+    deals with that), and so are points within the costmap's lethal radius
+    of the goal (the last pose, left to :func:`blocked_goal_reason`).
     """
     poses = np.asarray(poses, dtype=float).reshape(-1, 3)
     if len(poses) < 2:
@@ -62,7 +63,7 @@ def plan_blocked_at(costmap: Costmap2D, poses: np.ndarray, robot: Pose2D, ignore
     seg, xs, ys = np.concatenate(seg), np.concatenate(xs), np.concatenate(ys)
     goal = poses[-1]
     keep = ((np.hypot(xs - robot.x_m, ys - robot.y_m) > ignore_near_m)
-            & (np.hypot(xs - goal[0], ys - goal[1]) > costmap.inscribed_radius_m))
+            & (np.hypot(xs - goal[0], ys - goal[1]) > costmap.lethal_radius_m))
     hit = np.zeros(xs.shape, dtype=bool)
     hit[keep] = _blocking(costmap.cost_at_world(xs[keep], ys[keep]))
     return int(seg[np.argmax(hit)]) if hit.any() else -1

@@ -30,7 +30,7 @@ The logic follows ROS's move_base (executeCycle):
 
 Additions to ROS's behaviour (``abort_on_blocked_goal``; ``goal_checks.py``):
 a goal whose cell and every cell within the planner's tolerance are obstacles
-or within the footprint's inscribed radius of one (the robot cannot stand
+or within the global costmap's lethal radius of one (the robot cannot stand
 there) is aborted with that reason instead of spending the recovery sequence
 on it: at once when the global costmap cannot change (no obstacle layer),
 else once it has stayed blocked for ``planner_patience`` seconds, during

@@ -16,7 +16,8 @@ LayeredCostmap:
   the master untouched);
 * :class:`InflationLayer` spreads cost around LETHAL cells: 254 on the
   obstacle, 253 within the inscribed radius, ``252 * exp(-k (d - r_in))``
-  up to inflation_radius (k = cost_scaling_factor). The distance d comes from
+  up to inflation_radius (k = cost_scaling_factor); ``lethal_radius_m``
+  puts a smaller radius in place of r_in (a plan may then pass closer). The distance d comes from
   a Euclidean distance transform over cell centres (the same distances
   costmap_2d caches), so the numbers match ROS's.
 
@@ -178,16 +179,25 @@ class InflationLayerConfig:
     the original 0.5); cost_scaling_factor [1/m]: exponential decay rate
     (ROS 10.0); inflate_unknown: NO_INFORMATION cells may be overwritten by
     inflation cost below 253 too.
+    lethal_radius_m [m] (port's addition): cells this close to an obstacle
+    are INSCRIBED (253, impassable for the global planner) and the decay
+    starts here; None (the default) = the footprint's inscribed radius,
+    costmap_2d's behaviour. A smaller value lets a plan for the robot's
+    centre keep less clearance from obstacle marks than the body needs,
+    leaving the body to the local planner's footprint check.
     """
 
     enabled: bool = True
     inflation_radius: float = 0.5
     cost_scaling_factor: float = 10.0
     inflate_unknown: bool = False
+    lethal_radius_m: Optional[float] = None
 
     def __post_init__(self) -> None:
         require_positive("inflation_radius", self.inflation_radius, allow_zero=True)
         require_positive("cost_scaling_factor", self.cost_scaling_factor, allow_zero=True)
+        if self.lethal_radius_m is not None:
+            require_positive("lethal_radius_m", self.lethal_radius_m, allow_zero=True)
 
 
 def inflation_cost(distance_m, inscribed_radius_m: float, cost_scaling_factor: float) -> np.ndarray:
@@ -209,6 +219,11 @@ class InflationLayer(CostmapLayer):
         self.config = config
         self.enabled = config.enabled
 
+    def lethal_radius_m(self, inscribed_radius_m: float) -> float:
+        """Distance from an obstacle within which cells are INSCRIBED [m] (see InflationLayerConfig)."""
+        r = self.config.lethal_radius_m
+        return inscribed_radius_m if r is None else float(r)
+
     def update_costs(self, master, costmap, robot_pose):
         c = self.config
         res = costmap.spec.resolution_m
@@ -218,7 +233,8 @@ class InflationLayer(CostmapLayer):
         cell_radius = int(math.ceil(c.inflation_radius / res))
         dist_cells = ndimage.distance_transform_edt(~lethal)
         near = dist_cells <= cell_radius
-        costs = inflation_cost(dist_cells[near] * res, costmap.inscribed_radius_m, c.cost_scaling_factor)
+        costs = inflation_cost(dist_cells[near] * res, self.lethal_radius_m(costmap.inscribed_radius_m),
+                               c.cost_scaling_factor)
         old = master[near]
         if c.inflate_unknown:
             take_unknown = costs > FREE_SPACE
@@ -299,6 +315,14 @@ class Costmap2D:
     @property
     def inflation_layer(self) -> Optional[InflationLayer]:
         return self.layer(InflationLayer)
+
+    @property
+    def lethal_radius_m(self) -> float:
+        """How close to an obstacle a cell is INSCRIBED [m]: the inflation layer's lethal radius, else inscribed."""
+        inflation = self.inflation_layer
+        if inflation is None or not inflation.enabled:
+            return self.inscribed_radius_m
+        return inflation.lethal_radius_m(self.inscribed_radius_m)
 
     # --- updates ---
     def update_origin(self, new_origin_x_m: float, new_origin_y_m: float) -> None:
