@@ -37,12 +37,14 @@ from cottonsim_world.estimation.odometry_ekf import OdometryEkf
 from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Farm, Pose2D
+from cottonsim_world.farm.plant_obstacles import PlantObstacles
 from cottonsim_world.faults import FaultInjector
 from cottonsim_world.geodesy import GpsNoiseModel, HectorGeodesy
 from cottonsim_world.physics.imu_model import ImuMeasurement, ImuModel
 from cottonsim_world.physics.ode_world import OdeWorld
 from cottonsim_world.physics.physics_config import ContactEvent, RobotState
 from cottonsim_world.physics.wheel_odometry import WheelOdometry, WheelOdometryConfig
+from cottonsim_world.robot.arm_contacts import ArmContactCounter
 from cottonsim_world.robot.boll_store import BollFieldStore
 from cottonsim_world.robot.sim_arm import SimulatedArm
 from cottonsim_world.robot.urdf_model import UrdfModel
@@ -54,8 +56,9 @@ from cottonsim_world.sensors.scene import BollVisibility, SensorScene
 from cottonsim_world.simulator_config import (ARM_JOINT_NAMES, ARM_PERIOD_S, ARM_PREFIX, BASE_FRAME,  # noqa: F401
                                               CAMERA_NAMES, IMU_FRAME, LIDAR_FRAME, MAX_SENSOR_WORKERS,
                                               WHEEL_JOINTS, SimulatorConfig, optical_frame)
-from cottonsim_world.readings import (CameraReading, ContactsReading, GpsReading, GroundTruthReading,  # noqa: F401
-                                      ImuReading, JointStatesReading, LidarReading, OdometryReading)
+from cottonsim_world.readings import (ArmContactsReading, CameraReading, ContactsReading,  # noqa: F401
+                                      GpsReading, GroundTruthReading, ImuReading, JointStatesReading,
+                                      LidarReading, OdometryReading)
 from cottonsim_world.sensor_schedule import HeldReading, Schedule, timed_job
 
 
@@ -83,8 +86,10 @@ class Simulator:
         self.ekf = OdometryEkf(cfg.ekf)
         # every boll with its state; the vacuum nozzle acts on it, the sensors hide what left the plants
         self.bolls = BollField(self.farm, cfg.bolls)
+        # the arm counts its contacts with the plants' stems, branches and leaves
+        self.arm_contacts = ArmContactCounter(PlantObstacles.from_farm(self.farm), cfg.arm_contacts)
         self.arm_system = SimulatedArm(urdf, ARM_PREFIX, cfg.arm_initial_positions_rad, cfg.arm_controller,
-                                       cfg.vacuum, BollFieldStore(self.bolls), BASE_FRAME)
+                                       cfg.vacuum, BollFieldStore(self.bolls), BASE_FRAME, self.arm_contacts)
         self.arm = self.arm_system.arm
 
         self.sensor_scene: Optional[SensorScene] = None
@@ -119,6 +124,8 @@ class Simulator:
         self._schedules["joint_states"] = Schedule("joint_states", 1.0 / cfg.joint_states_rate_hz)
         self._schedules["ground_truth"] = Schedule("ground_truth", 1.0 / cfg.ground_truth_rate_hz)
         self._schedules["contacts"] = Schedule("contacts", 1.0 / cfg.contacts_rate_hz)
+        if cfg.arm_contacts.enabled:
+            self._schedules["arm_contacts"] = Schedule("arm_contacts", 1.0 / cfg.contacts_rate_hz)
         self._camera_cloud_wanted = {name: True for name, _ in cfg.cameras}
         # sensor name -> (now, state) -> (function, args) of its reading: the part a worker can run
         self._jobs: Dict[str, Callable] = {name: (lambda now, state, name=name: self._camera_job(name, now, state))
@@ -412,6 +419,9 @@ class Simulator:
             events, self._contacts = self._contacts, []
             return ContactsReading(now, events, self.physics.total_contact_events,
                                    sorted(self.physics.plants_touched))
+        if name == "arm_contacts":
+            return ArmContactsReading(now, self.arm_system.take_contact_events(), dict(self.arm_contacts.totals),
+                                      sorted(self.arm_contacts.plants_touched))
         raise KeyError(name)
 
     def _in_imu_axes(self, m: ImuMeasurement) -> ImuMeasurement:
