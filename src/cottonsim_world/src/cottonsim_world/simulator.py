@@ -238,7 +238,8 @@ class Simulator:
         return 1e3 * self._physics_wall_s / steps
 
     def world_T_base(self, state: Optional[RobotState] = None) -> np.ndarray:
-        state = state or self.physics.robot_state()
+        if state is None:
+            return self.physics.base_pose_matrix()
         return pose_matrix(state.position_m, state.orientation_xyzw)
 
     # ------------------------------------------------------------------ stepping

@@ -50,6 +50,7 @@ class SimulatedArm:
         self.contacts = contacts
         self._arm_shape = contacts.config.arm_shape() if contacts is not None else None
         self._contact_events: List[ArmContactEvent] = []
+        self._capsules_at = None        # (joints, capsules in the arm's base frame) of the last check
 
     # ------------------------------------------------------------------ commands
     def command_positions(self, positions_rad: Sequence[float]) -> np.ndarray:
@@ -81,10 +82,32 @@ class SimulatedArm:
     def link_capsules(self, world_T_base: np.ndarray):
         """The arm's link capsules (ARM_LINKS, as the contact counter shapes them) at the current joints:
         segment ends (9, 3), (9, 3) in the world."""
-        start, end = arm_capsule_segments(self.arm.positions, self._arm_shape)
+        start, end, _, _ = self._arm_frame_capsules()
         world_T_arm = world_T_base @ self.base_T_arm
         rot, trans = world_T_arm[:3, :3], world_T_arm[:3, 3]
-        return start[0] @ rot.T + trans, end[0] @ rot.T + trans
+        return start @ rot.T + trans, end @ rot.T + trans
+
+    def _arm_frame_capsules(self):
+        """Capsule ends in the arm's base frame and their bounding sphere (centre, radius incl. the link
+        radii) at the current joints; kept until the joints change."""
+        q = self.arm.positions
+        if self._capsules_at is None or not np.array_equal(q, self._capsules_at[0]):
+            start, end = arm_capsule_segments(q, self._arm_shape)
+            points = np.concatenate([start[0], end[0]])
+            centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+            radius = float(np.linalg.norm(points - centre, axis=1).max()) + float(self._arm_shape.radii_m.max())
+            self._capsules_at = (q, (start[0], end[0], centre, radius))
+        return self._capsules_at[1]
+
+    def _check_contacts(self, now_s: float, world_T_base: np.ndarray) -> None:
+        """One contact check: the broad phase on the capsules' bounding sphere first (the arm is mostly
+        away from every plant), the counter's own checks when a plant is near."""
+        _, _, centre, radius = self._arm_frame_capsules()
+        world_T_arm = world_T_base @ self.base_T_arm
+        if not self.contacts.near_plants(world_T_arm[:3, :3] @ centre + world_T_arm[:3, 3], radius):
+            self.contacts.update_apart(now_s)
+            return
+        self._contact_events.extend(self.contacts.update(now_s, *self.link_capsules(world_T_base)))
 
     # ------------------------------------------------------------------ stepping
     def step(self, now_s: float, dt_s: float, world_T_base: Callable[[], np.ndarray]) -> Optional[int]:
@@ -103,7 +126,7 @@ class SimulatedArm:
                         self._follower_idle = True
                 self._follower_dt_s = 0.0
         if self.contacts is not None and self.contacts.due(now_s):
-            self._contact_events.extend(self.contacts.update(now_s, *self.link_capsules(world_T_base())))
+            self._check_contacts(now_s, world_T_base())
         nozzle = self.nozzle
         if nozzle.on or nozzle.held_id is not None:
             return nozzle.step(self.tip_pose(world_T_base()))
