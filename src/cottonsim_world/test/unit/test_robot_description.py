@@ -223,13 +223,14 @@ def test_pybullet_loads_the_urdf():
     client = p.connect(p.DIRECT)
     try:
         body = p.loadURDF(str(URDF_PATH), physicsClientId=client)
-        assert p.getNumJoints(body, physicsClientId=client) == 30
-        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(30)}
-        assert {"front_left_wheel_link", "realsense_p_color_optical_frame", "ur5e_tool0", "ur5e_nozzle_tip"} <= names
+        assert p.getNumJoints(body, physicsClientId=client) == 31
+        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(31)}
+        assert {"front_left_wheel_link", "realsense_p_color_optical_frame", "ur5e_tool0", "ur5e_nozzle_tip",
+                 "cotton_bin"} <= names
         # Every link but the root carries its own inertial: pybullet's total mass of the
         # links equals the URDF's (a link without one would silently weigh 1 kg in pybullet;
         # the massless root gets that default, so it is left out here).
-        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 30)]
+        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 31)]
         model = UrdfModel.from_file(URDF_PATH)
         assert sum(masses) == pytest.approx(sum(link.mass_kg for link in model.links.values()))
         assert 80.0 < sum(masses) < 95.0  # Husky ~50 kg + UR5e ~21 kg + control box and sensors
