@@ -59,7 +59,7 @@ def plot_harvest_field(path: Union[str, pathlib.Path], outcomes: Sequence[BollOu
     if not (x1 > x0 and y1 > y0):
         raise ValueError(f"region must be (x0, x1, y0, y1) with x1 > x0 and y1 > y0, got {region!r}")
     scale = 9.0 / max(x1 - x0, y1 - y0)
-    fig, ax = plt.subplots(figsize=(max(4.5, (x1 - x0) * scale + 3.2), max(4.5, (y1 - y0) * scale + 1.2)))
+    fig, ax = plt.subplots(figsize=(max(8.0, (x1 - x0) * scale + 4.0), max(5.0, (y1 - y0) * scale + 1.2)))
     for x, y in plant_xy_m:
         ax.add_patch(Circle((x, y), plant_radius_m, facecolor="#cfe8c4", edgecolor="#8fbf80", lw=0.6, zorder=1))
     for lane in lanes:
@@ -72,12 +72,12 @@ def plot_harvest_field(path: Union[str, pathlib.Path], outcomes: Sequence[BollOu
     def draw(name, colour, marker, size, z):
         pts = classes.get(name, [])
         if pts:
+            edge = {"edgecolors": "white"} if marker == "o" else {}
             ax.scatter([p[0] for p in pts], [p[1] for p in pts], s=size, c=colour, marker=marker, zorder=z,
-                       linewidths=0.5, edgecolors="white" if marker == "o" else colour,
-                       label=f"{name} ({len(pts)})")
+                       linewidths=0.5, label=f"{name} ({len(pts)})", **edge)
 
     draw("picked", "#2ca02c", "o", marker_size, 4)
-    draw("not reachable", "#bbbbbb", "x", marker_size, 3)
+    draw("not reachable", "#333333", "x", marker_size * 1.6, 6)
     for name in sorted(c for c in classes if c.startswith("missed: ")):
         colour, marker = _MISS_STYLE.get(name[len("missed: "):], ("#d62728", "o"))
         draw(name, colour, marker, marker_size * 1.6, 5)
@@ -86,11 +86,12 @@ def plot_harvest_field(path: Union[str, pathlib.Path], outcomes: Sequence[BollOu
     ax.set_aspect("equal")
     ax.set_xlabel("world x [m]")
     ax.set_ylabel("world y [m] (rows run along y)")
-    ax.set_title(title or f"harvest: {len(classes.get('picked', []))} of {len(outcomes)} open bolls picked")
+    ax.set_title(title or f"harvest: {len(classes.get('picked', []))} of {len(outcomes)} open bolls picked",
+                 fontsize=10, loc="left")
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, title="bolls (top view)")
     ax.grid(True, lw=0.3, alpha=0.5)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
     return path
