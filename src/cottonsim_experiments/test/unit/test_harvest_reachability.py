@@ -64,6 +64,15 @@ def test_a_thick_stem_in_front_of_the_boll_makes_it_unreachable_by_collision(rob
     assert free.reachable and blocked.reason == "collision"
 
 
+def test_a_boll_facing_along_the_row_needs_the_approach_turned_towards_the_lane(robot):
+    # the boll faces the next plant (+y), whose 8 cm thick stem stands 12 cm ahead of it
+    plants = [plant(0, 0.9, 1.0), plant(1, 0.85, 1.17, stem_radius=0.04, height=2.0)]
+    straight = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants)
+    turned = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants,
+                   ReachabilityConfig(roll_samples=8, yaw_samples_rad=(0.0, 0.7, -0.7)))
+    assert not straight.reachable and turned.reachable
+
+
 def test_lane_facing_halves():
     lanes = [LANE]
     assert lane_facing((0.8, 1.0, 0.5), (0.9, 1.0), lanes)          # west of the stem, the lane is west
@@ -83,6 +92,8 @@ def test_farm_reachability_numbers_bolls_as_the_simulator_does(robot):
 def test_bad_config_and_input_are_refused(robot):
     with pytest.raises(ValueError, match="stop_spacing_m"):
         ReachabilityConfig(stop_spacing_m=0.0)
+    with pytest.raises(ValueError, match="yaw_samples_rad"):
+        ReachabilityConfig(yaw_samples_rad=(3.0,))
     with pytest.raises(ValueError, match="roll_samples"):
         ReachabilityConfig(roll_samples=0)
     with pytest.raises(ValueError, match="finite"):

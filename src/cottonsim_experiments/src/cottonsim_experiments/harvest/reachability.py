@@ -5,7 +5,8 @@ line (stops every ``stop_spacing_m``, the robot heading along the lane), the
 UR5e has a configuration within its joint limits that puts the nozzle tip on
 the boll's centre with the nozzle pointing into the boll (against its
 outward direction, tilted up by one of ``tilt_samples_rad``, rolled about
-its axis by one of ``roll_samples``), and the same IK branch reaches the
+its axis by one of ``roll_samples``; optionally also turned about the vertical
+by one of ``yaw_samples_rad``), and the same IK branch reaches the
 pre-grasp ``pregrasp_distance_m`` out along that direction, both free of the
 plants' stems and main branches, the robot's own body and the arm itself
 (leaves are soft and ignored). This is what the approach planner
@@ -41,6 +42,9 @@ class ReachabilityConfig:
         reach plus its mount's offset from base_link).
     tilt_samples_rad, roll_samples, pregrasp_distance_m: the nozzle poses tried, as the approach
         planner tries them (ApproachConfig's defaults) [rad], [-], [m].
+    yaw_samples_rad: the approach direction also turned about the vertical by each of these [rad]
+        (default (0,): only the outward direction, as the planner does; bolls that face along the
+        row need a turn towards the lane, which the capture cone of 45 deg allows).
     """
 
     stop_spacing_m: float = 0.1
@@ -48,6 +52,7 @@ class ReachabilityConfig:
     tilt_samples_rad: Tuple[float, ...] = (0.0, 0.35, 0.7)
     roll_samples: int = 12
     pregrasp_distance_m: float = 0.10
+    yaw_samples_rad: Tuple[float, ...] = (0.0,)
 
     def __post_init__(self) -> None:
         for name, low, high in (("stop_spacing_m", 0.01, 5.0), ("max_reach_m", 0.1, 5.0),
@@ -60,6 +65,11 @@ class ReachabilityConfig:
                 isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 <= t <= 0.5 * math.pi for t in tilts):
             raise ValueError(f"ReachabilityConfig.tilt_samples_rad must be a non-empty tuple of angles in "
                              f"[0, pi/2], got {tilts!r}")
+        yaws = self.yaw_samples_rad
+        if not isinstance(yaws, tuple) or not yaws or not all(
+                isinstance(t, (int, float)) and not isinstance(t, bool) and abs(t) <= 0.5 * math.pi for t in yaws):
+            raise ValueError(f"ReachabilityConfig.yaw_samples_rad must be a non-empty tuple of angles in "
+                             f"[-pi/2, pi/2], got {yaws!r}")
         r = self.roll_samples
         if isinstance(r, bool) or not isinstance(r, int) or not 1 <= r <= 360:
             raise ValueError(f"ReachabilityConfig.roll_samples must be an integer in [1, 360], got {r!r}")
@@ -146,8 +156,10 @@ def reach_boll(boll_id: int, centre_m, outward, stops: Sequence[LaneStop], obsta
     woody = obstacles.woody_capsules(obstacles.plants_near(p, config.max_reach_m))
     any_ik = False
     arm_T_world = [_rigid_inverse(_world_T_arm(stops[i], robot)) for i in order]
-    for tilt in config.tilt_samples_rad:
-        direction_world = tilted_up(n, tilt)
+    turned = [np.array([math.cos(y) * n[0] - math.sin(y) * n[1], math.sin(y) * n[0] + math.cos(y) * n[1], n[2]])
+              for y in config.yaw_samples_rad]
+    for out, tilt in ((out, tilt) for out in turned for tilt in config.tilt_samples_rad):
+        direction_world = tilted_up(out, tilt)
         rot_world = tool_rotations(-direction_world, rolls)                        # (R, 3, 3)
         # the nozzle's grasp and pre-grasp poses from every stop in range, in one IK call
         poses = np.zeros((len(order), len(rolls), 2, 4, 4))

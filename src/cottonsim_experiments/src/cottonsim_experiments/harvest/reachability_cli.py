@@ -59,6 +59,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--rows", type=int, nargs="*", help="only the plants of these rows (default: all)")
     parser.add_argument("--urdf", type=pathlib.Path, help="robot description (default: cottonsim_description's)")
     parser.add_argument("--roll-samples", type=int, default=ReachabilityConfig().roll_samples)
+    parser.add_argument("--yaw-samples", type=float, nargs="+", default=[0.0],
+                        help="approach directions turned about the vertical by these [rad] (default 0: the planner's)")
     parser.add_argument("--json", type=pathlib.Path, help="write the summary and every boll's verdict here")
     args = parser.parse_args(argv)
     from cottonsim_world.farm.config import FarmConfig
@@ -69,7 +71,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         farm.plants = [p for p in farm.plants if p.row in set(args.rows)]
     robot = robot_geometry_from_urdf((args.urdf or _default_urdf()).read_text())
     start = time.perf_counter()
-    verdicts = farm_reachability(farm, farm.lanes, robot, ReachabilityConfig(roll_samples=args.roll_samples),
+    verdicts = farm_reachability(farm, farm.lanes, robot, ReachabilityConfig(roll_samples=args.roll_samples,
+                                                                          yaw_samples_rad=tuple(args.yaw_samples)),
                                  route_headings(farm))
     summary = summarise(farm, verdicts)
     summary["wall_s"] = round(time.perf_counter() - start, 1)
