@@ -17,34 +17,17 @@ simulator run (counter on or off) with callgrind's instrumentation on for the ti
 """
 import argparse
 import os
-import platform
 import statistics
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from bench_manipulation import machine  # noqa: E402  (this folder: the machine, load and commit line)
+
 ROOT = Path(__file__).resolve().parents[1]
 URDF = ROOT / "src/cottonsim_description/urdf/cottonsim_robot.urdf"
-
-
-def machine():
-    model = platform.processor() or "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                                text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        commit = "?"
-    return f"{model}, {os.cpu_count()} CPUs; load average {os.getloadavg()[0]:.1f}; commit {commit}"
 
 
 def bench_counter(repeats):
