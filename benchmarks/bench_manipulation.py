@@ -36,7 +36,8 @@ from cottonsim_common.kinematics.ur5e import (  # noqa: E402
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks  # noqa: E402
 from cottonsim_manipulation.harvest.targets import BollDetection3D, TargetFusion  # noqa: E402
 from cottonsim_manipulation.planning.approach import plan_approach  # noqa: E402
-from cottonsim_manipulation.planning.collision import ArmCollisionModel, CapsuleSet  # noqa: E402
+from cottonsim_common.capsules import CapsuleSet
+from cottonsim_manipulation.planning.collision import ArmCollisionModel# noqa: E402
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf  # noqa: E402
 from timing import wall_and_cpu_ms  # noqa: E402
 

@@ -19,7 +19,8 @@ The robot (CottonSim paper, Fig. 4 and Table 1):
 * Three RealSense D435 cameras, a Velodyne VLP-16, an IMU, a GPS antenna on a
   mast with a Fixposition vision-RTK box, and the UR5e control box, mounted on
   the top plate at the poses of the paper's Table 1.
-* A vacuum nozzle on the UR5e's flange with its tip frame (urdf_end_effector.py).
+* A vacuum nozzle on the UR5e's flange with its tip frame, and the cotton bin on the control box
+  (urdf_end_effector.py).
 
 The URDF writer (shapes, inertias, XML) is urdf_writer.py.
 
@@ -38,7 +39,7 @@ from typing import Optional, Sequence
 
 # the generator's own modules sit beside it (also when a test loads this file by its path)
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from urdf_end_effector import add_vacuum_nozzle  # noqa: E402
+from urdf_end_effector import add_cotton_bin, add_vacuum_nozzle  # noqa: E402
 from urdf_writer import (ArmJoint, Inertial, UrdfWriter, Vec3, box, box_inertia, cyl, cyl_z,  # noqa: E402
                          cylinder_inertia)
 
@@ -425,6 +426,7 @@ def build_urdf() -> str:
     add_sensors(w)
     add_ur5e(w)
     add_vacuum_nozzle(w, UR5E_PREFIX)
+    add_cotton_bin(w, "ur5e_control_box_link")
     return w.to_string()
 
 

@@ -9,7 +9,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
 from hand_built_scene import URDF  # noqa: E402
 
-from cottonsim_manipulation.planning.collision import ArmCollisionModel  # noqa: E402
+from cottonsim_manipulation.planning.collision import ArmCollisionModel# noqa: E402
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf  # noqa: E402
 
 

@@ -5,7 +5,7 @@ import pathlib
 
 import numpy as np
 
-from cottonsim_manipulation.planning.collision import CapsuleSet
+from cottonsim_common.capsules import CapsuleSet
 
 ROOT = pathlib.Path(__file__).resolve().parents[4]
 URDF = ROOT / "src/cottonsim_description/urdf/cottonsim_robot.urdf"

@@ -6,17 +6,10 @@ import pytest
 from hand_built_scene import STOW_RAD, hand_plant, plant_row
 
 from cottonsim_common.kinematics.ur5e import forward_kinematics, inverse_kinematics, link_frames
-from cottonsim_manipulation.planning.collision import (
-    ARM_LINKS,
-    ArmCollisionConfig,
-    ArmCollisionModel,
-    BoxSet,
-    CapsuleSet,
-    path_is_collision_free,
-    point_segment_distance,
-    segment_box_distance,
-    segment_segment_distance,
-)
+from cottonsim_common.capsules import CapsuleSet, point_segment_distance, segment_segment_distance
+from cottonsim_common.kinematics.arm_capsules import ARM_LINKS, ArmCollisionConfig
+from cottonsim_manipulation.planning.collision import (ArmCollisionModel, BoxSet, path_is_collision_free,
+                                                      segment_box_distance)
 from cottonsim_manipulation.planning.trajectory import plan_trajectory
 
 

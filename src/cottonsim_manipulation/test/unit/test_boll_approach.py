@@ -13,7 +13,8 @@ from cottonsim_manipulation.planning.approach import (
     tilted_up,
     tool_rotations,
 )
-from cottonsim_manipulation.planning.collision import ArmCollisionModel, CapsuleSet
+from cottonsim_common.capsules import CapsuleSet
+from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.trajectory import TrajectoryConfig
 
 NOZZLE_M = 0.15

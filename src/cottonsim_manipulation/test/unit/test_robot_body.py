@@ -46,8 +46,9 @@ def test_body_from_the_committed_urdf(body):
 def test_collision_source_and_no_ground(urdf_text):
     collision = body_boxes_from_urdf(urdf_text, source="collision", ground_link=None)
     assert "ground" not in collision.names
-    # The URDF's collision shapes: the chassis (2 boxes), 4 wheels and the control box.
+    # The URDF's collision shapes: the chassis (2 boxes), 4 wheels, the control box and the bin (floor, 4 walls).
     assert sorted(collision.names) == sorted(["base_link/0", "base_link/1", "ur5e_control_box_link/0"]
+                                             + [f"cotton_bin/{i}" for i in range(5)]
                                              + [f"{w}_wheel_link/0" for w in ("front_left", "front_right",
                                                                                "rear_left", "rear_right")])
     # A wheel (cylinder radius 0.1651, width 0.1143) becomes its bounding box.

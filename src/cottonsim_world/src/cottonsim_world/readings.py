@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import List, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -10,6 +10,7 @@ from cottonsim_world.faults import GPS_STATUS_FIX
 from cottonsim_world.physics.imu_model import ImuMeasurement
 from cottonsim_world.physics.physics_config import ContactEvent, RobotState
 from cottonsim_world.physics.wheel_odometry import OdometryEstimate
+from cottonsim_world.robot.arm_contacts import ArmContactEvent
 from cottonsim_world.sensors.camera import CameraFrame, CameraIntrinsics
 from cottonsim_world.sensors.cloud_filters import LaserScanConfig
 from cottonsim_world.sensors.lidar import LidarScan
@@ -85,4 +86,14 @@ class ContactsReading:
     stamp_s: float
     events: List[ContactEvent]
     total_contact_events: int
+    plants_touched: List[int]
+
+
+@dataclass
+class ArmContactsReading:
+    """Arm-plant contact events since the last reading, the running totals per kind ('stem', 'leaf')
+    and the plants the arm has touched (robot/arm_contacts.py)."""
+    stamp_s: float
+    events: List[ArmContactEvent]
+    totals: Dict[str, int]
     plants_touched: List[int]

@@ -37,6 +37,7 @@ from cottonsim_world.estimation.odometry_ekf import OdometryEkf
 from cottonsim_world.farm.bolls import BollField
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import Farm, Pose2D
+from cottonsim_world.farm.plant_obstacles import PlantObstacles
 from cottonsim_world.faults import FaultInjector
 from cottonsim_world.geodesy import GpsNoiseModel, HectorGeodesy
 from cottonsim_world.physics.imu_model import ImuModel
@@ -44,6 +45,7 @@ from cottonsim_world.physics.imu_mount import ImuMount
 from cottonsim_world.physics.ode_world import OdeWorld
 from cottonsim_world.physics.physics_config import ContactEvent, RobotState
 from cottonsim_world.physics.wheel_odometry import WheelOdometry, WheelOdometryConfig
+from cottonsim_world.robot.arm_contacts import ArmContactCounter
 from cottonsim_world.robot.boll_store import BollFieldStore
 from cottonsim_world.robot.sim_arm import SimulatedArm
 from cottonsim_world.robot.urdf_model import UrdfModel
@@ -51,8 +53,9 @@ from cottonsim_world.sensors.camera import CameraModel
 from cottonsim_world.sensors.cloud_filters import cloud_to_laserscans, original_passthrough
 from cottonsim_world.sensors.lidar import Vlp16Model
 from cottonsim_world.sensors.scene import BollVisibility, SensorScene
-from cottonsim_world.readings import (CameraReading, ContactsReading, GpsReading, GroundTruthReading, ImuReading,
-                                      JointStatesReading, LidarReading, OdometryReading)
+from cottonsim_world.readings import (ArmContactsReading, CameraReading, ContactsReading, GpsReading,
+                                      GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
+                                      OdometryReading)
 from cottonsim_world.simulator_config import (ARM_JOINT_NAMES, ARM_PREFIX, BASE_FRAME, IMU_FRAME, LIDAR_FRAME,
                                               WHEEL_JOINTS, SimulatorConfig, optical_frame)
 from cottonsim_world.sensor_schedule import HeldReading, Schedule, timed_job
@@ -82,8 +85,10 @@ class Simulator:
         self.ekf = OdometryEkf(cfg.ekf)
         # every boll with its state; the vacuum nozzle acts on it, the sensors hide what left the plants
         self.bolls = BollField(self.farm, cfg.bolls)
+        # the arm counts its contacts with the plants' stems, branches and leaves
+        self.arm_contacts = ArmContactCounter(PlantObstacles.from_farm(self.farm), cfg.arm_contacts)
         self.arm_system = SimulatedArm(urdf, ARM_PREFIX, cfg.arm_initial_positions_rad, cfg.arm_controller,
-                                       cfg.vacuum, BollFieldStore(self.bolls), BASE_FRAME)
+                                       cfg.vacuum, BollFieldStore(self.bolls), BASE_FRAME, self.arm_contacts)
         self.arm = self.arm_system.arm
 
         self.sensor_scene: Optional[SensorScene] = None
@@ -113,6 +118,8 @@ class Simulator:
         self._schedules["joint_states"] = Schedule("joint_states", 1.0 / cfg.joint_states_rate_hz)
         self._schedules["ground_truth"] = Schedule("ground_truth", 1.0 / cfg.ground_truth_rate_hz)
         self._schedules["contacts"] = Schedule("contacts", 1.0 / cfg.contacts_rate_hz)
+        if cfg.arm_contacts.enabled:
+            self._schedules["arm_contacts"] = Schedule("arm_contacts", 1.0 / cfg.contacts_rate_hz)
         self._camera_cloud_wanted = {name: True for name, _ in cfg.cameras}
         # sensor name -> (now, state) -> (function, args) of its reading: the part a worker can run
         self._jobs: Dict[str, Callable] = {name: (lambda now, state, name=name: self._camera_job(name, now, state))
@@ -225,7 +232,8 @@ class Simulator:
         return 1e3 * self._physics_wall_s / steps
 
     def world_T_base(self, state: Optional[RobotState] = None) -> np.ndarray:
-        state = state or self.physics.robot_state()
+        if state is None:
+            return self.physics.base_pose_matrix()
         return pose_matrix(state.position_m, state.orientation_xyzw)
 
     # ------------------------------------------------------------------ stepping
@@ -406,6 +414,9 @@ class Simulator:
             events, self._contacts = self._contacts, []
             return ContactsReading(now, events, self.physics.total_contact_events,
                                    sorted(self.physics.plants_touched))
+        if name == "arm_contacts":
+            return ArmContactsReading(now, self.arm_system.take_contact_events(), dict(self.arm_contacts.totals),
+                                      sorted(self.arm_contacts.plants_touched))
         raise KeyError(name)
 
     # Cameras and LiDAR in two halves: what they need from the main thread, taken when they fall

@@ -20,6 +20,7 @@ from cottonsim_world.geodesy import GpsNoiseConfig
 from cottonsim_world.physics.husky_params import DriveLimits, HuskyParams
 from cottonsim_world.physics.imu_model import ImuConfig
 from cottonsim_world.physics.physics_config import PhysicsConfig
+from cottonsim_world.robot.arm_contacts import ArmContactConfig
 from cottonsim_world.robot.arm_tracker import ArmControllerConfig
 from cottonsim_world.robot.ur5e import JOINT_NAMES as ARM_JOINTS
 from cottonsim_world.robot.vacuum import VacuumConfig
@@ -71,6 +72,8 @@ class SimulatorConfig:
     faults: scheduled sensor faults (``cottonsim_world.faults``; default none); a
     camera_blackout must name a camera of ``cameras`` (or 'all').
     bolls: rules of the boll field (``farm.bolls.BollFieldConfig``).
+    arm_contacts: the arm-plant contact counter (``robot.arm_contacts.ArmContactConfig``);
+    its readings go out at ``contacts_rate_hz`` with the base's plant contacts.
     sensor_switch_interval_s: Python's GIL switch interval [s]
     (``sys.setswitchinterval``, Python's default 0.005) while pipelined,
     restored by ``close()``; 0 (default) = leave it. A sensor job coming
@@ -116,6 +119,7 @@ class SimulatorConfig:
     sensor_switch_interval_s: float = 0.0
     faults: FaultScheduleConfig = FaultScheduleConfig()
     bolls: BollFieldConfig = BollFieldConfig()
+    arm_contacts: ArmContactConfig = ArmContactConfig()
 
     def __post_init__(self):
         if (not isinstance(self.sensor_workers, int) or isinstance(self.sensor_workers, bool)

@@ -7,7 +7,7 @@ import unittest
 import rospy
 import rostest
 import tf2_ros
-from cottonsim_msgs.msg import PlantContacts, SimStats
+from cottonsim_msgs.msg import ArmContacts, PlantContacts, SimStats
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, NavSatFix, PointCloud2
 
@@ -26,6 +26,7 @@ EXPECTED = {
     "/joint_states": (JointState, 50.0),
     "/ground_truth/odom": (Odometry, 50.0),
     "/ground_truth/plant_contacts": (PlantContacts, 10.0),
+    "/ground_truth/arm_contacts": (ArmContacts, 10.0),
 }
 for cam in CAMERAS:
     EXPECTED[f"/{cam}/color/image_raw"] = (Image, 30.0)

@@ -157,8 +157,5 @@ def _vacuum_config():
 
 
 def _no_bolls():
-    from cottonsim_common.pose import Pose2D
-    from cottonsim_world.farm.bolls import BollField
-    from cottonsim_world.farm.model import Farm
     from cottonsim_world.robot.boll_store import BollFieldStore
-    return BollFieldStore(BollField(Farm(None, [], [], Pose2D(0.0, 0.0, 0.0))))
+    return BollFieldStore.of_plants([])

@@ -223,13 +223,14 @@ def test_pybullet_loads_the_urdf():
     client = p.connect(p.DIRECT)
     try:
         body = p.loadURDF(str(URDF_PATH), physicsClientId=client)
-        assert p.getNumJoints(body, physicsClientId=client) == 30
-        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(30)}
-        assert {"front_left_wheel_link", "realsense_p_color_optical_frame", "ur5e_tool0", "ur5e_nozzle_tip"} <= names
+        assert p.getNumJoints(body, physicsClientId=client) == 31
+        names = {p.getJointInfo(body, i, physicsClientId=client)[12].decode() for i in range(31)}
+        assert {"front_left_wheel_link", "realsense_p_color_optical_frame", "ur5e_tool0", "ur5e_nozzle_tip",
+                 "cotton_bin"} <= names
         # Every link but the root carries its own inertial: pybullet's total mass of the
         # links equals the URDF's (a link without one would silently weigh 1 kg in pybullet;
         # the massless root gets that default, so it is left out here).
-        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 30)]
+        masses = [p.getDynamicsInfo(body, i, physicsClientId=client)[0] for i in range(0, 31)]
         model = UrdfModel.from_file(URDF_PATH)
         assert sum(masses) == pytest.approx(sum(link.mass_kg for link in model.links.values()))
         assert 80.0 < sum(masses) < 95.0  # Husky ~50 kg + UR5e ~21 kg + control box and sensors
@@ -264,7 +265,7 @@ def test_rviz_config_has_the_displays():
 
 def test_nozzle_tip_is_the_collision_models_nozzle_end(model):
     """The tip frame lies on tool0's z axis, as far out as the planner's nozzle capsule reaches, with tool0's axes."""
-    from cottonsim_manipulation.planning.collision import ArmCollisionConfig
+    from cottonsim_common.kinematics.arm_capsules import ArmCollisionConfig
 
     tool0_T_tip = model.fixed_transform("ur5e_tool0", "ur5e_nozzle_tip")
     assert np.allclose(tool0_T_tip[:3, :3], np.eye(3), atol=1e-12)

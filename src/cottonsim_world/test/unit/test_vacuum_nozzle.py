@@ -8,10 +8,8 @@ import numpy as np
 import pytest
 
 from cottonsim_common.kinematics.ur5e import inverse_kinematics
-from cottonsim_common.pose import Pose2D
 from cottonsim_manipulation.planning.approach import tool_rotations
-from cottonsim_world.farm.bolls import BollField
-from cottonsim_world.farm.model import Farm, Plant, PlantModel
+from cottonsim_world.farm.model import Plant, PlantModel
 from cottonsim_world.robot.arm_goal import TrajectoryGoal, TrajectoryPoint
 from cottonsim_world.robot.arm_tracker import ArmControllerConfig
 from cottonsim_world.robot.boll_store import DROPPED, HELD, IN_BIN, OPEN, BollFieldStore
@@ -33,7 +31,7 @@ def plant(x, y, bolls_local, plant_id=0):
 
 def field_store(*plants):
     """The nozzle's view (BollFieldStore) of a boll field made of these plants."""
-    return BollFieldStore(BollField(Farm(None, list(plants), [], Pose2D(0.0, 0.0, 0.0))))
+    return BollFieldStore.of_plants(plants)
 
 
 def pose(position, z_axis):

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 import rospy
-from cottonsim_msgs.msg import GpsLocalizationStatus, PlantContacts
+from cottonsim_msgs.msg import ArmContacts, GpsLocalizationStatus, PlantContacts
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import NavSatFix, NavSatStatus
@@ -47,6 +47,8 @@ class ExperimentRecorderNode:
       /ground_truth/odom (nav_msgs/Odometry, world frame): the true pose, kept every ~record_period_s
       /ground_truth/plant_contacts (cottonsim_msgs/PlantContacts): total_contact_events (counted from
         the first message received)
+      /ground_truth/arm_contacts (cottonsim_msgs/ArmContacts): the arm's stem and leaf contact events, counted
+        the same way (report: arm_stem_contacts, arm_leaf_contacts; 0 when the simulator publishes none)
       ~state_topic (std_msgs/String, default /gps_waypoint_navigator/state): the navigator's JSON state;
         the run's durations go from its first "navigating" to "finished", which triggers the report
       ~localization_topic (geometry_msgs/PoseWithCovarianceStamped, default '' = none; map runs: /amcl_pose):
@@ -126,6 +128,8 @@ class ExperimentRecorderNode:
         self._lock = threading.Lock()
         self._contacts_first = None
         self._contacts_last = None
+        self._arm_contacts_first = None     # (stem, leaf) totals of the first / last ArmContacts
+        self._arm_contacts_last = None
         self._start = None            # (sim s, wall s) of the route start
         self._end = None
         self._first_seen = None       # (sim s, wall s) of the first ground truth, fallback start
@@ -139,6 +143,7 @@ class ExperimentRecorderNode:
         self._written = False
         rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth, queue_size=50)
         rospy.Subscriber("/ground_truth/plant_contacts", PlantContacts, self._on_contacts, queue_size=10)
+        rospy.Subscriber("/ground_truth/arm_contacts", ArmContacts, self._on_arm_contacts, queue_size=10)
         rospy.Subscriber(self.state_topic, String, self._on_state, queue_size=10)
         self.localization_topic = str(rospy.get_param("~localization_topic", ""))
         if self.localization_topic:
@@ -219,6 +224,13 @@ class ExperimentRecorderNode:
                 self._contacts_first = int(msg.total_contact_events)
             self._contacts_last = int(msg.total_contact_events)
 
+    def _on_arm_contacts(self, msg: ArmContacts):
+        totals = (int(msg.total_stem_contact_events), int(msg.total_leaf_contact_events))
+        with self._lock:
+            if self._arm_contacts_first is None:
+                self._arm_contacts_first = totals
+            self._arm_contacts_last = totals
+
     def _on_state(self, msg: String):
         try:
             state = json.loads(msg.data)
@@ -246,13 +258,15 @@ class ExperimentRecorderNode:
             start = self._start or self._first_seen or (rospy.get_time(), time.monotonic())
             end = self._end or (traj[-1, 0] if len(traj) else start[0], time.monotonic())
             contacts = 0 if self._contacts_first is None else self._contacts_last - self._contacts_first
+            arm_first, arm_last = self._arm_contacts_first or (0, 0), self._arm_contacts_last or (0, 0)
             navigator = dict(self._navigator)
             estimates = list(self._estimates)
             states, fixes = list(self._states), list(self._fix_stamps)
             gps_estimates, datum = list(self._gps_estimates), self._datum
             counts = VisionCounts(**vars(self._vision_counts))
         extra = {"vision": self.vision, "halts": navigator.get("halts", 0),
-                 "halt_time_s": navigator.get("halt_time_s", 0.0)}
+                 "halt_time_s": navigator.get("halt_time_s", 0.0),
+                 "arm_stem_contacts": arm_last[0] - arm_first[0], "arm_leaf_contacts": arm_last[1] - arm_first[1]}
         if self.vision:
             extra.update(vision_report(counts, max(0.0, end[0] - start[0])))
         if self.localization_topic:

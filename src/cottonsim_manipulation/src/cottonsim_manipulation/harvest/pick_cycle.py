@@ -47,15 +47,14 @@ class PickCycleConfig:
     motion_margin_s: a motion phase times out after its trajectory's duration plus this margin.
     capture_wait_s: after the approach ends, how long the capture confirmation may take.
     release_dwell_s: time with the vacuum off over the bin before the next target.
-    bin_joints_rad: the arm's joints with the nozzle over the bin (6 values, within the UR5e limits); the
-        default puts the nozzle tip 0.40 m above and 0.385 m behind the arm's base, pointing down: at
-        (-0.04, 0.0, 0.65) in base_link, inside the simulator's bin opening, clear of the robot's body."""
+    bin_joints_rad: the arm's joints with the nozzle over the bin (6 values, within the UR5e limits);
+        default: the tip 7.5 cm above the rim of the URDF's cotton_bin, pointing down, clear of the robot."""
 
     halt_timeout_s: float = 5.0
     motion_margin_s: float = 2.0
     capture_wait_s: float = 0.5
     release_dwell_s: float = 0.3
-    bin_joints_rad: Tuple[float, ...] = (1.924, -2.909, 1.218, 0.121, -1.571, 0.354)
+    bin_joints_rad: Tuple[float, ...] = (1.9, -1.8, -1.31, -4.74, -1.57, 0.33)
 
     def __post_init__(self) -> None:
         for name in ("halt_timeout_s", "motion_margin_s", "capture_wait_s", "release_dwell_s"):

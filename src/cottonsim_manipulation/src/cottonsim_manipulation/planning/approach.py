@@ -39,7 +39,8 @@ from cottonsim_common.kinematics.ur5e import (
     link_frames,
 )
 from cottonsim_common.validation import require_unit_vector
-from cottonsim_manipulation.planning.collision import ArmCollisionModel, CapsuleSet
+from cottonsim_common.capsules import CapsuleSet
+from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
 
 REASONS = ("ok", "unreachable", "ik_failed", "collision")

@@ -32,79 +32,15 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from cottonsim_common.kinematics.ur5e import Ur5eKinematics, link_frames
+from cottonsim_common.capsules import (CapsuleSet, point_segment_distance,
+                                       segment_segment_distance)
+from cottonsim_common.kinematics.arm_capsules import (ARM_LINKS, ArmCollisionConfig,
+                                                      arm_capsule_segments)
+from cottonsim_common.kinematics.ur5e import Ur5eKinematics
 from cottonsim_common.validation import require_instance
 from cottonsim_manipulation.planning.trajectory import interpolate_path, path_of
 
-ARM_LINKS: Tuple[str, ...] = (
-    "base", "shoulder", "upper_arm", "elbow", "forearm", "wrist_1", "wrist_2", "wrist_3", "nozzle",
-)
 SELF_COLLISION_MIN_GAP = 3
-_EPS = 1e-12
-
-
-def _as_points(values, count: int, what: str) -> np.ndarray:
-    arr = np.asarray(values, dtype=float).reshape(count, 3) if count else np.zeros((0, 3))
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what} contains NaN or infinity")
-    return arr
-
-
-@dataclass(frozen=True)
-class CapsuleSet:
-    """Capsules: segments start_m -> end_m (N, 3) [m] grown by radius_m (N,) [m]."""
-
-    start_m: np.ndarray
-    end_m: np.ndarray
-    radius_m: np.ndarray
-    names: Tuple[str, ...] = field(default=())
-
-    def __post_init__(self) -> None:
-        start = np.asarray(self.start_m, dtype=float)
-        n = start.size // 3 if start.ndim else 0
-        if start.shape not in ((n, 3),) or np.shape(self.end_m) != (n, 3) or np.shape(self.radius_m) != (n,):
-            raise ValueError(
-                f"CapsuleSet needs start_m and end_m (N, 3) and radius_m (N,), got "
-                f"{np.shape(self.start_m)}, {np.shape(self.end_m)}, {np.shape(self.radius_m)}"
-            )
-        object.__setattr__(self, "start_m", _as_points(start, n, "CapsuleSet.start_m"))
-        object.__setattr__(self, "end_m", _as_points(self.end_m, n, "CapsuleSet.end_m"))
-        radius = np.asarray(self.radius_m, dtype=float)
-        if not np.all(np.isfinite(radius)) or np.any(radius < 0.0):
-            raise ValueError(f"CapsuleSet.radius_m must be finite and >= 0, got {radius.tolist()}")
-        object.__setattr__(self, "radius_m", radius)
-        names = tuple(self.names) if self.names else tuple(f"capsule_{i}" for i in range(n))
-        if len(names) != n:
-            raise ValueError(f"CapsuleSet has {n} capsules but {len(names)} names")
-        object.__setattr__(self, "names", names)
-
-    def __len__(self) -> int:
-        return len(self.radius_m)
-
-    @classmethod
-    def from_list(cls, capsules: Sequence[Tuple[Sequence[float], Sequence[float], float, str]]) -> "CapsuleSet":
-        """From (start, end, radius, name) tuples."""
-        if not capsules:
-            return cls.empty()
-        start, end, radius, names = zip(*capsules)
-        return cls(np.array(start, dtype=float), np.array(end, dtype=float), np.array(radius, dtype=float), names)
-
-    @classmethod
-    def empty(cls) -> "CapsuleSet":
-        return cls(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), ())
-
-    def __add__(self, other: "CapsuleSet") -> "CapsuleSet":
-        return CapsuleSet(
-            np.concatenate([self.start_m, other.start_m]),
-            np.concatenate([self.end_m, other.end_m]),
-            np.concatenate([self.radius_m, other.radius_m]),
-            self.names + other.names,
-        )
-
-    def transformed(self, pose: np.ndarray) -> "CapsuleSet":
-        """The capsules moved by a 4x4 rigid transform (e.g. map frame -> arm base frame)."""
-        rot, trans = pose[:3, :3], pose[:3, 3]
-        return CapsuleSet(self.start_m @ rot.T + trans, self.end_m @ rot.T + trans, self.radius_m, self.names)
 
 
 @dataclass(frozen=True)
@@ -161,42 +97,6 @@ class BoxSet:
         return cls((lo + hi) / 2.0, np.repeat(np.eye(3)[None], len(names), axis=0), (hi - lo) / 2.0, names)
 
 
-# ----------------------------------------------------------------------------- distances
-def segment_segment_distance(p1, q1, p2, q2) -> np.ndarray:
-    """Distance between segments p1-q1 and p2-q2 (arrays (..., 3), broadcast) [m]."""
-    d1, d2 = q1 - p1, q2 - p2
-    r = p1 - p2
-    a = np.einsum("...i,...i->...", d1, d1)
-    e = np.einsum("...i,...i->...", d2, d2)
-    f = np.einsum("...i,...i->...", d2, r)
-    c = np.einsum("...i,...i->...", d1, r)
-    b = np.einsum("...i,...i->...", d1, d2)
-    a_ok, e_ok = a > _EPS, e > _EPS
-    a_safe, e_safe = np.where(a_ok, a, 1.0), np.where(e_ok, e, 1.0)
-    denom = a * e - b * b
-    skew = denom > _EPS * np.maximum(a * e, _EPS)              # not parallel
-    s = np.where(skew, np.clip((b * f - c * e) / np.where(skew, denom, 1.0), 0.0, 1.0), 0.0)
-    t = (b * s + f) / e_safe
-    s = np.where(t < 0.0, np.clip(-c / a_safe, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a_safe, 0.0, 1.0), s))
-    t = np.clip(t, 0.0, 1.0)
-    # Degenerate segments (points).
-    s = np.where(a_ok, s, 0.0)
-    t = np.where(a_ok, t, np.clip(f / e_safe, 0.0, 1.0))
-    t = np.where(e_ok, t, 0.0)
-    s = np.where(e_ok | ~a_ok, s, np.clip(-c / a_safe, 0.0, 1.0))
-    diff = (p1 + d1 * s[..., None]) - (p2 + d2 * t[..., None])
-    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
-
-
-def point_segment_distance(x, p, q) -> np.ndarray:
-    """Distance from points x to segments p-q (broadcast) [m]."""
-    d = q - p
-    dd = np.einsum("...i,...i->...", d, d)
-    t = np.clip(np.einsum("...i,...i->...", x - p, d) / np.where(dd > _EPS, dd, 1.0), 0.0, 1.0)
-    diff = x - (p + d * t[..., None])
-    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
-
-
 def segment_box_distance(p, q, centre, rotation, half, iterations: int = 32) -> np.ndarray:
     """Distance from segments p-q to solid oriented boxes (arrays broadcast on the leading axes) [m].
 
@@ -232,54 +132,6 @@ def segment_box_distance(p, q, centre, rotation, half, iterations: int = 32) -> 
 
 # ----------------------------------------------------------------------------- the arm
 @dataclass(frozen=True)
-class ArmCollisionConfig:
-    """The UR5e's capsules and the margins of the checks (lengths in metres).
-
-    base_radius_m: the base column, plate to shoulder (UR5e base: 149 mm across).
-    shoulder_radius_m, elbow_radius_m: the shoulder and elbow drums.
-    upper_arm_radius_m, forearm_radius_m: the tubes.
-    wrist_radius_m: the three wrist housings and the flange.
-    shoulder_offset_m: the upper-arm tube's offset along the shoulder-lift axis
-        from the DH plane (UR5e: 0.138); forearm_offset_m: the forearm tube's.
-    nozzle_length_m, nozzle_radius_m: the vacuum nozzle on the flange (its tip
-        is nozzle_length_m along tool0's z); nozzle_tip_allowance_m: its last
-        part, left out of the checks (it reaches into the boll).
-    padding_m: added to every arm radius against plants and the body.
-    self_padding_m: added to every arm radius in the self-collision check.
-    """
-
-    base_radius_m: float = 0.0745
-    shoulder_radius_m: float = 0.060
-    upper_arm_radius_m: float = 0.045
-    elbow_radius_m: float = 0.050
-    forearm_radius_m: float = 0.038
-    wrist_radius_m: float = 0.045
-    shoulder_offset_m: float = 0.138
-    forearm_offset_m: float = 0.010
-    nozzle_length_m: float = 0.15
-    nozzle_radius_m: float = 0.02
-    nozzle_tip_allowance_m: float = 0.03
-    padding_m: float = 0.01
-    self_padding_m: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name, value in self.__dict__.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"ArmCollisionConfig.{name} must be a finite number, got {value!r}")
-            if value < 0.0 or value > 1.0:
-                raise ValueError(f"ArmCollisionConfig.{name} = {value} m must be in [0, 1]")
-        if self.nozzle_tip_allowance_m > self.nozzle_length_m:
-            raise ValueError("ArmCollisionConfig.nozzle_tip_allowance_m must not exceed nozzle_length_m")
-
-    @property
-    def radii_m(self) -> np.ndarray:
-        """Radius of each capsule of ARM_LINKS, without padding [m]."""
-        w = self.wrist_radius_m
-        return np.array([self.base_radius_m, self.shoulder_radius_m, self.upper_arm_radius_m, self.elbow_radius_m,
-                         self.forearm_radius_m, w, w, w, self.nozzle_radius_m])
-
-
-@dataclass(frozen=True)
 class Contact:
     """A collision found: at path sample `sample`, arm capsule `link` against `other`.
 
@@ -313,18 +165,7 @@ class ArmCollisionModel:
 
     def capsules(self, q_rad: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Segment ends (K, 9, 3), (K, 9, 3) of ARM_LINKS for joints (K, 6) [rad]."""
-        q = np.atleast_2d(np.asarray(q_rad, dtype=float))
-        f = link_frames(q, self.kinematics)
-        o, z = f[:, :, :3, 3], f[:, :, :3, 2]
-        c = self.config
-        sh, fo = c.shoulder_offset_m, c.forearm_offset_m
-        nozzle_end = c.nozzle_length_m - c.nozzle_tip_allowance_m
-        start = np.stack([o[:, 0], o[:, 1], o[:, 1] + sh * z[:, 1], o[:, 2] + sh * z[:, 2], o[:, 2] + fo * z[:, 2],
-                          o[:, 3] + fo * z[:, 3], o[:, 4], o[:, 5], o[:, 6]], axis=1)
-        end = np.stack([o[:, 1], o[:, 1] + sh * z[:, 1], o[:, 2] + sh * z[:, 2], o[:, 2] + fo * z[:, 2],
-                        o[:, 3] + fo * z[:, 3], o[:, 4], o[:, 5], o[:, 6] - c.wrist_radius_m * z[:, 6],
-                        o[:, 6] + nozzle_end * z[:, 6]], axis=1)
-        return start, end
+        return arm_capsule_segments(q_rad, self.config, self.kinematics)
 
     def clearances(self, q_rad: np.ndarray, obstacles: Optional[CapsuleSet] = None):
         """Surface distances with padding [m] at each configuration (K, 6): obstacle (K, 9, N),

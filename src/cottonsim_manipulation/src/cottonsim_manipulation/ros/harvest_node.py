@@ -70,7 +70,8 @@ from cottonsim_manipulation.harvest.pick_cycle import (CancelTrajectory, Capture
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig
 from cottonsim_manipulation.harvest.targets import TargetFusion, TargetFusionConfig
 from cottonsim_manipulation.planning.approach import ApproachConfig, plan_approach
-from cottonsim_manipulation.planning.collision import ArmCollisionConfig, ArmCollisionModel
+from cottonsim_common.kinematics.arm_capsules import ArmCollisionConfig
+from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf
 from cottonsim_manipulation.planning.trajectory import plan_trajectory
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
-from typing import Dict, List, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -74,6 +74,27 @@ class Primitive:
 
 
 @dataclass(frozen=True)
+class PlantSkeleton:
+    """What the arm may touch on a plant, in plant-local coordinates [m].
+
+    Woody parts (collision geometry for the arm): the main stem's segments
+    stem_start_m / stem_end_m (S, 3) with radii stem_radius_m (S,), and the
+    main (fruiting) branches' segments branch_start_m / branch_end_m (B, 3)
+    with branch_radius_m (B,). Soft parts: every leaf blade as a sphere
+    leaf_centre_m (L, 3), leaf_radius_m (L,) round the blade.
+    """
+
+    stem_start_m: np.ndarray
+    stem_end_m: np.ndarray
+    stem_radius_m: np.ndarray
+    branch_start_m: np.ndarray
+    branch_end_m: np.ndarray
+    branch_radius_m: np.ndarray
+    leaf_centre_m: np.ndarray
+    leaf_radius_m: np.ndarray
+
+
+@dataclass(frozen=True)
 class PlantModel:
     """Geometry of one cotton plant in plant-local coordinates.
 
@@ -81,6 +102,8 @@ class PlantModel:
     collision: the parts the robot collides with (branches, leaves), as
     simple primitives; used by the physics engine and the LiDAR ray caster.
     boll_centres: (B, 3) float [m]; boll_radii: (B,) float [m].
+    skeleton: stems, branches and leaves for the arm's contacts (None: a
+    plant without one, e.g. a stand-in; the arm then touches nothing of it).
     """
 
     meshes: Dict[str, TriangleMesh]
@@ -89,6 +112,7 @@ class PlantModel:
     boll_radii: np.ndarray
     height_m: float
     width_m: float
+    skeleton: Optional[PlantSkeleton] = None
 
 
 @dataclass(frozen=True)

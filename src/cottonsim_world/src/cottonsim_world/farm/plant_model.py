@@ -34,7 +34,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from cottonsim_common.validation import require_instance, require_positive
-from cottonsim_world.farm.model import PlantModel, Primitive, SemanticClass, TriangleMesh
+from cottonsim_world.farm.model import PlantModel, PlantSkeleton, Primitive, SemanticClass, TriangleMesh
 
 GOLDEN_ANGLE_RAD = math.pi * (3.0 - math.sqrt(5.0))   # ~137.5 deg, cotton's spiral phyllotaxy
 
@@ -198,6 +198,14 @@ def _leaf(base: np.ndarray, radius: float, azimuth: float, pitch: float, roll: f
     return verts, _two_sided(_fan(len(theta), closed=False))
 
 
+def _leaf_sphere(base: np.ndarray, radius: float, azimuth: float, pitch: float,
+                 roll: float) -> Tuple[np.ndarray, float]:
+    """Centre and radius of a sphere round the blade ``_leaf`` draws (its midrib spans about
+    -0.1 .. 1.25 radius from the base, its width about 1.6 radius)."""
+    u, _v, _n = _leaf_frame(azimuth, pitch, roll)
+    return base + 0.55 * radius * u, 0.7 * radius
+
+
 def _boll(centre: np.ndarray, radius: float, detail: str, rng: np.random.Generator) -> Tuple[np.ndarray, np.ndarray]:
     """A lumpy, slightly squashed sphere: the fluffy locks of an open boll."""
     n_lon, n_lat = (8, 4) if detail == "high" else (4, 2)
@@ -271,6 +279,9 @@ def build_cotton_plant(config: CottonPlantConfig = CottonPlantConfig(),
     stem_base_r = 0.010 * H
     stem_r = np.linspace(stem_base_r, 0.003 * H, n_seg + 1)
     stem_b.add(*_tube(stem_pts, stem_r, 6 if high else 4))
+    woody: Dict[str, List] = {"stem": [(stem_pts[k], stem_pts[k + 1], stem_r[k]) for k in range(n_seg)],
+                              "branch": []}
+    leaf_spheres: List[Tuple[np.ndarray, float]] = []
 
     def stem_at(z: float) -> np.ndarray:
         return np.array([np.interp(z, zs, stem_pts[:, 0]), np.interp(z, zs, stem_pts[:, 1]), z])
@@ -297,6 +308,7 @@ def build_cotton_plant(config: CottonPlantConfig = CottonPlantConfig(),
         pts = np.array([p0, p1, p2]) if high else np.array([p0, p2])
         radii = np.linspace(0.006 * H, 0.0025 * H, len(pts))
         stem_b.add(*_tube(pts, radii, 4 if high else 3))
+        woody["branch"].extend((pts[k], pts[k + 1], radii[k]) for k in range(len(pts) - 1))
         for frac in ((0.4, 0.75, 1.0) if high else (0.6, 1.0)):
             seg = np.clip(frac * 2.0, 0, 2) if high else frac
             if high:
@@ -326,6 +338,7 @@ def build_cotton_plant(config: CottonPlantConfig = CottonPlantConfig(),
             roll = rng.normal(0.0, math.radians(20))
             lobes = 5 if rng.random() < 0.5 else 3
             leaf_b.add(*_leaf(base, radius, az, pitch, roll, lobes, config.detail, rng))
+            leaf_spheres.append(_leaf_sphere(base, radius, az, pitch, roll))
 
     # --- dead leaves, low on the plant (more of them when defoliated)
     n_dead = config.dead_leaf_count if config.dead_leaf_count is not None else (4 if leafy else 8)
@@ -339,7 +352,9 @@ def build_cotton_plant(config: CottonPlantConfig = CottonPlantConfig(),
         radius = rng.uniform(leaf_r_lo, leaf_r_hi) * 0.75
         az = az + rng.normal(0, 0.8)
         pitch = rng.uniform(math.radians(35), math.radians(70))   # limp, hanging
-        dead_b.add(*_leaf(q, radius, az, pitch, rng.normal(0, 0.4), 3, config.detail, rng))
+        roll = rng.normal(0, 0.4)
+        dead_b.add(*_leaf(q, radius, az, pitch, roll, 3, config.detail, rng))
+        leaf_spheres.append(_leaf_sphere(q, radius, az, pitch, roll))
 
     # --- bolls on the nodes (bottom-up bias: lower bolls open first)
     b_lo, b_hi = config.boll_radius_m
@@ -400,7 +415,22 @@ def build_cotton_plant(config: CottonPlantConfig = CottonPlantConfig(),
 
     collision = _collision_primitives(meshes, stem_base_r, top_z * sz, base_z * sz, H, W)
     return PlantModel(meshes=meshes, collision=collision, boll_centres=centres_arr,
-                      boll_radii=radii_arr, height_m=H, width_m=W)
+                      boll_radii=radii_arr, height_m=H, width_m=W,
+                      skeleton=_skeleton(woody, leaf_spheres, scale))
+
+
+def _skeleton(woody: Dict[str, List], leaf_spheres: List[Tuple[np.ndarray, float]],
+              scale: np.ndarray) -> PlantSkeleton:
+    """The plant's stem and branch segments and leaf spheres, clipped like the meshes (scaled)."""
+    def segments(parts):
+        start = np.array([a for a, _, _ in parts], dtype=float).reshape(-1, 3) * scale
+        end = np.array([b for _, b, _ in parts], dtype=float).reshape(-1, 3) * scale
+        return start, end, np.array([r for _, _, r in parts], dtype=float)
+
+    stem, branch = segments(woody["stem"]), segments(woody["branch"])
+    leaf_c = np.array([c for c, _ in leaf_spheres], dtype=float).reshape(-1, 3) * scale
+    leaf_r = np.array([r for _, r in leaf_spheres], dtype=float) * float(scale[0])
+    return PlantSkeleton(*stem, *branch, leaf_c, leaf_r)
 
 
 def _vary(rgba: Tuple[float, float, float, float], rng: np.random.Generator, amount: float) -> Tuple[float, float, float, float]:

@@ -422,6 +422,18 @@ class OdeWorld:
         out, self._pending_events = self._pending_events, []
         return out
 
+    def base_pose_matrix(self) -> np.ndarray:
+        """4x4 pose of base_link in the world now (robot_state's position and orientation, cheaper)."""
+        self._require_robot()
+        ch = self._chassis
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = ch.getRotation()
+        ox, oy, oz = self._base_offset
+        cx, cy, cz = ch.getPosition()
+        return np.array(((r00, r01, r02, cx + r00 * ox + r01 * oy + r02 * oz),
+                         (r10, r11, r12, cy + r10 * ox + r11 * oy + r12 * oz),
+                         (r20, r21, r22, cz + r20 * ox + r21 * oy + r22 * oz),
+                         (0.0, 0.0, 0.0, 1.0)))
+
     def robot_state(self) -> RobotState:
         """Ground-truth state of the Husky now."""
         self._require_robot()

@@ -72,6 +72,14 @@ class BollFieldStore(BollStore):
         self.field = field
         self.holder = holder
 
+    @classmethod
+    def of_plants(cls, plants: Sequence, holder: str = "ur5e_vacuum_nozzle") -> "BollFieldStore":
+        """The store of a boll field made of these plants alone (a hand-built scene, a benchmark)."""
+        from cottonsim_common.pose import Pose2D
+        from cottonsim_world.farm.bolls import BollField
+        from cottonsim_world.farm.model import Farm
+        return cls(BollField(Farm(None, list(plants), [], Pose2D(0.0, 0.0, 0.0))), holder)
+
     def __len__(self) -> int:
         return self.field.count
 

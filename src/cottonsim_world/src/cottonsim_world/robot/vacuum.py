@@ -40,13 +40,14 @@ class VacuumConfig:
     capture_radius_m: largest tip-to-boll-centre distance that captures [m].
     cone_half_angle_rad: largest angle between the nozzle axis and the boll's inward direction [rad].
     bin_centre_m, bin_half_size_m: the bin's opening as a box in base_link [m]: a boll released with
-        the tip inside it falls into the bin.
+        the tip inside it falls into the bin. Default: inside the walls of the URDF's cotton_bin (on the
+        control box, rim at z 0.515 m) from 4.5 cm below the rim to 17.5 cm above it.
     """
 
     capture_radius_m: float = 0.02
     cone_half_angle_rad: float = math.radians(45.0)
-    bin_centre_m: Tuple[float, float, float] = (-0.04, 0.0, 0.60)
-    bin_half_size_m: Tuple[float, float, float] = (0.15, 0.20, 0.15)
+    bin_centre_m: Tuple[float, float, float] = (-0.065, 0.0, 0.58)
+    bin_half_size_m: Tuple[float, float, float] = (0.10, 0.19, 0.11)
 
     def __post_init__(self) -> None:
         try:

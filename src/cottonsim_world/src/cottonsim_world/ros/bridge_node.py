@@ -23,6 +23,8 @@ Publications
   /joint_states                            sensor_msgs/JointState   wheels and UR5e
   /ground_truth/odom                       nav_msgs/Odometry        true pose, frame world - evaluation only
   /ground_truth/plant_contacts             cottonsim_msgs/PlantContacts  robot-plant contacts (crop damage)
+  /ground_truth/arm_contacts               cottonsim_msgs/ArmContacts  arm-stem and arm-leaf contacts
+                                                                    (robot/arm_contacts.py), at contacts_rate_hz
   /sim/stats                               cottonsim_msgs/SimStats  achieved real-time factor, cost per sensor
   /sim/faults/active                       cottonsim_msgs/SensorFaults  latched: the sensor faults active now,
                                                                     republished whenever one starts or ends
@@ -85,7 +87,8 @@ import rospkg
 import rospy
 import tf2_ros
 from cottonsim_common.config.yaml_files import load_yaml_text
-from cottonsim_msgs.msg import PlantContact, PlantContacts, SensorFault, SensorFaults, SimStats
+from cottonsim_msgs.msg import (ArmContact, ArmContacts, PlantContact, PlantContacts, SensorFault, SensorFaults,
+                                SimStats)
 from cottonsim_msgs.srv import (ClearFaults, ClearFaultsResponse, InjectFault, InjectFaultResponse, SetRobotPose,
                                 SetRobotPoseResponse)
 from geometry_msgs.msg import Point, Twist
@@ -100,8 +103,9 @@ from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.ros.boll_topics import BollTopics
 from cottonsim_world.ros.arm_interface import ArmRosInterface
-from cottonsim_world.readings import (CameraReading, ContactsReading, GpsReading, GroundTruthReading, ImuReading,
-                                      JointStatesReading, LidarReading, OdometryReading)
+from cottonsim_world.readings import (ArmContactsReading, CameraReading, ContactsReading, GpsReading,
+                                      GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
+                                      OdometryReading)
 from cottonsim_world.simulator import Simulator
 from cottonsim_world.simulator_config import ARM_JOINT_NAMES
 
@@ -191,6 +195,7 @@ class SimBridgeNode:
         self.joint_pub = rospy.Publisher("/joint_states", JointState, queue_size=10)
         self.truth_pub = rospy.Publisher("/ground_truth/odom", Odometry, queue_size=10)
         self.contacts_pub = rospy.Publisher("/ground_truth/plant_contacts", PlantContacts, queue_size=10)
+        self.arm_contacts_pub = rospy.Publisher("/ground_truth/arm_contacts", ArmContacts, queue_size=10)
         self.stats_pub = rospy.Publisher("/sim/stats", SimStats, queue_size=2)
         self.faults_pub = rospy.Publisher("/sim/faults/active", SensorFaults, queue_size=2, latch=True)
         self.tf_pub = tf2_ros.TransformBroadcaster()
@@ -397,6 +402,8 @@ class SimBridgeNode:
                                                      "world", "base_link"))
         elif isinstance(reading, ContactsReading):
             self._publish_contacts(reading, stamp)
+        elif isinstance(reading, ArmContactsReading):
+            self._publish_arm_contacts(reading, stamp)
 
     def _publish_camera(self, r: CameraReading, stamp):
         pubs = self.cam_pubs[r.camera]
@@ -455,6 +462,16 @@ class SimBridgeNode:
                                              plant=e.plant_id % per_row, robot_part=e.part,
                                              position=Point(*e.point_m), depth=e.depth_m))
         self.contacts_pub.publish(msg)
+
+    def _publish_arm_contacts(self, r: ArmContactsReading, stamp):
+        msg = ArmContacts(total_stem_contact_events=r.totals["stem"], total_leaf_contact_events=r.totals["leaf"],
+                          plants_touched=list(r.plants_touched))
+        msg.header.stamp, msg.header.frame_id = stamp, "world"
+        per_row = self.sim.config.farm.plants_per_row
+        msg.contacts = [ArmContact(plant_id=e.plant_id, row=e.plant_id // per_row, plant=e.plant_id % per_row,
+                                   kind=e.kind, part=e.part, arm_link=e.link, position=Point(*e.point_m),
+                                   depth=e.depth_m) for e in r.events]
+        self.arm_contacts_pub.publish(msg)
 
 
 def fault_spec_from_request(kind: str, target: str, duration_s: float, parameters: str) -> FaultSpec:
