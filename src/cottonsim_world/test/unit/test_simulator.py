@@ -161,3 +161,10 @@ def test_render_rate_renders_the_first_frame_of_each_slot_only(urdf):
 def test_a_bad_render_rate_is_refused_with_the_key(bad):
     with pytest.raises(ValueError, match="render_rate_hz"):
         simulator_config_from_dict({"cameras": {"realsense_p": {"rate_hz": 24.0, "render_rate_hz": bad}}})
+
+
+@pytest.mark.parametrize("keys", [{"consumer_wait_s": -1.0, "render_rate_hz": 5.0}, {"consumer_wait_s": 2.0},
+                                  {"consumer_wait_s": "long", "render_rate_hz": 5.0}])
+def test_a_bad_consumer_wait_is_refused_with_the_key(keys):
+    with pytest.raises(ValueError, match="consumer_wait_s"):
+        simulator_config_from_dict({"cameras": {"realsense_p": dict(rate_hz=24.0, **keys)}})

@@ -69,6 +69,7 @@ from std_msgs.msg import Bool
 
 from cottonsim_common.rate_slots import slot_index
 from cottonsim_common.ros import conversions as conv
+from cottonsim_common.ros.frames_done import FramesDonePublisher
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter
@@ -163,6 +164,7 @@ class BollDetectionNode:
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.in_reach_pub = rospy.Publisher("/cotton_eye/bolls_in_reach", Bool, queue_size=2)
+        self.frames_done = FramesDonePublisher()        # /sim/frames_done: a simulator may wait for it
         self.cameras: Dict[str, CameraInputs] = {}
         for camera, output in zip(cameras, outputs):
             inputs = self.cameras[camera] = CameraInputs(camera, output)
@@ -232,6 +234,13 @@ class BollDetectionNode:
                 self._idle_next_s = now_s + 1.0 / self.rate_hz      # (also after the clock went back)
             return
         self._idle_next_s = now_s + 1.0 / self.rate_hz
+        try:
+            self._detect(pairs)
+        finally:
+            for camera, pair in pairs.items():
+                self.frames_done.done(camera, pair[0].header.stamp)
+
+    def _detect(self, pairs):
         work = {}
         for camera, pair in pairs.items():
             try:

@@ -54,6 +54,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32
 
 from cottonsim_common.ros import conversions as conv
+from cottonsim_common.ros.frames_done import FramesDonePublisher
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import RateGate, check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter
@@ -92,6 +93,7 @@ class SegmentationNode:
                           for name in ("plants", "ground", "sky")}
         self.overlay_pub = rospy.Publisher("~overlay", Image, queue_size=1)
         self.latency_pub = rospy.Publisher("~latency_ms", Float32, queue_size=1)
+        self.frames_done = FramesDonePublisher()        # /sim/frames_done: a simulator may wait for it
 
         self._lock = threading.Lock()
         self._last_rgb: Optional[Image] = None
@@ -131,7 +133,15 @@ class SegmentationNode:
     def _on_image(self, msg: Image):
         t0 = time.perf_counter()
         self._keep_rgb(msg)
-        if not self._take(msg) or self.predictor is None:
+        if not self._take(msg):
+            return
+        try:
+            self._segment(msg, t0)
+        finally:
+            self.frames_done.done(self.camera, msg.header.stamp)
+
+    def _segment(self, msg: Image, t0: float):
+        if self.predictor is None:
             return
         try:
             rgb = conv.image_to_array(msg)
@@ -152,6 +162,12 @@ class SegmentationNode:
         t0 = time.perf_counter()
         if not self._take(msg):
             return
+        try:
+            self._segment_ground_truth(msg, t0)
+        finally:
+            self.frames_done.done(self.camera, msg.header.stamp)
+
+    def _segment_ground_truth(self, msg: Image, t0: float):
         try:
             semantic = conv.image_to_array(msg)
             if semantic.ndim != 2:

@@ -73,6 +73,10 @@ class CameraConfig:
     them only the first of each slot [k, k + 1) / render_rate_hz of sim time
     is rendered and published (``cottonsim_common.rate_slots``): the frames a
     consumer that takes one frame per slot at this rate takes from every frame.
+    consumer_wait_s (with render_rate_hz > 0): the ROS bridge does not step
+    past the end of a frame's slot until the frame's consumer has published
+    that it is done with it on /sim/frames_done, waiting at most this long
+    [s, wall time] (``cottonsim_world.consumer_wait``); 0 (default) = never waits.
     """
 
     width: int = 640
@@ -92,6 +96,7 @@ class CameraConfig:
     seed: int = 0
     lod_max_error_px: float = 4.0
     render_rate_hz: float = 0.0
+    consumer_wait_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "cloud_stride"):
@@ -121,6 +126,12 @@ class CameraConfig:
                 or not (math.isfinite(self.render_rate_hz) and 0.0 <= self.render_rate_hz <= self.rate_hz)):
             raise ValueError(f"render_rate_hz must be 0 (every frame) or in (0, rate_hz = {self.rate_hz}], "
                              f"got {self.render_rate_hz}")
+        if (isinstance(self.consumer_wait_s, bool) or not isinstance(self.consumer_wait_s, (int, float))
+                or not (math.isfinite(self.consumer_wait_s) and self.consumer_wait_s >= 0.0)):
+            raise ValueError(f"consumer_wait_s must be a finite number >= 0 [s], got {self.consumer_wait_s!r}")
+        if self.consumer_wait_s > 0.0 and self.render_rate_hz <= 0.0:
+            raise ValueError("consumer_wait_s > 0 needs render_rate_hz > 0 (the consumer's slots), got "
+                             f"render_rate_hz {self.render_rate_hz}")
         if not (self.cull_distance_m > 0.0):
             raise ValueError(f"cull_distance_m must be > 0 (inf allowed), got {self.cull_distance_m}")
 
