@@ -43,6 +43,8 @@ Publications (per camera, <o> its entry of ~output_namespaces)
                                                             newest verdict of some fresh camera has a boll in reach
   /cotton_eye/health         cottonsim_msgs/CottonEyeHealth every ~health_period_s: per camera frames received /
                                                             processed / black / stale, the backend
+  /sim/frames_done           std_msgs/Header                per frame taken: its stamp, frame_id the camera (a
+                                                            simulator may wait for it, cottonsim_common/ros/frames_done.py)
 Parameters (private; config/boll_detection.yaml documents each)
   ~cameras (list, [realsense_secondary, realsense_tertiary]), ~output_namespaces (list,
   [boll_detection_left, boll_detection_right]), ~source (str, network), ~weights (str, ''),

@@ -34,6 +34,8 @@ Publications
   ~latency_ms      std_msgs/Float32   wall time from receiving a frame to publishing its masks [ms]
   /cotton_eye/health  cottonsim_msgs/CottonEyeHealth  every ~health_period_s: frames received / processed /
                    black / without ground or sky ('no estimate') / stale, the backend (ros/health_reporting.py)
+  /sim/frames_done std_msgs/Header    per frame taken: its stamp, frame_id ~camera (a simulator may wait for it,
+                                      cottonsim_common/ros/frames_done.py)
 Parameters (private; config/segmentation.yaml documents each)
   ~camera (str, realsense_p), ~mask_source (str, network), ~weights (str, ''), ~device (str, cpu),
   ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7), ~threads (int, 1), ~overlay_alpha (float, 0.5),
@@ -131,12 +133,16 @@ class SegmentationNode:
             self.health.inputs[self.camera].processed(has_estimate)
 
     def _on_image(self, msg: Image):
-        t0 = time.perf_counter()
         self._keep_rgb(msg)
+        self._process_if_taken(msg, self._segment)
+
+    def _process_if_taken(self, msg: Image, process):
+        """Count the frame; if its slot is free, process(msg, t0) it and say on /sim/frames_done that it is done."""
+        t0 = time.perf_counter()
         if not self._take(msg):
             return
         try:
-            self._segment(msg, t0)
+            process(msg, t0)
         finally:
             self.frames_done.done(self.camera, msg.header.stamp)
 
@@ -159,13 +165,7 @@ class SegmentationNode:
         self._publish(labels, msg, t0, rgb)
 
     def _on_semantic(self, msg: Image):
-        t0 = time.perf_counter()
-        if not self._take(msg):
-            return
-        try:
-            self._segment_ground_truth(msg, t0)
-        finally:
-            self.frames_done.done(self.camera, msg.header.stamp)
+        self._process_if_taken(msg, self._segment_ground_truth)
 
     def _segment_ground_truth(self, msg: Image, t0: float):
         try:
