@@ -11,7 +11,9 @@ window of sim time after a warm-up:
   node, the perception nodes' sum, and of the simulator bridge;
 * the real-time factor (sim seconds per wall second) of the window;
 * the perception outputs per sim second (label images, row-centring commands,
-  boll detections of each side camera).
+  boll detections of each side camera);
+* the simulator's own timings at the end of the window (/sim/stats: ms per
+  physics step, mean ms per update of each sensor since the start).
 
 It measures the perception nodes of whatever workspace is sourced: to compare
 two trees, source each one's scripts/env.sh and run this script from either.
@@ -113,6 +115,7 @@ def measure(a, master_uri: str, log_path: str) -> int:
     import rosgraph
     import rospy
     from rosgraph_msgs.msg import Clock
+    from cottonsim_msgs.msg import SimStats
 
     wall_end = time.monotonic() + a.timeout_s
     while not rosgraph.is_master_online(master_uri):
@@ -135,6 +138,8 @@ def measure(a, master_uri: str, log_path: str) -> int:
         return cb
 
     rospy.Subscriber("/clock", Clock, on_clock, queue_size=1)
+    stats = {}
+    rospy.Subscriber("/sim/stats", SimStats, lambda msg: stats.update(last=msg), queue_size=1)
     for topic in COUNTED_TOPICS:
         rospy.Subscriber(topic, rospy.AnyMsg, counter(topic), queue_size=50)
 
@@ -170,6 +175,10 @@ def measure(a, master_uri: str, log_path: str) -> int:
     print(f"  {'perception nodes, sum':32s} {sum(perception.values()):6.3f}")
     print("outputs per sim second: " + ", ".join(f"{t} {(counts1[t] - counts0[t]) / sim_s:.2f}"
                                                 for t in COUNTED_TOPICS))
+    if "last" in stats:
+        msg = stats["last"]
+        print(f"simulator (/sim/stats): physics step {msg.physics_step_ms:.3f} ms; ms per update: " + ", ".join(
+            f"{n} {v:.2f}" for n, v in sorted(zip(msg.sensor_names, msg.sensor_ms), key=lambda kv: -kv[1]) if v > 0))
     return 0
 
 

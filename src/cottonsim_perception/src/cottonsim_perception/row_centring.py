@@ -74,7 +74,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional, Tuple
+from typing import List, Optional, Tuple
 
 import numpy as np
 
@@ -218,10 +218,17 @@ def mask_line_points(mask: np.ndarray, band_rows: int = 5,
     return top, bottom
 
 
-def _row_runs(row: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """Start and end (exclusive) columns of the runs of True in one boolean row."""
-    d = np.diff(np.concatenate(([0], row.astype(np.int8), [0])))
-    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+def _runs_per_row(m: np.ndarray) -> Tuple[List[int], List[int], List[int]]:
+    """The runs of True of every row of a boolean mask at once: (starts, ends, first) as lists, where the
+    runs of row r are starts[first[r]:first[r + 1]] to ends[...] (end columns exclusive), left to right."""
+    h, w = m.shape
+    padded = np.zeros((h, w + 2), dtype=np.int8)
+    padded[:, 1:-1] = m
+    d = np.diff(padded, axis=1)
+    start_rows, starts = np.nonzero(d == 1)
+    ends = np.nonzero(d == -1)[1]
+    first = np.searchsorted(start_rows, np.arange(h + 1))
+    return starts.tolist(), ends.tolist(), first.tolist()
 
 
 def trace_strip(mask: np.ndarray, from_bottom: bool, start_x: Optional[float] = None) -> np.ndarray:
@@ -230,31 +237,31 @@ def trace_strip(mask: np.ndarray, from_bottom: bool, start_x: Optional[float] = 
     Starts in the first non-empty row seen from the bottom (``from_bottom``,
     the ground) or from the top (the sky) with the run of pixels that holds
     ``start_x`` [px, pixel edges; default the image centre] or lies nearest
-    to it; then walks row by row, keeping in each row the run that overlaps
-    the previous row's run most, and stops at the first row without an
-    overlapping run. Returns a boolean mask of the kept runs (same shape).
+    to it (the leftmost of equals); then walks row by row, keeping in each row
+    the run that overlaps the previous row's run most (the leftmost of
+    equals), and stops at the first row without an overlapping run. Returns a
+    boolean mask of the kept runs (same shape).
     """
     m = np.asarray(mask, dtype=bool)
     h, w = m.shape
     out = np.zeros((h, w), dtype=bool)
     x0 = w / 2.0 if start_x is None else float(start_x)
+    all_starts, all_ends, first = _runs_per_row(m)
     prev = None
     for r in (range(h - 1, -1, -1) if from_bottom else range(h)):
-        starts, ends = _row_runs(m[r])
-        if starts.size == 0:
+        lo, hi = first[r], first[r + 1]
+        if lo == hi:
             if prev is None:
                 continue
             break
         if prev is None:
-            gap = np.maximum(0.0, np.maximum(starts - x0, x0 - ends))
-            i = int(np.argmin(gap))
+            i = min(range(lo, hi), key=lambda j: max(0.0, all_starts[j] - x0, x0 - all_ends[j]))
         else:
-            overlap = np.minimum(ends, prev[1]) - np.maximum(starts, prev[0])
-            i = int(np.argmax(overlap))
-            if overlap[i] <= 0:
+            i = max(range(lo, hi), key=lambda j: min(all_ends[j], prev[1]) - max(all_starts[j], prev[0]))
+            if min(all_ends[i], prev[1]) - max(all_starts[i], prev[0]) <= 0:
                 break
-        out[r, starts[i]:ends[i]] = True
-        prev = (starts[i], ends[i])
+        out[r, all_starts[i]:all_ends[i]] = True
+        prev = (all_starts[i], all_ends[i])
     return out
 
 

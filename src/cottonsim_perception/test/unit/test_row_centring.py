@@ -185,3 +185,43 @@ def test_tracing_removes_the_bias_of_gaps_in_neighbouring_rows():
     assert abs(plain.intersection_px[0] - 320.0) > 5.0
     with pytest.raises(ValueError, match="trace_strips"):
         RowCentringConfig(trace_strips="yes")
+
+
+def _trace_strip_row_by_row(mask, from_bottom, start_x=None):
+    """trace_strip as a plain row-by-row reference (numpy argmin / argmax: the first of equals)."""
+    m = np.asarray(mask, dtype=bool)
+    h, w = m.shape
+    out = np.zeros((h, w), dtype=bool)
+    x0 = w / 2.0 if start_x is None else float(start_x)
+    prev = None
+    for r in (range(h - 1, -1, -1) if from_bottom else range(h)):
+        d = np.diff(np.concatenate(([0], m[r].astype(np.int8), [0])))
+        starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        if starts.size == 0:
+            if prev is None:
+                continue
+            break
+        if prev is None:
+            i = int(np.argmin(np.maximum(0.0, np.maximum(starts - x0, x0 - ends))))
+        else:
+            overlap = np.minimum(ends, prev[1]) - np.maximum(starts, prev[0])
+            i = int(np.argmax(overlap))
+            if overlap[i] <= 0:
+                break
+        out[r, starts[i]:ends[i]] = True
+        prev = (starts[i], ends[i])
+    return out
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_trace_strip_equals_the_row_by_row_reference(seed):
+    from cottonsim_perception.row_centring import trace_strip
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(1, 60), rng.integers(1, 80)
+    # blobs of a few widths, some rows empty: several runs per row, ties in gap and overlap
+    mask = rng.random((h, w)) < rng.uniform(0.2, 0.9)
+    mask[:, rng.integers(0, w):] &= rng.random() < 0.5
+    for from_bottom in (True, False):
+        for start_x in (None, 0.0, float(w), rng.uniform(0, w)):
+            assert np.array_equal(trace_strip(mask, from_bottom, start_x),
+                                  _trace_strip_row_by_row(mask, from_bottom, start_x))

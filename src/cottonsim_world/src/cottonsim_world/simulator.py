@@ -32,6 +32,7 @@ from typing import Callable, Deque, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from cottonsim_common.rate_slots import FirstOfSlotGate
 from cottonsim_common.transforms import pose_matrix
 from cottonsim_world.estimation.odometry_ekf import OdometryEkf
 from cottonsim_world.farm.bolls import BollField
@@ -121,6 +122,9 @@ class Simulator:
         if cfg.arm_contacts.enabled:
             self._schedules["arm_contacts"] = Schedule("arm_contacts", 1.0 / cfg.contacts_rate_hz)
         self._camera_cloud_wanted = {name: True for name, _ in cfg.cameras}
+        # cameras rendered at a consumer's rate only (render_rate_hz > 0): the first frame of each slot
+        self._render_gates = {name: FirstOfSlotGate(cam_cfg.render_rate_hz)
+                              for name, cam_cfg in cfg.cameras if cam_cfg.render_rate_hz > 0.0}
         # sensor name -> (now, state) -> (function, args) of its reading: the part a worker can run
         self._jobs: Dict[str, Callable] = {name: (lambda now, state, name=name: self._camera_job(name, now, state))
                                            for name in self.cameras}
@@ -284,7 +288,7 @@ class Simulator:
         next_due = math.inf
         workers = self._workers
         for sched in self._schedules.values():
-            if now + 1e-9 >= sched.next_s and sched.due(now):
+            if now + 1e-9 >= sched.next_s and sched.due(now) and self._render_due(sched.name, now):
                 if state is None:
                     state = self.physics.robot_state()
                 if workers is not None and sched.name in self._jobs:
@@ -318,6 +322,11 @@ class Simulator:
         if held:
             self._release_held(now, readings)
         return readings
+
+    def _render_due(self, name: str, now: float) -> bool:
+        """False for a camera frame that its render_rate_hz skips (not the first of its slot)."""
+        gate = self._render_gates.get(name)
+        return gate is None or gate.take(now)
 
     def _release_held(self, now: float, out: List[object], wait: bool = True) -> None:
         """Append to ``out`` the held readings that are out at sim time ``now``, in order.

@@ -137,3 +137,36 @@ def test_teleport_moves_the_truth_but_not_the_odometry(urdf):
         with pytest.raises(ValueError, match="teleport pose"):
             sim.teleport_robot(*bad)
     sim.close()
+
+
+def _camera_stamps(urdf, render_rate_hz):
+    config = small_config()
+    cameras = dict(config.cameras)
+    cameras["realsense_p"] = dataclasses.replace(cameras["realsense_p"], rate_hz=24.0, render_rate_hz=render_rate_hz)
+    sim = Simulator(dataclasses.replace(config, cameras=tuple(cameras.items()), lidar_enabled=False), urdf)
+    stamps = [r.stamp_s for r in run(sim, 2.0) if isinstance(r, CameraReading) and r.stamp_s < 2.0 - 1e-6]
+    sim.close()
+    return stamps
+
+
+def test_render_rate_renders_the_first_frame_of_each_slot_only(urdf):
+    every = _camera_stamps(urdf, 0.0)
+    rendered = _camera_stamps(urdf, 5.0)
+    assert len(every) == 48                      # 24 fps for 2 s
+    assert len(rendered) == 10                   # one per 0.2 s slot
+    first_of_slot = [s for i, s in enumerate(every) if i == 0 or math.floor(s * 5 + 1e-6) > math.floor(
+        every[i - 1] * 5 + 1e-6)]
+    assert rendered == first_of_slot             # the same stamps, on the 24 fps grid
+
+
+@pytest.mark.parametrize("bad", [-1.0, 30.0, float("nan"), "5", True])
+def test_a_bad_render_rate_is_refused_with_the_key(bad):
+    with pytest.raises(ValueError, match="render_rate_hz"):
+        simulator_config_from_dict({"cameras": {"realsense_p": {"rate_hz": 24.0, "render_rate_hz": bad}}})
+
+
+@pytest.mark.parametrize("keys", [{"consumer_wait_s": -1.0, "render_rate_hz": 5.0}, {"consumer_wait_s": 2.0},
+                                  {"consumer_wait_s": "long", "render_rate_hz": 5.0}])
+def test_a_bad_consumer_wait_is_refused_with_the_key(keys):
+    with pytest.raises(ValueError, match="consumer_wait_s"):
+        simulator_config_from_dict({"cameras": {"realsense_p": dict(rate_hz=24.0, **keys)}})

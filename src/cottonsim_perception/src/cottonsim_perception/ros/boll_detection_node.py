@@ -1,15 +1,19 @@
 """Boll detection node of Cotton-Eye: cotton bolls of the side cameras, located in 3-D.
 
 Node ``boll_detection`` (executable nodes/boll_detection; one instance serves
-every camera of ~cameras, by default both side cameras). At ~rate_hz (sim
-time) it takes the newest unprocessed image + depth-cloud pair of each camera,
-runs the detector once on all of their images together (one batched forward
-pass), then for each box the 3-D position (per-axis median of the depth-cloud
+every camera of ~cameras, by default both side cameras). Per slot of
+1 / ~rate_hz seconds of sim time (by stamp, ``monitoring/rate_gate.py``'s slots)
+it takes the first image + depth-cloud pair of each camera as soon as the pairs
+of every camera that is not stale are in (a camera late by a whole slot is not
+waited for), runs the detector once on all of their images together (one
+batched forward pass), then for each box the 3-D position (per-axis median of the depth-cloud
 points that project into the box,
 :func:`cottonsim_perception.localization.localize_boxes`), transformed into
 base_link with tf2, and whether any boll lies within the UR5e's reach
 (distance from ~arm_base_frame <= ~reach_m) so that a navigator can halt for
-picking. Frames between two slots are dropped, never queued.
+picking. The other frames of a slot are dropped, never queued; a simulator that
+renders the side cameras at ~rate_hz only (``render_rate_hz``) sends just the
+frames taken.
 
 Box sources (~source):
 * ``network``: the trained boll detector (Predictor with ~weights, run by
@@ -39,6 +43,8 @@ Publications (per camera, <o> its entry of ~output_namespaces)
                                                             newest verdict of some fresh camera has a boll in reach
   /cotton_eye/health         cottonsim_msgs/CottonEyeHealth every ~health_period_s: per camera frames received /
                                                             processed / black / stale, the backend
+  /sim/frames_done           std_msgs/Header                per frame taken: its stamp, frame_id the camera (a
+                                                            simulator may wait for it, cottonsim_common/ros/frames_done.py)
 Parameters (private; config/boll_detection.yaml documents each)
   ~cameras (list, [realsense_secondary, realsense_tertiary]), ~output_namespaces (list,
   [boll_detection_left, boll_detection_right]), ~source (str, network), ~weights (str, ''),
@@ -52,6 +58,7 @@ TF (looked up): ~target_frame <- <c>_color_optical_frame, ~arm_base_frame <- <c>
 from __future__ import annotations
 
 import collections
+import threading
 from typing import Dict, List, Optional
 
 import numpy as np
@@ -62,7 +69,9 @@ from geometry_msgs.msg import Point
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_msgs.msg import Bool
 
+from cottonsim_common.rate_slots import slot_index
 from cottonsim_common.ros import conversions as conv
+from cottonsim_common.ros.frames_done import FramesDonePublisher
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter
@@ -74,6 +83,7 @@ from cottonsim_perception.localization import (BOLL, BollLocalizationConfig, box
 SOURCES = ("network", "ground_truth")
 BUFF_SIZE = 1 << 25
 KEPT_PER_TOPIC = 4          # newest messages kept per topic while waiting for their partner
+WAKE_PERIOD_S = 0.1         # wall time between looks at the inputs when no message wakes the loop
 
 
 def _string_list(name: str, default: List[str]) -> List[str]:
@@ -94,17 +104,27 @@ class CameraInputs:
         self.clouds = collections.OrderedDict()      # stamp ns -> PointCloud2
         self.info: Optional[CameraInfo] = None
         self.done_ns = -1
+        self.done_slot: Optional[int] = None
         self.in_reach = False
         self.detections_pub = rospy.Publisher(f"/{output_namespace}/detections", BollDetections, queue_size=2)
         self.overlay_pub = rospy.Publisher(f"/{output_namespace}/overlay", Image, queue_size=1)
 
-    def newest_pair(self):
-        """(frame, cloud, rgb or None, info) of the newest unprocessed stamp seen on both, or None."""
+    def pending_stamp(self, rate_hz: float) -> Optional[int]:
+        """Stamp [ns] of the first pair (image and cloud) of the newest slot not processed yet, or None."""
         common = sorted(set(self.frames) & set(self.clouds))
-        if not common or self.info is None or common[-1] <= self.done_ns:
+        if not common or self.info is None:
             return None
-        ns = common[-1]
+        if common[-1] < self.done_ns:          # the clock went back (the simulator restarted): start again
+            self.done_slot = None
+        newest_slot = slot_index(common[-1] * 1e-9, rate_hz)
+        if self.done_slot is not None and newest_slot <= self.done_slot:
+            return None
+        return next(ns for ns in common if slot_index(ns * 1e-9, rate_hz) == newest_slot)
+
+    def take(self, ns: int, rate_hz: float):
+        """(frame, cloud, rgb or None, info) of the pair stamped ``ns``; its slot is used up."""
         self.done_ns = ns
+        self.done_slot = slot_index(ns * 1e-9, rate_hz)
         return self.frames[ns], self.clouds[ns], self.rgb.get(ns), self.info
 
 
@@ -140,10 +160,13 @@ class BollDetectionNode:
                                                             backend_from_params())
         self.health = HealthReporter("boll_detection", cameras, backend, error)
         self.lock = self.health.lock
+        self.inputs_changed = threading.Condition(self.lock)     # notified by every stored message
+        self._idle_next_s: Optional[float] = None
 
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.in_reach_pub = rospy.Publisher("/cotton_eye/bolls_in_reach", Bool, queue_size=2)
+        self.frames_done = FramesDonePublisher()        # /sim/frames_done: a simulator may wait for it
         self.cameras: Dict[str, CameraInputs] = {}
         for camera, output in zip(cameras, outputs):
             inputs = self.cameras[camera] = CameraInputs(camera, output)
@@ -162,10 +185,11 @@ class BollDetectionNode:
     # ------------------------------------------------------------------ inputs
     def _store(self, msg, args):
         (store,) = args
-        with self.lock:
+        with self.inputs_changed:
             store[msg.header.stamp.to_nsec()] = msg
             while len(store) > KEPT_PER_TOPIC:
                 store.popitem(last=False)
+            self.inputs_changed.notify()
 
     def _store_frame(self, msg: Image, args):
         (camera,) = args
@@ -180,23 +204,47 @@ class BollDetectionNode:
 
     # ------------------------------------------------------------------ processing
     def spin(self):
-        rate = rospy.Rate(self.rate_hz)
+        self.health.start_timer(self.rate_hz)
         while not rospy.is_shutdown():
+            with self.inputs_changed:
+                self.inputs_changed.wait(WAKE_PERIOD_S)
             self.step()
-            self.health.tick(rospy.get_time())
-            try:
-                rate.sleep()
-            except rospy.ROSInterruptException:
-                break
+
+    def _take_pairs(self, now_s: float):
+        """camera -> pair of the slot to process now ({} if none): every fresh camera's, or those of a slot
+        whose partners are late by a whole slot."""
+        with self.lock:
+            pending = {c: inputs.pending_stamp(self.rate_hz) for c, inputs in self.cameras.items()}
+            ready = {c: ns for c, ns in pending.items() if ns is not None}
+            if not ready:
+                return {}
+            waiting = [c for c in self.cameras if c not in ready and not self.health.inputs[c].stale]
+            if waiting and now_s < min(ready.values()) * 1e-9 + 1.0 / self.rate_hz:
+                return {}
+            return {c: self.cameras[c].take(ns, self.rate_hz) for c, ns in ready.items()}
 
     def step(self):
-        """One slot: the newest pair of every camera through the detector (one batch), then published."""
-        with self.lock:
-            pairs = {c: inputs.newest_pair() for c, inputs in self.cameras.items()}
+        """The slot's pair of every camera through the detector (one batch), then published; with no
+        frame to process for a slot's length, an all-stale 'no boll in reach'."""
+        now_s = rospy.get_time()
+        pairs = self._take_pairs(now_s)
+        if not pairs:
+            due = self._idle_next_s is not None and now_s >= self._idle_next_s
+            if due:
+                self._publish_in_reach_if_all_stale()
+            if due or self._idle_next_s is None or self._idle_next_s - now_s > 1.0 / self.rate_hz:
+                self._idle_next_s = now_s + 1.0 / self.rate_hz      # (also after the clock went back)
+            return
+        self._idle_next_s = now_s + 1.0 / self.rate_hz
+        try:
+            self._detect(pairs)
+        finally:
+            for camera, pair in pairs.items():
+                self.frames_done.done(camera, pair[0].header.stamp)
+
+    def _detect(self, pairs):
         work = {}
         for camera, pair in pairs.items():
-            if pair is None:
-                continue
             try:
                 image = self._frame_array(pair[0])
             except ValueError as exc:

@@ -34,6 +34,8 @@ Publications
   ~latency_ms      std_msgs/Float32   wall time from receiving a frame to publishing its masks [ms]
   /cotton_eye/health  cottonsim_msgs/CottonEyeHealth  every ~health_period_s: frames received / processed /
                    black / without ground or sky ('no estimate') / stale, the backend (ros/health_reporting.py)
+  /sim/frames_done std_msgs/Header    per frame taken: its stamp, frame_id ~camera (a simulator may wait for it,
+                                      cottonsim_common/ros/frames_done.py)
 Parameters (private; config/segmentation.yaml documents each)
   ~camera (str, realsense_p), ~mask_source (str, network), ~weights (str, ''), ~device (str, cpu),
   ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7), ~threads (int, 1), ~overlay_alpha (float, 0.5),
@@ -54,6 +56,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32
 
 from cottonsim_common.ros import conversions as conv
+from cottonsim_common.ros.frames_done import FramesDonePublisher
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import RateGate, check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter
@@ -92,6 +95,7 @@ class SegmentationNode:
                           for name in ("plants", "ground", "sky")}
         self.overlay_pub = rospy.Publisher("~overlay", Image, queue_size=1)
         self.latency_pub = rospy.Publisher("~latency_ms", Float32, queue_size=1)
+        self.frames_done = FramesDonePublisher()        # /sim/frames_done: a simulator may wait for it
 
         self._lock = threading.Lock()
         self._last_rgb: Optional[Image] = None
@@ -129,9 +133,21 @@ class SegmentationNode:
             self.health.inputs[self.camera].processed(has_estimate)
 
     def _on_image(self, msg: Image):
-        t0 = time.perf_counter()
         self._keep_rgb(msg)
-        if not self._take(msg) or self.predictor is None:
+        self._process_if_taken(msg, self._segment)
+
+    def _process_if_taken(self, msg: Image, process):
+        """Count the frame; if its slot is free, process(msg, t0) it and say on /sim/frames_done that it is done."""
+        t0 = time.perf_counter()
+        if not self._take(msg):
+            return
+        try:
+            process(msg, t0)
+        finally:
+            self.frames_done.done(self.camera, msg.header.stamp)
+
+    def _segment(self, msg: Image, t0: float):
+        if self.predictor is None:
             return
         try:
             rgb = conv.image_to_array(msg)
@@ -149,9 +165,9 @@ class SegmentationNode:
         self._publish(labels, msg, t0, rgb)
 
     def _on_semantic(self, msg: Image):
-        t0 = time.perf_counter()
-        if not self._take(msg):
-            return
+        self._process_if_taken(msg, self._segment_ground_truth)
+
+    def _segment_ground_truth(self, msg: Image, t0: float):
         try:
             semantic = conv.image_to_array(msg)
             if semantic.ndim != 2:

@@ -49,3 +49,10 @@ def test_bad_rates_are_refused_with_the_key(bad):
         RateGate(bad)
     with pytest.raises(ValueError, match="~rate_hz"):
         check_rate_hz(bad, "~rate_hz")
+
+
+def test_slots_are_fixed_in_sim_time_not_started_by_the_first_frame():
+    gate = RateGate(5.0)
+    assert gate.take(0.19)
+    assert gate.take(0.21)               # a new slot (0.2 - 0.4 s), though only 20 ms after the first frame
+    assert not gate.take(0.39)

@@ -31,6 +31,9 @@ Publications
   /sim/bolls                               cottonsim_msgs/BollArray latched: every boll's id, plant, position,
                                                                     state (ros/boll_topics.py)
 Subscriptions
+  /sim/frames_done                         std_msgs/Header          a consumer is done with the camera frame
+                                           (frame_id) stamped so: cameras with consumer_wait_s > 0 wait for it
+                                           (ros/consumer_pacing.py)
   /cmd_vel                                 geometry_msgs/Twist      Husky velocity command (0.25 s time-out)
   /arm_controller/command                  trajectory_msgs/JointTrajectory  UR5e targets (last point's positions);
                                            aborts a running trajectory goal
@@ -106,6 +109,7 @@ from cottonsim_world.ros.arm_interface import ArmRosInterface
 from cottonsim_world.readings import (ArmContactsReading, CameraReading, ContactsReading, GpsReading,
                                       GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
                                       OdometryReading)
+from cottonsim_world.ros.consumer_pacing import ConsumerPacing
 from cottonsim_world.simulator import Simulator
 from cottonsim_world.simulator_config import ARM_JOINT_NAMES
 
@@ -169,6 +173,7 @@ class SimBridgeNode:
         rospy.Service("/sim/clear_faults", ClearFaults, self._on_clear_faults)
         self.boll_topics = BollTopics(self.sim.bolls)
         self.arm_ros = ArmRosInterface(self.sim)     # /arm_controller/follow_joint_trajectory, vacuum
+        self.pacing = ConsumerPacing.for_cameras(self.sim.config.cameras)   # cameras' consumer_wait_s
 
     # ------------------------------------------------------------------ setup
     def _make_publishers(self):
@@ -340,6 +345,9 @@ class SimBridgeNode:
             self._apply_inputs()
             self.boll_topics.update(self.sim.delivered_time_s)
             self.arm_ros.apply_inputs()
+            if self.pacing is not None:
+                self.pacing.hold(self.sim.delivered_time_s,
+                                 lambda: self.clock_pub.publish(conv.clock_msg(self.sim.delivered_time_s)))
             readings = self.sim.step()
             self.arm_ros.after_step()
             step += 1
@@ -410,6 +418,8 @@ class SimBridgeNode:
         intr = r.intrinsics
         if pubs["image"].get_num_connections() or not self.lazy:
             pubs["image"].publish(conv.image_msg(r.frame.rgb, stamp, r.frame_id))
+            if self.pacing is not None:
+                self.pacing.sent(r.camera, r.stamp_s)
         pubs["info"].publish(conv.camera_info_msg(intr.width, intr.height, intr.K, intr.P, stamp, r.frame_id))
         if pubs["semantic"].get_num_connections() or not self.lazy:
             pubs["semantic"].publish(conv.image_msg(r.frame.semantic, stamp, r.frame_id))

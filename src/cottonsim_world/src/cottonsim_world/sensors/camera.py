@@ -70,6 +70,15 @@ class CameraConfig:
     (``fast.level_of_detail.proxy_model_arrays``: each leaf, boll and stem part
     replaced by a few triangles of the same area, ~4.5x fewer triangles);
     0 = always full detail.
+    render_rate_hz: frames rendered per second at most [Hz]; 0 (default) =
+    every frame. The frames stay on the rate_hz grid (their stamps), and of
+    them only the first of each slot [k, k + 1) / render_rate_hz of sim time
+    is rendered and published (``cottonsim_common.rate_slots``): the frames a
+    consumer that takes one frame per slot at this rate takes from every frame.
+    consumer_wait_s (with render_rate_hz > 0): the ROS bridge does not step
+    past the end of a frame's slot until the frame's consumer has published
+    that it is done with it on /sim/frames_done, waiting at most this long
+    [s, wall time] (``cottonsim_world.consumer_wait``); 0 (default) = never waits.
     """
 
     width: int = 640
@@ -88,6 +97,8 @@ class CameraConfig:
     plant_id_image: bool = False
     seed: int = 0
     lod_max_error_px: float = 4.0
+    render_rate_hz: float = 0.0
+    consumer_wait_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "cloud_stride"):
@@ -113,6 +124,16 @@ class CameraConfig:
             raise ValueError(f"renderer must be one of {_RENDERERS}, got {self.renderer!r}")
         if not (self.lod_max_error_px >= 0.0 and math.isfinite(self.lod_max_error_px)):
             raise ValueError(f"lod_max_error_px must be a finite number >= 0, got {self.lod_max_error_px}")
+        if (isinstance(self.render_rate_hz, bool) or not isinstance(self.render_rate_hz, (int, float))
+                or not (math.isfinite(self.render_rate_hz) and 0.0 <= self.render_rate_hz <= self.rate_hz)):
+            raise ValueError(f"render_rate_hz must be 0 (every frame) or in (0, rate_hz = {self.rate_hz}], "
+                             f"got {self.render_rate_hz}")
+        if (isinstance(self.consumer_wait_s, bool) or not isinstance(self.consumer_wait_s, (int, float))
+                or not (math.isfinite(self.consumer_wait_s) and self.consumer_wait_s >= 0.0)):
+            raise ValueError(f"consumer_wait_s must be a finite number >= 0 [s], got {self.consumer_wait_s!r}")
+        if self.consumer_wait_s > 0.0 and self.render_rate_hz <= 0.0:
+            raise ValueError("consumer_wait_s > 0 needs render_rate_hz > 0 (the consumer's slots), got "
+                             f"render_rate_hz {self.render_rate_hz}")
         if not (self.cull_distance_m > 0.0):
             raise ValueError(f"cull_distance_m must be > 0 (inf allowed), got {self.cull_distance_m}")
 
