@@ -32,8 +32,10 @@ class NavigatorWatch(unittest.TestCase):
         if os.path.exists(report_file):
             os.remove(report_file)
 
-    def wait_for_report(self, report_file, wall_timeout_s=60.0):
-        """The recorder's report.json once it is written (a short pause lets the write finish)."""
+    def wait_for_report(self, report_file, wall_timeout_s=180.0):
+        """The recorder's report.json once it is written (a short pause lets the write finish).
+
+        The recorder scores the run and draws its plots first: on a loaded machine that takes minutes."""
         self.wait_for(lambda: os.path.exists(report_file), wall_timeout_s, report_file)
         rospy.rostime.wallsleep(0.5)
         with open(report_file) as fh:

@@ -153,7 +153,7 @@ class PerceptionNodesTest(unittest.TestCase):
         self.assertEqual(self.nw_labels.msgs, [], "published labels without weights")
         self.assertTrue(rosnode.rosnode_ping("/segmentation_nw", max_count=1), "node died")
 
-    def _health_of(self, node, count=2, timeout_s=60.0):
+    def _health_of(self, node, count=2, timeout_s=120.0):
         """The newest health reports of one node (at least ``count`` if they come within timeout_s)."""
         wall_end = time.monotonic() + timeout_s
         while True:

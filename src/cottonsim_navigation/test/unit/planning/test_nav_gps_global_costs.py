@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from cottonsim_common.config.yaml_files import load_yaml_file
-from cottonsim_navigation.core.geometry import Pose2D
+from cottonsim_common.pose import Pose2D
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, GridSpec
 from cottonsim_navigation.planning.costmap import (Costmap2D, CostmapConfig, InflationLayer, InflationLayerConfig,
                                                    StaticLayer)
