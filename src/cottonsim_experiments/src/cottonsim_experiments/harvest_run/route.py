@@ -15,6 +15,7 @@ from typing import Dict, List, Sequence, Tuple, Union
 LANES_ROW = "row"
 LANES_ALL = "all"
 LANE_CHOICES = (LANES_ROW, LANES_ALL)
+TARGET_SOURCES = ("detections", "ground_truth")     # the harvest node's target_source
 
 
 @dataclass(frozen=True)
