@@ -102,6 +102,10 @@ def test_launch_switches_the_harvest_and_its_route_hold(launch_file):
     nav = [n for n in root.iter("node") if n.get("type", "").endswith("waypoint_navigator")][0]
     hold = [p for p in nav.iter("param") if p.get("name") == "hold_topic"][0]
     assert "/harvest/hold_route" in hold.get("value")
+    max_age = [p for p in nav.iter("param") if p.get("name") == "route_hold/max_age_s"][0]
+    assert max_age.get("if") == "$(arg harvest)"
+    overlay = [r for r in root.iter("rosparam") if r.get("ns") == "harvest"][0]
+    assert overlay.get("if") == "$(arg harvest)" and args["harvest_route_config"].endswith("harvest_route.yaml")
     includes = [i for i in root.iter("include") if "harvest.launch" in i.get("file", "")]
     assert includes and includes[0].get("if") == "$(arg harvest)"
     assert [n for n in root.iter("node") if n.get("type") == "harvest_recorder"][0].get("if") == "$(arg harvest)"
