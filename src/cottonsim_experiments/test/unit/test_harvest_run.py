@@ -63,19 +63,26 @@ def test_record_keeps_start_and_end_bolls_and_each_cycle_time_with_its_target(tm
     assert not rec.on_bolls(1.5, bolls)                          # same states: no change
     assert rec.on_status(_status(state="picking", target=7), 2.0)
     assert not rec.on_status(_status(state="picking", target=7), 2.1)
-    assert rec.on_status(_status(state="idle", target=None, picked=1, cycle_times_s=[5.5]), 8.0)
+    # the status moves on to the next target as the first one is binned: the order of the picks decides
+    assert rec.on_status(_status(state="picking", target=3, picked=1, cycle_times_s=[5.5]), 8.0)
     moved = [dict(bolls[0], state=2), bolls[1]]
     assert rec.on_bolls(8.0, moved)
     targets = [{"id": 7, "position": [0, 0, 0], "position_world": [1.0, 2.0, 0.51], "state": 2, "attempts": 0,
-                "last_result": "ok"}]
+                "last_result": "ok"},
+               {"id": 3, "position": [0, 0, 0], "position_world": [1.1, 2.0, 0.6], "state": 1, "attempts": 0,
+                "last_result": ""}]
     assert rec.on_targets("odom", 8.0, targets)
+    assert rec.to_dict()["cycle_time_by_target_s"] == {"7": 5.5}
+    rec.on_targets("odom", 12.0, [targets[0], dict(targets[1], state=2, last_result="ok")])
+    rec.on_status(_status(state="idle", picked=2, cycle_times_s=[5.5, 4.0]), 12.0)
     # a picked target's world position stays the one of its pick
-    later = [dict(targets[0], position_world=[9.0, 9.0, 9.0])]
+    later = [dict(targets[0], position_world=[9.0, 9.0, 9.0]), dict(targets[1], state=2, last_result="ok")]
     rec.on_targets("odom", 9.0, later)
     data = rec.to_dict()
-    assert data["targets"][0]["position_world"] == [1.0, 2.0, 0.51]
-    assert data["targets"][0]["state"] == "picked"
-    assert data["cycle_time_by_target_s"] == {"7": 5.5}
+    assert data["targets"][1]["position_world"] == [1.0, 2.0, 0.51]
+    assert data["targets"][1]["state"] == "picked"
+    assert data["picked_order"] == [7, 3]
+    assert data["cycle_time_by_target_s"] == {"7": 5.5, "3": 4.0}
     assert [b["state"] for b in data["bolls_start"]["bolls"]] == ["on_plant", "on_plant"]
     assert [b["state"] for b in data["bolls_end"]["bolls"]] == ["in_bin", "on_plant"]
     path = tmp_path / "run" / "harvest.json"

@@ -4,14 +4,15 @@
 plain dicts, with each target's position in the world frame where the recorder knew the frame's pose)
 and the simulator's /sim/bolls (plain dicts). It keeps the first boll message as the start and the
 newest as the end, the newest status and targets, and which target each cycle time of the status
-belongs to (a new entry of ``cycle_times_s`` belongs to the status's last ``target``). A target's
+belongs to: the status's ``cycle_times_s`` lists the binned targets' cycle times in the order they were
+binned, which is the order in which the targets turn 'picked' (within one targets message, by id). A target's
 world position is frozen once it is picked or abandoned (the estimate the pick used, in the world
 frame of that moment). ``to_dict`` is harvest.json's content; ``write_json_atomic`` writes it so that a
 reader never sees half a file.
 
 harvest.json: {"version": 1, "status": {...} | null, "status_stamp_s", "targets_frame", "targets_stamp_s",
 "targets": [{"id", "position": [x, y, z] (targets_frame), "position_world": [x, y, z] | null, "sigma_m",
-"observations", "state", "attempts", "last_result"}], "cycle_time_by_target_s": {id: s},
+"observations", "state", "attempts", "last_result"}], "picked_order": [ids], "cycle_time_by_target_s": {id: s},
 "bolls_start": {"stamp_s", "bolls": [{"id", "plant", "position", "state"}]} | null, "bolls_end": same,
 "status_changes": n}
 """
@@ -55,10 +56,9 @@ class HarvestRecord:
         self.targets: Dict[int, dict] = {}
         self.targets_frame = ""
         self.targets_stamp_s: Optional[float] = None
-        self.cycle_time_by_target_s: Dict[int, float] = {}
+        self.picked_order: List[int] = []
         self.bolls_start: Optional[dict] = None
         self.bolls_end: Optional[dict] = None
-        self._last_target: Optional[int] = None
 
     def on_status(self, text: str, stamp_s: float) -> bool:
         """The node's /harvest/status JSON text; a text that is not a JSON object raises ValueError."""
@@ -68,12 +68,6 @@ class HarvestRecord:
             raise ValueError(f"/harvest/status is not JSON: {exc}") from None
         if not isinstance(status, dict):
             raise ValueError(f"/harvest/status must be a JSON object, got {type(status).__name__}")
-        if status.get("target") is not None:
-            self._last_target = int(status["target"])
-        old_times = list((self.status or {}).get("cycle_times_s") or [])
-        new_times = list(status.get("cycle_times_s") or [])
-        if len(new_times) > len(old_times) and self._last_target is not None:
-            self.cycle_time_by_target_s[self._last_target] = float(new_times[-1])
         changed = {k: v for k, v in status.items() if k != "stamp_s"} != \
             {k: v for k, v in (self.status or {}).items() if k != "stamp_s"}
         self.status, self.status_stamp_s = status, float(stamp_s)
@@ -85,7 +79,7 @@ class HarvestRecord:
         """The node's targets: dicts with id, position, sigma_m, observations, state, attempts, last_result and
         position_world (or None where the frame's pose in the world was not known)."""
         changed = False
-        for t in targets:
+        for t in sorted(targets, key=lambda t: int(t["id"])):
             tid = int(t["id"])
             entry = {"id": tid, "position": _finite_point(t["position"], f"target {tid} position"),
                      "sigma_m": float(t.get("sigma_m", 0.0)), "observations": int(t.get("observations", 0)),
@@ -96,6 +90,8 @@ class HarvestRecord:
             old = self.targets.get(tid)
             if old is not None and old["state"] in _FINAL_TARGET_STATES and old["position_world"] is not None:
                 entry["position_world"] = old["position_world"]
+            if entry["state"] == "picked" and tid not in self.picked_order:
+                self.picked_order.append(tid)
             if old != entry:
                 self.targets[tid] = entry
                 changed = True
@@ -116,12 +112,18 @@ class HarvestRecord:
         self.bolls_end = snapshot
         return changed
 
+    def cycle_time_by_target(self) -> Dict[str, float]:
+        """Target id (text) -> its cycle time [s]: the status's cycle times in the order the targets were picked."""
+        times = list((self.status or {}).get("cycle_times_s") or [])
+        return {str(tid): float(t) for tid, t in zip(self.picked_order, times)}
+
     def to_dict(self) -> dict:
         """harvest.json's content (module docstring)."""
         return {"version": VERSION, "status": self.status, "status_stamp_s": self.status_stamp_s,
                 "targets_frame": self.targets_frame, "targets_stamp_s": self.targets_stamp_s,
                 "targets": [self.targets[k] for k in sorted(self.targets)],
-                "cycle_time_by_target_s": {str(k): v for k, v in sorted(self.cycle_time_by_target_s.items())},
+                "picked_order": list(self.picked_order),
+                "cycle_time_by_target_s": self.cycle_time_by_target(),
                 "bolls_start": self.bolls_start, "bolls_end": self.bolls_end,
                 "status_changes": self.status_changes}
 
