@@ -4,7 +4,8 @@
 plants), the fields of cottonsim_experiments.harvest.metrics.BollOutcome as a dict:
 
 * detected: a target of the harvest node lies within ``match_radius_m`` of the boll's true centre
-  (targets' world positions, matched one to one, nearest pairs first);
+  (targets' world positions, matched one to one, nearest pairs first: the targets the node tried
+  before the others, since the node may hold an untried duplicate of a boll it picked);
 * attempted: its target was picked or has failed attempts or a pick result; a boll that left its
   plant counts as attempted whether or not a target matched it (the truth says the arm took it);
 * picked: it left its plant (held, in the bin or dropped at the end); in_bin: in the bin at the end;
@@ -54,6 +55,10 @@ def match_targets(target_xyz: np.ndarray, boll_xyz: np.ndarray, radius_m: float)
     return matched
 
 
+def _tried(target: Mapping) -> bool:
+    return target["state"] == "picked" or int(target["attempts"]) > 0 or bool(target["last_result"])
+
+
 def boll_outcomes(harvest: Mapping, reachable_ids: Collection[int], plant_ids: Optional[Collection[int]] = None,
                   match_radius_m: float = DEFAULT_MATCH_RADIUS_M) -> List[Dict]:
     """One BollOutcome dict per boll on its plant at the start (of ``plant_ids`` when given); see the module."""
@@ -64,15 +69,22 @@ def boll_outcomes(harvest: Mapping, reachable_ids: Collection[int], plant_ids: O
     cycle_times = {int(k): float(v) for k, v in (harvest.get("cycle_time_by_target_s") or {}).items()}
     boll_xyz = np.array([b["position"] for b in start], dtype=float).reshape(-1, 3)
     target_xyz = np.array([t["position_world"] for t in targets], dtype=float).reshape(-1, 3)
-    target_of_boll = {b: t for t, b in match_targets(target_xyz, boll_xyz, match_radius_m).items()}
+    # the targets the node tried first (a boll seen twice may have an untried duplicate target nearer to it)
+    tried_first = sorted(range(len(targets)), key=lambda i: not _tried(targets[i]))
+    order = np.array(tried_first, dtype=int)
+    tried_count = sum(_tried(t) for t in targets)
+    target_of_boll: Dict[int, int] = {}
+    for chosen in (order[:tried_count], order[tried_count:]):
+        free = np.array([i for i in range(len(start)) if i not in target_of_boll], dtype=int)
+        pairs = match_targets(target_xyz[chosen].reshape(-1, 3), boll_xyz[free].reshape(-1, 3), match_radius_m)
+        target_of_boll.update({int(free[b]): int(chosen[t]) for t, b in pairs.items()})
     reachable = {int(i) for i in reachable_ids}
     outcomes = []
     for index, boll in enumerate(start):
         boll_id = int(boll["id"])
         end = end_state.get(boll_id, "on_plant")
         target = targets[target_of_boll[index]] if index in target_of_boll else None
-        tried = target is not None and (target["state"] == "picked" or int(target["attempts"]) > 0
-                                        or bool(target["last_result"]))
+        tried = target is not None and _tried(target)
         picked = end != "on_plant"
         attempted = tried or picked
         in_bin = end == "in_bin"
