@@ -73,14 +73,16 @@ def test_record_keeps_start_and_end_bolls_and_each_cycle_time_with_its_target(tm
                 "last_result": ""}]
     assert rec.on_targets("odom", 8.0, targets)
     assert rec.to_dict()["cycle_time_by_target_s"] == {"7": 5.5}
-    rec.on_targets("odom", 12.0, [targets[0], dict(targets[1], state=2, last_result="ok")])
+    duplicate = {"id": 2, "position": [0, 0, 0], "position_world": [1.0, 2.0, 0.52], "state": 2, "attempts": 0,
+                 "last_result": ""}
+    rec.on_targets("odom", 12.0, [targets[0], dict(targets[1], state=2, last_result="ok"), duplicate])
     rec.on_status(_status(state="idle", picked=2, cycle_times_s=[5.5, 4.0]), 12.0)
     # a picked target's world position stays the one of its pick
-    later = [dict(targets[0], position_world=[9.0, 9.0, 9.0]), dict(targets[1], state=2, last_result="ok")]
+    later = [dict(targets[0], position_world=[9.0, 9.0, 9.0]), dict(targets[1], state=2, last_result="ok"), duplicate]
     rec.on_targets("odom", 9.0, later)
     data = rec.to_dict()
-    assert data["targets"][1]["position_world"] == [1.0, 2.0, 0.51]
-    assert data["targets"][1]["state"] == "picked"
+    assert data["targets"][2]["position_world"] == [1.0, 2.0, 0.51]
+    assert data["targets"][2]["state"] == "picked"
     assert data["picked_order"] == [7, 3]
     assert data["cycle_time_by_target_s"] == {"7": 5.5, "3": 4.0}
     assert [b["state"] for b in data["bolls_start"]["bolls"]] == ["on_plant", "on_plant"]

@@ -5,7 +5,8 @@ plain dicts, with each target's position in the world frame where the recorder k
 and the simulator's /sim/bolls (plain dicts). It keeps the first boll message as the start and the
 newest as the end, the newest status and targets, and which target each cycle time of the status
 belongs to: the status's ``cycle_times_s`` lists the binned targets' cycle times in the order they were
-binned, which is the order in which the targets turn 'picked' (within one targets message, by id). A target's
+binned, which is the order in which the targets turn 'picked' by a pick (last result 'ok'; the node may mark
+a duplicate of a binned boll picked without a pick), within one targets message by id. A target's
 world position is frozen once it is picked or abandoned (the estimate the pick used, in the world
 frame of that moment). ``to_dict`` is harvest.json's content; ``write_json_atomic`` writes it so that a
 reader never sees half a file.
@@ -90,7 +91,7 @@ class HarvestRecord:
             old = self.targets.get(tid)
             if old is not None and old["state"] in _FINAL_TARGET_STATES and old["position_world"] is not None:
                 entry["position_world"] = old["position_world"]
-            if entry["state"] == "picked" and tid not in self.picked_order:
+            if entry["state"] == "picked" and entry["last_result"] == "ok" and tid not in self.picked_order:
                 self.picked_order.append(tid)
             if old != entry:
                 self.targets[tid] = entry
