@@ -128,8 +128,10 @@ def _harvest():
                {"id": 12, "position_world": [0.6, 0.0, 0.5], "state": "picked", "attempts": 0, "last_result": "ok"},
                {"id": 13, "position_world": [0.9, 0.0, 0.5], "state": "confirmed", "attempts": 0, "last_result": ""},
                {"id": 14, "position_world": None, "state": "confirmed", "attempts": 0, "last_result": ""},
-               # an untried duplicate nearer to boll 0 than the target that picked it
-               {"id": 15, "position_world": [0.0, 0.001, 0.5], "state": "confirmed", "attempts": 0, "last_result": ""}]
+               # an untried and a missed duplicate nearer to boll 0 than the target that picked it
+               {"id": 15, "position_world": [0.0, 0.001, 0.5], "state": "confirmed", "attempts": 0, "last_result": ""},
+               {"id": 16, "position_world": [0.0, 0.002, 0.5], "state": "abandoned", "attempts": 2,
+                "last_result": "capture_missed"}]
     return {"bolls_start": {"bolls": start}, "bolls_end": {"bolls": end}, "targets": targets,
             "cycle_time_by_target_s": {"10": 4.5, "12": 6.0}}
 

@@ -4,8 +4,8 @@
 plants), the fields of cottonsim_experiments.harvest.metrics.BollOutcome as a dict:
 
 * detected: a target of the harvest node lies within ``match_radius_m`` of the boll's true centre
-  (targets' world positions, matched one to one, nearest pairs first: the targets the node tried
-  before the others, since the node may hold an untried duplicate of a boll it picked);
+  (targets' world positions, matched one to one, nearest pairs first: picked targets before the other
+  tried ones before the rest, since the node may hold a duplicate of a boll it picked);
 * attempted: its target was picked or has failed attempts or a pick result; a boll that left its
   plant counts as attempted whether or not a target matched it (the truth says the arm took it);
 * picked: it left its plant (held, in the bin or dropped at the end); in_bin: in the bin at the end;
@@ -69,12 +69,12 @@ def boll_outcomes(harvest: Mapping, reachable_ids: Collection[int], plant_ids: O
     cycle_times = {int(k): float(v) for k, v in (harvest.get("cycle_time_by_target_s") or {}).items()}
     boll_xyz = np.array([b["position"] for b in start], dtype=float).reshape(-1, 3)
     target_xyz = np.array([t["position_world"] for t in targets], dtype=float).reshape(-1, 3)
-    # the targets the node tried first (a boll seen twice may have an untried duplicate target nearer to it)
-    tried_first = sorted(range(len(targets)), key=lambda i: not _tried(targets[i]))
-    order = np.array(tried_first, dtype=int)
-    tried_count = sum(_tried(t) for t in targets)
+    # picked targets first, then the other tried ones, then the rest (a boll seen twice may have a duplicate
+    # target nearer to it than the one that picked it)
+    tier = [0 if t["state"] == "picked" else 1 if _tried(t) else 2 for t in targets]
     target_of_boll: Dict[int, int] = {}
-    for chosen in (order[:tried_count], order[tried_count:]):
+    for level in (0, 1, 2):
+        chosen = np.array([i for i, k in enumerate(tier) if k == level], dtype=int)
         free = np.array([i for i in range(len(start)) if i not in target_of_boll], dtype=int)
         pairs = match_targets(target_xyz[chosen].reshape(-1, 3), boll_xyz[free].reshape(-1, 3), match_radius_m)
         target_of_boll.update({int(free[b]): int(chosen[t]) for t, b in pairs.items()})
