@@ -109,3 +109,13 @@ def test_launch_switches_the_harvest_and_its_route_hold(launch_file):
     includes = [i for i in root.iter("include") if "harvest.launch" in i.get("file", "")]
     assert includes and includes[0].get("if") == "$(arg harvest)"
     assert [n for n in root.iter("node") if n.get("type") == "harvest_recorder"][0].get("if") == "$(arg harvest)"
+
+
+def test_the_command_refuses_bad_requests_with_one_line(tmp_path, capsys, monkeypatch):
+    from cottonsim_experiments.reproduce.cli import main
+
+    assert main(["harvest", "--results", str(tmp_path), "--vision", "both"]) == 2
+    assert "harvest takes --vision on or off" in capsys.readouterr().err
+    monkeypatch.setitem(sys.modules, "cottonsim_experiments.harvest.metrics", None)
+    assert main(["harvest", "--results", str(tmp_path), "--seeds", "0"]) == 2
+    assert "cottonsim_experiments.harvest.metrics" in capsys.readouterr().err
