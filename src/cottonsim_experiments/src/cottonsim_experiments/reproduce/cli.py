@@ -3,6 +3,8 @@
   reproduce gps-route   [--seeds 0 1 2] [--real-time-factor 0] [--no-bag] [--vision on|off|both] [--resume]
                                                                            GPS route, report + plot + bag per seed
   reproduce map-route   [--seeds 0 1 2] ...                                  map-based route (AMCL on the SLAM map)
+  reproduce harvest     [--seeds 0 1 2] [--lanes row|all] [--row 1] [--targets detections|ground_truth] [--vision on|off]
+                                                                           the harvest on the GPS route (docs/harvest.md)
   reproduce row-spacing [--spacings 1.0 1.1 ... 1.9] [--seeds 0]            the paper's Fig. 3a study
   reproduce perception  [--synthetic-images 120]                           Tables 2 and 3 (evaluate command)
   reproduce results-doc [--doc docs/results.md]                            the results page from the results folder
@@ -33,7 +35,9 @@ from cottonsim_navigation.evaluation.vision_ablation import ablation_markdown
 
 from cottonsim_experiments.sweep.engine import EngineConfig
 
+from ..harvest_run.route import LANE_CHOICES, LANES_ROW, TARGET_SOURCES
 from . import row_spacing as rs
+from .harvest import run_harvest
 from .packages import RESULTS_ENV, default_results_dir
 from .results_doc import render_results
 from .route_experiments import run_route, run_row_spacing
@@ -43,7 +47,7 @@ from .screenshots import BRINGUPS, take_screenshots
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("experiment", choices=("gps-route", "map-route", "row-spacing", "perception", "results-doc",
+    ap.add_argument("experiment", choices=("gps-route", "map-route", "harvest", "row-spacing", "perception", "results-doc",
                                            "screenshots", "sweep", "all"))
     ap.add_argument("--results", default=None,
                     help=f"results root (default: ${RESULTS_ENV}, else results/ in the current directory)")
@@ -53,10 +57,17 @@ def main(argv=None) -> int:
                          "the farm in sim_navigation.yaml); route runs default 0 1 2, the row-spacing study 0")
     ap.add_argument("--real-time-factor", type=float, default=0.0, help="0 = as fast as possible")
     ap.add_argument("--no-bag", action="store_true", help="route runs: do not record bags")
-    ap.add_argument("--vision", choices=("on", "off", "both"), default="on",
-                    help="route runs: Cotton-Eye in the loop (on, the paper's robot: results/<route>/), the LiDAR + "
+    ap.add_argument("--vision", choices=("on", "off", "both"), default=None,
+                    help="harvest: the cameras and networks on or off (default: on with --targets detections, off "
+                         "with ground_truth); route runs (default on): Cotton-Eye in the loop (on, the paper's robot: results/<route>/), the LiDAR + "
                          "GPS run (off: results/<route>_no_vision/), or both and their ablation table "
                          "(results/<route>_vision_ablation.md)")
+    ap.add_argument("--lanes", choices=LANE_CHOICES, default=LANES_ROW,
+                    help="harvest: one row from both its lanes (row, default) or every lane of the farm (all)")
+    ap.add_argument("--row", type=int, default=1, help="harvest: the row harvested with --lanes row (default 1)")
+    ap.add_argument("--targets", choices=TARGET_SOURCES, default="detections",
+                    help="harvest: the harvest node's targets: the networks' detections (default) or the simulator's "
+                         "truth (ground_truth, a study option)")
     ap.add_argument("--spacings", type=float, nargs="+", default=list(rs.PAPER_SPACINGS_M), help="row spacings [m]")
     ap.add_argument("--plants-per-row", type=int, default=rs.RowSpacingStudyConfig.plants_per_row,
                     help="row-spacing study: plants per row (fewer = a shorter lane, for quick checks)")
@@ -101,6 +112,12 @@ def main(argv=None) -> int:
         for experiment in ("gps_route", "map_route"):
             if a.experiment in (experiment.replace("_", "-"), "all"):
                 _route(ws, experiment, a, engine)
+        if a.experiment == "harvest":
+            if a.vision == "both":
+                raise ValueError("harvest takes --vision on or off")
+            run_harvest(ws, a.seeds or [0, 1, 2], lanes=a.lanes, row=a.row, targets=a.targets,
+                        vision=None if a.vision is None else a.vision == "on", real_time_factor=a.real_time_factor,
+                        record_bag=not a.no_bag, engine=engine)
         if a.experiment in ("row-spacing", "all"):
             run_row_spacing(ws, rs.RowSpacingStudyConfig(spacings_m=tuple(a.spacings),
                                                          plants_per_row=a.plants_per_row,
@@ -132,7 +149,7 @@ def main(argv=None) -> int:
 
 def _route(ws: Workspace, experiment: str, a, engine: EngineConfig) -> None:
     """One route in the --vision mode(s); with both, the ablation table next to the two result folders."""
-    modes = {"on": (True,), "off": (False,), "both": (False, True)}[a.vision]
+    modes = {"on": (True,), "off": (False,), "both": (False, True)}[a.vision or "on"]
     summaries = {vision: run_route(ws, experiment, a.seeds or [0, 1, 2], a.real_time_factor, record_bag=not a.no_bag,
                                    waypoints=a.waypoints, vision=vision, engine=engine) for vision in modes}
     if len(summaries) == 2:

@@ -13,6 +13,7 @@ import os
 import shutil
 from typing import List
 
+from .harvest import anchors_lines, figures_table
 from .row_spacing import seeds_markdown, summary_markdown
 from .runs import read_report
 from cottonsim_navigation.evaluation.vision_ablation import ablation_section
@@ -55,6 +56,7 @@ COMMANDS = {
     "map_route": "rosrun cottonsim_experiments reproduce map-route --seeds 0 1 2",
     "row_spacing": "rosrun cottonsim_experiments reproduce row-spacing",
     "perception": "rosrun cottonsim_experiments reproduce perception",
+    "harvest": "rosrun cottonsim_experiments reproduce harvest --seeds 0 1 2",
 }
 
 
@@ -160,6 +162,37 @@ def _perception_section(results_root: str) -> List[str]:
     return out + [""]
 
 
+def _harvest_section(results_root: str, doc_dir: str) -> List[str]:
+    out = ["## Harvest (issue: the robot picks the cotton)", "",
+           f"Command: `{COMMANDS['harvest']}` (writes `results/harvest/`; `--targets ground_truth` writes "
+           "`results/harvest_ground_truth/`): the GPS route with the harvest node on, row 1 harvested from both "
+           "its lanes, one run per seed on the seed's farm; every open boll of the rows beside the route judged "
+           "against the simulator's truth (docs/harvest.md, 'The harvest experiment'). The simulation captures a "
+           "boll with the vacuum nozzle within 2 cm; it has no fibre pull-off force.", ""]
+    found = False
+    for name, what in (("harvest", "the networks' detections"), ("harvest_ground_truth", "ground-truth targets")):
+        summary = read_report(os.path.join(results_root, name, "summary.json"))
+        if summary is None:
+            continue
+        found = True
+        columns = {f"seed {r['seed']}": r.get("figures") for r in summary.get("runs", [])}
+        columns["pooled"] = summary.get("pooled")
+        out += [f"### Targets from {what} ({summary.get('lanes', '')})", ""] + figures_table(columns) + [""]
+        for run in summary.get("runs", []):
+            plot = os.path.join(run.get("run_dir", ""), "harvest_field.png")
+            if os.path.isfile(plot):
+                target = os.path.join(doc_dir, "results", f"{name}_seed_{run['seed']}_field.png")
+                os.makedirs(os.path.dirname(target), exist_ok=True)
+                shutil.copyfile(plot, target)
+                out += [f"![{name} seed {run['seed']}](results/{os.path.basename(target)})", ""]
+            if run.get("error"):
+                out += [f"- seed {run['seed']}: {run['error']}", ""]
+        out += ["Anchors (published figures of real robots):", ""] + anchors_lines(summary.get("anchors", {})) + [""]
+    if not found:
+        out += ["No results yet: run the command above.", ""]
+    return out
+
+
 def render_results(results_root: str, doc_path: str) -> str:
     """Write the results page; returns its text."""
     doc_dir = os.path.dirname(os.path.abspath(doc_path))
@@ -174,6 +207,7 @@ def render_results(results_root: str, doc_path: str) -> str:
     lines += ablation_section(results_root, "map_route")
     lines += _row_spacing_section(results_root)
     lines += _perception_section(results_root)
+    lines += _harvest_section(results_root, doc_dir)
     text = "\n".join(lines)
     os.makedirs(doc_dir, exist_ok=True)
     with open(doc_path, "w", encoding="utf-8") as fh:

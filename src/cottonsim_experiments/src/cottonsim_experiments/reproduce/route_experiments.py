@@ -106,27 +106,39 @@ def run_route(ws: Workspace, experiment: str, seeds: Sequence[int], real_time_fa
     return summary
 
 
+def farm_of_run(sim_yaml: str):
+    """The FarmConfig of a run's sim.yaml (its farm section over the defaults)."""
+    from cottonsim_world.farm.config import FarmConfig
+
+    return FarmConfig.from_dict(load_yaml_file(sim_yaml, default={}).get("farm") or {})
+
+
+def write_gps_route(sim_yaml: str, points_xy_m, path: str, comment: str) -> str:
+    """World points [m] as a GPS waypoint file ('lat lon' lines) at ``path``, through the geodetic reference of
+    the run's simulator settings, so the route matches the simulated farm; returns the path."""
+    from cottonsim_world.config_io import simulator_config_from_dict
+    from cottonsim_world.geodesy import HectorGeodesy
+
+    settings = load_yaml_file(sim_yaml, default={})
+    geodesy = HectorGeodesy(*simulator_config_from_dict(settings).geodesy_reference)
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(f"# {comment}\n")
+        for x, y in points_xy_m:
+            lat, lon, _ = geodesy.world_to_geodetic(x, y, 0.0)
+            fh.write(f"{float(lat):.14f} {float(lon):.14f}\n")
+    return path
+
+
 def write_lane_route(run: RunSpec, sim_yaml: str, out_dir: str) -> str:
     """A row-spacing run's route: entry, middle and exit of lane 1 of the run's farm, as GPS waypoints.
 
     Called where the run runs (a Ray worker): the farm comes from the run's sim.yaml, the
     geodetic reference from the simulator's settings, so the route matches the simulated farm.
     """
-    from cottonsim_world.config_io import simulator_config_from_dict
-    from cottonsim_world.farm.config import FarmConfig
-    from cottonsim_world.geodesy import HectorGeodesy
-
-    settings = load_yaml_file(sim_yaml, default={})
-    farm = FarmConfig.from_dict(settings.get("farm") or {})
-    geodesy = HectorGeodesy(*simulator_config_from_dict(settings).geodesy_reference)
-    spacing = farm.row_spacing_m
-    route = os.path.join(out_dir, "route_gps.txt")
-    with open(route, "w", encoding="utf-8") as fh:
-        fh.write(f"# lane 1 (between rows 0 and 1) at {spacing:.2f} m row spacing: entry, middle, exit\n")
-        for x, y in rs.attempt_route_world(farm):
-            lat, lon, _ = geodesy.world_to_geodetic(x, y, 0.0)
-            fh.write(f"{float(lat):.14f} {float(lon):.14f}\n")
-    return route
+    farm = farm_of_run(sim_yaml)
+    return write_gps_route(sim_yaml, rs.attempt_route_world(farm), os.path.join(out_dir, "route_gps.txt"),
+                           f"lane 1 (between rows 0 and 1) at {farm.row_spacing_m:.2f} m row spacing: "
+                           "entry, middle, exit")
 
 
 def row_spacing_runs(config: rs.RowSpacingStudyConfig, seeds: Sequence[int], real_time_factor: float,
