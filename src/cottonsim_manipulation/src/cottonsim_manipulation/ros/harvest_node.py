@@ -130,6 +130,7 @@ class HarvestNode:
         self._holding = False
         self._truth = None                       # (BollArray, world_T_base)
         self._world_T_base = None
+        self._world_T_base_stamp = rospy.Time(0)     # the truth pose's stamp: TF is looked up at the same moment
         self._seq = 0                            # the trajectory in flight (0: none)
         self._parking = False
         self._park_deadline_s = 0.0
@@ -209,6 +210,7 @@ class HarvestNode:
         p, r = msg.pose.pose.position, msg.pose.pose.orientation
         with self._lock:
             self._world_T_base = pose_matrix((p.x, p.y, p.z), (r.x, r.y, r.z, r.w))
+            self._world_T_base_stamp = msg.header.stamp
 
     def _on_enable(self, req):
         with self._lock:
@@ -334,14 +336,17 @@ class HarvestNode:
     def _fuse(self, detections, now: float) -> bool:
         if self.target_source == "ground_truth":
             with self._lock:
-                truth, world_T_base = self._truth, self._world_T_base
+                truth, world_T_base, stamp = self._truth, self._world_T_base, self._world_T_base_stamp
             if truth is None or world_T_base is None:
                 return False
             bolls = np.array([(b.position.x, b.position.y, b.position.z) for b in truth.bolls
                               if b.state == Boll.ON_PLANT]).reshape(-1, 3)
             near = bolls[np.linalg.norm(bolls[:, :2] - world_T_base[:2, 3], axis=1) <= self.truth_range_m]
             try:
-                frame_T_base = _matrix(self.tf_buffer.lookup_transform(self.frame, self.robot_frame, rospy.Time(0)))
+                # the robot's pose in the frame at the truth pose's stamp: with the newest TF instead, a driving
+                # robot's targets were off by its speed times the two messages' age difference
+                frame_T_base = _matrix(self.tf_buffer.lookup_transform(self.frame, self.robot_frame, stamp,
+                                                                       rospy.Duration(0.2)))
             except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
                 return False
             detections = [(transform_points(frame_T_base @ np.linalg.inv(world_T_base), near), now)] if len(near) \
