@@ -140,7 +140,7 @@ def run(seed, sim, grid, spec, home, configs, keep_going=False):
     return trace
 
 
-def first_localised(trace):
+def first_localized(trace):
     """The update at which the node would declare itself localised again (None: not within the trace)."""
     return next((i for i, u in enumerate(trace) if u["localized"]), None)
 
@@ -168,14 +168,14 @@ def main():
     for seed in range(seeds):
         trace = run(seed, sim, grid, spec, home, configs, keep_going=trace_file is not None)
         traces.append(trace)
-        i = first_localised(trace)
+        i = first_localized(trace)
         u = trace[-1 if i is None else i]
         off = math.hypot(u["along"], u["across"])
         state = "NOT localised" if i is None else "localised after %2d" % (i + 1)
         print(f"seed {seed:3d}: {state} updates ({u['t']:4.1f} s after the landing), "
               f"{u['along']:+.2f} m along {u['across']:+.2f} m across {u['yaw']:+.3f} rad, fit {u['fit']:.2f}, "
               f"spread {u['spread']:.3f} m{'   <-- off' if off > CR_RADIUS_M else ''}", flush=True)
-    done = [t[first_localised(t)] for t in traces if first_localised(t) is not None]
+    done = [t[first_localized(t)] for t in traces if first_localized(t) is not None]
     bad = [u for u in done if math.hypot(u["along"], u["across"]) > CR_RADIUS_M]
     errors = sorted(math.hypot(u["along"], u["across"]) for u in done)
     times = sorted(u["t"] for u in done)

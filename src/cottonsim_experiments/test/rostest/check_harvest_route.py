@@ -56,7 +56,7 @@ class HarvestRouteTest(NavigatorWatch):
         self.assertTrue(all(o["detected"] for o in binned), binned)
         self.assertEqual(len(harvest["status"]["cycle_times_s"]), in_bin, harvest["status"])
         self.assertTrue(any(o["cycle_time_s"] is not None for o in binned), binned)
-        self.assertLess(max(o["localisation_error_m"] for o in binned), 0.03, binned)
+        self.assertLess(max(o["localization_error_m"] for o in binned), 0.03, binned)
 
 
 if __name__ == "__main__":

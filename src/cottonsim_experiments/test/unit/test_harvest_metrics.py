@@ -9,13 +9,13 @@ def outcomes():
     was not reachable by the evaluation's rule (it still counts for the field)."""
     picked = dict(reachable=True, detected=True, attempted=True, picked=True)
     return [
-        BollOutcome(0, **picked, in_bin=True, cycle_time_s=4.0, localisation_error_m=0.004),
-        BollOutcome(1, **picked, in_bin=True, cycle_time_s=5.0, localisation_error_m=0.006),
-        {"boll_id": 2, **picked, "in_bin": True, "cycle_time_s": 6.0, "localisation_error_m": 0.008},
-        BollOutcome(3, **picked, in_bin=True, cycle_time_s=20.0, localisation_error_m=0.030),
-        BollOutcome(4, **picked, in_bin=False, reason="dropped", localisation_error_m=0.010),
+        BollOutcome(0, **picked, in_bin=True, cycle_time_s=4.0, localization_error_m=0.004),
+        BollOutcome(1, **picked, in_bin=True, cycle_time_s=5.0, localization_error_m=0.006),
+        {"boll_id": 2, **picked, "in_bin": True, "cycle_time_s": 6.0, "localization_error_m": 0.008},
+        BollOutcome(3, **picked, in_bin=True, cycle_time_s=20.0, localization_error_m=0.030),
+        BollOutcome(4, **picked, in_bin=False, reason="dropped", localization_error_m=0.010),
         BollOutcome(5, reachable=True, detected=True, attempted=True, reason="capture_missed",
-                    localisation_error_m=0.5),
+                    localization_error_m=0.5),
         BollOutcome(6, reachable=True, detected=True, reason=""),
         BollOutcome(7, reachable=True),
         BollOutcome(8),
@@ -46,8 +46,8 @@ def test_times_rates_errors_and_contacts():
     assert f["bolls_per_hour"] == pytest.approx(10.0)                # 5 in half an hour
     assert f["bolls_per_hour_picking"] == pytest.approx(300.0)       # 5 in a minute of picking
     # the picked targets' errors only (the missed capture's 0.5 m is not a picked target)
-    assert f["localisation_error_m"]["median"] == pytest.approx(0.008)
-    assert f["localisation_error_m"]["p95"] == pytest.approx(0.026)
+    assert f["localization_error_m"]["median"] == pytest.approx(0.008)
+    assert f["localization_error_m"]["p95"] == pytest.approx(0.026)
     assert (f["arm_stem_contacts"], f["arm_leaf_contacts"], f["base_plant_contacts"]) == (1, 3, 2)
     assert (f["route_time_s"], f["real_time_factor"]) == (1700.0, 1.1)
 
@@ -56,7 +56,7 @@ def test_empty_populations_give_none_not_made_up_figures():
     f = harvest_figures([BollOutcome(0), BollOutcome(1)], RunTotals(field_time_s=0.0))
     assert f["harvest_success_percent"] is None and f["field_harvest_percent"] == 0.0
     assert f["cycle_time_s"] == {"median": None, "p95": None} and f["bolls_per_hour"] is None
-    assert f["localisation_error_m"]["median"] is None and f["bolls_per_hour_picking"] is None
+    assert f["localization_error_m"]["median"] is None and f["bolls_per_hour_picking"] is None
     assert harvest_figures([], {"field_time_s": 10.0})["open_bolls"] == 0
 
 

@@ -140,12 +140,12 @@ def test_outcomes_from_the_record_and_the_truth():
     out = {o["boll_id"]: o for o in boll_outcomes(_harvest(), reachable_ids=[0, 1, 2], plant_ids={1, 2})}
     assert sorted(out) == [0, 1, 2, 3]                 # open at the start, of the plants asked for
     assert out[0]["in_bin"] and out[0]["picked"] and out[0]["attempted"] and out[0]["detected"]
-    assert out[0]["cycle_time_s"] == 4.5 and out[0]["localisation_error_m"] == pytest.approx(0.01)
+    assert out[0]["cycle_time_s"] == 4.5 and out[0]["localization_error_m"] == pytest.approx(0.01)
     assert out[1]["attempted"] and not out[1]["picked"] and out[1]["reason"] == "capture_missed"
-    assert out[1]["localisation_error_m"] == pytest.approx(0.02)
+    assert out[1]["localization_error_m"] == pytest.approx(0.02)
     assert out[2]["picked"] and not out[2]["in_bin"] and out[2]["reason"] == "dropped"
     assert out[2]["cycle_time_s"] is None
-    assert out[3]["detected"] and not out[3]["attempted"] and out[3]["localisation_error_m"] is None
+    assert out[3]["detected"] and not out[3]["attempted"] and out[3]["localization_error_m"] is None
     assert [out[i]["reachable"] for i in range(4)] == [True, True, True, False]
     assert out[0]["position_m"] == [0.0, 0.0, 0.5]
 

@@ -58,7 +58,7 @@ def test_without_the_metrics_module_no_run_starts_and_no_figure_is_written(tmp_p
 FIGURES = {"open_bolls": 40, "reachable": 30, "detected": 29, "attempted": 28, "picked": 27, "in_bin": 27,
            "harvest_success_percent": 90.0, "field_harvest_percent": 67.5, "cycle_time_s": {"median": 5.5, "p95": 9.0},
            "bolls_per_hour": 120.0, "bolls_per_hour_picking": 600.0,
-           "localisation_error_m": {"median": 0.004, "p95": 0.012}, "arm_stem_contacts": 0, "arm_leaf_contacts": 3,
+           "localization_error_m": {"median": 0.004, "p95": 0.012}, "arm_stem_contacts": 0, "arm_leaf_contacts": 3,
            "base_plant_contacts": 0, "route_time_s": 810.0, "real_time_factor": 0.7,
            "funnel": [{"stage": "reachable", "count": 30, "percent_of_previous": None},
                       {"stage": "bin", "count": 27, "percent_of_previous": 100.0}]}

@@ -30,7 +30,7 @@ import numpy as np
 
 ANCHORS = {
     "Fue et al. 2020 (2-axis Cartesian arm, vacuum + tines, field)": {
-        "reached_percent": 95.0, "harvest_success_percent": 78.5, "localisation_error_mm": "9 standing, 34 moving"},
+        "reached_percent": 95.0, "harvest_success_percent": 78.5, "localization_error_mm": "9 standing, 34 moving"},
     "Singh et al. 2024 (4-DoF arm, vacuum)": {
         "harvest_success_percent": "76-86 lab, 66-72 field", "cycle_time_s": "73-86", "bolls_per_hour": "40-49"},
     "Bac et al. 2014 (review of 50 harvesting robots)": {"harvest_success_percent": 66.0, "cycle_time_s": 33.0},
@@ -45,7 +45,7 @@ class BollOutcome:
     harvest node; attempted: a pick of it began; picked: the nozzle captured it; in_bin: it
     ended in the bin. reason: the pick result's reason when attempted and not binned ('' else).
     cycle_time_s: stop (or previous boll's end) to its release over the bin [s], binned bolls.
-    localisation_error_m: |target estimate - true centre| at the pick [m], attempted bolls.
+    localization_error_m: |target estimate - true centre| at the pick [m], attempted bolls.
     """
 
     boll_id: int
@@ -56,7 +56,7 @@ class BollOutcome:
     in_bin: bool = False
     reason: str = ""
     cycle_time_s: Optional[float] = None
-    localisation_error_m: Optional[float] = None
+    localization_error_m: Optional[float] = None
     position_m: Optional[Sequence[float]] = None
 
     def __post_init__(self) -> None:
@@ -65,7 +65,7 @@ class BollOutcome:
         for name in ("reachable", "detected", "attempted", "picked", "in_bin"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"boll {self.boll_id}: {name} must be true or false, got {getattr(self, name)!r}")
-        for name in ("cycle_time_s", "localisation_error_m"):
+        for name in ("cycle_time_s", "localization_error_m"):
             v = getattr(self, name)
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
                                   or v < 0.0):
@@ -139,7 +139,7 @@ def harvest_figures(outcomes: Iterable[Union[BollOutcome, Mapping]], run: Union[
     detected_reachable = sum(b.detected for b in reachable)
     binned_reachable = sum(b.in_bin for b in reachable)
     cycle = [b.cycle_time_s for b in bolls if b.in_bin and b.cycle_time_s is not None]
-    error = [b.localisation_error_m for b in bolls if b.picked and b.localisation_error_m is not None]
+    error = [b.localization_error_m for b in bolls if b.picked and b.localization_error_m is not None]
     hours = run.field_time_s / 3600.0
     figures = {
         "open_bolls": len(bolls), **count,
@@ -160,7 +160,7 @@ def harvest_figures(outcomes: Iterable[Union[BollOutcome, Mapping]], run: Union[
         "bolls_per_hour": count["in_bin"] / hours if hours > 0.0 else None,
         "bolls_per_hour_picking": (count["in_bin"] / (run.picking_time_s / 3600.0)
                                    if run.picking_time_s else None),
-        "localisation_error_m": _quantiles(error),
+        "localization_error_m": _quantiles(error),
         "arm_stem_contacts": run.arm_stem_contacts,
         "arm_leaf_contacts": run.arm_leaf_contacts,
         "base_plant_contacts": run.base_plant_contacts,

@@ -12,7 +12,7 @@ plants), the fields of cottonsim_experiments.harvest.metrics.BollOutcome as a di
 * reason: for an attempted boll not in the bin, 'dropped' / 'held' from the truth, else its target's
   last pick result ('' when none);
 * cycle_time_s: its target's cycle time (stop or previous boll's end to the release; binned bolls);
-* localisation_error_m: |target world position - true centre at the start| of attempted matched bolls;
+* localization_error_m: |target world position - true centre at the start| of attempted matched bolls;
 * reachable: the boll's id is in ``reachable_ids`` (cottonsim_experiments.harvest.reachability);
 * position_m: the true centre at the start.
 
@@ -96,7 +96,7 @@ def boll_outcomes(harvest: Mapping, reachable_ids: Collection[int], plant_ids: O
                  if target is not None and attempted else None)
         outcomes.append({"boll_id": boll_id, "reachable": boll_id in reachable, "detected": target is not None,
                          "attempted": attempted, "picked": picked, "in_bin": in_bin, "reason": reason,
-                         "cycle_time_s": cycle, "localisation_error_m": error,
+                         "cycle_time_s": cycle, "localization_error_m": error,
                          "position_m": [float(v) for v in boll["position"]]})
     return outcomes
 

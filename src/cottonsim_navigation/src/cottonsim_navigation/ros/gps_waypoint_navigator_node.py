@@ -128,7 +128,7 @@ class GpsWaypointNavigatorNode(WaypointNavigatorBase):
                     return
                 rospy.loginfo("%s: datum lat %.9f lon %.9f = map (0, 0)", self.NAME, latlon[0], latlon[1])
 
-    def localisation_ready(self) -> bool:
+    def localization_ready(self) -> bool:
         pose = self.robot_pose()
         if pose is None:
             return False

@@ -5,7 +5,7 @@ goal poses: wait for localisation, send the goals one by one to move_base,
 react to aborts (skip or stop), go Home when the battery runs low, publish
 their state and end with a summary. Only "how do waypoints become map
 goals" and "when is localisation ready" differ; subclasses supply those
-(:meth:`WaypointNavigatorBase.load_route`, :meth:`localisation_ready`,
+(:meth:`WaypointNavigatorBase.load_route`, :meth:`localization_ready`,
 :meth:`make_goals`). The decision logic itself is the ROS-free
 :class:`cottonsim_navigation.waypoints.follower.WaypointFollower`.
 
@@ -127,7 +127,7 @@ class WaypointNavigatorBase:
         """Read the waypoint file; raise WaypointFileError (or ValueError) on any problem."""
         raise NotImplementedError
 
-    def localisation_ready(self) -> bool:
+    def localization_ready(self) -> bool:
         """True once goals can be placed in the map (TF map -> base_link by default)."""
         return self.robot_pose() is not None
 
@@ -237,7 +237,7 @@ class WaypointNavigatorBase:
         with self._lock:
             self.route_hold.report(bool(msg.data), rospy.get_time())
 
-    def localisation_lost(self) -> bool:
+    def localization_lost(self) -> bool:
         """The localiser was localised once and now says it is not (kidnap, re-initialisation)."""
         with self._lock:
             return self._gate.lost
@@ -339,7 +339,7 @@ class WaypointNavigatorBase:
                                self.server_timeout_s)
                 self.publish_state("finished", reason="no move_base action server")
                 return 1
-        if not self._wait("localisation (TF %s -> %s)" % (self.goal_frame, self.robot_frame), self.localisation_ready):
+        if not self._wait("localisation (TF %s -> %s)" % (self.goal_frame, self.robot_frame), self.localization_ready):
             return 0
         home = self.robot_pose()
         try:
@@ -397,7 +397,7 @@ class WaypointNavigatorBase:
             f.battery_low()
         with self._lock:
             result, self._result = self._result, None
-        lost = self.localisation_lost()
+        lost = self.localization_lost()
         if result is not None and f.state is FollowerState.ACTIVE:
             status, text = result[1], result[2]
             ok = status == GoalStatus.SUCCEEDED
@@ -429,7 +429,7 @@ class WaypointNavigatorBase:
             self._paused_since = None
         if self._held_by_request() or self._halt_at_bolls():
             return
-        goal = f.next_goal(localisation_ready=True)
+        goal = f.next_goal(localization_ready=True)
         if goal is not None:
             self._send(goal)
 

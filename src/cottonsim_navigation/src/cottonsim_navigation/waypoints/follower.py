@@ -4,7 +4,7 @@ The ROS navigator node owns the move_base action client; this class decides
 what to send next. Usage::
 
     f = WaypointFollower(goals, FollowerConfig(on_failure="skip"), home=home_pose)
-    goal = f.next_goal(localisation_ready=True)   # a goal to send, or None (wait / finished)
+    goal = f.next_goal(localization_ready=True)   # a goal to send, or None (wait / finished)
     ...                                           # when move_base ends:
     f.report_result(GoalResult.SUCCEEDED)
     f.battery_low()                               # paper: at 40 % go Home and stop
@@ -22,7 +22,7 @@ later on its way to the next goal.
 
 Holding (``hold``): when localisation is lost mid-route (a kidnap) the ROS
 layer cancels the active goal so the robot stops; the goal is neither
-succeeded nor aborted, and the next ``next_goal(localisation_ready=True)``
+succeeded nor aborted, and the next ``next_goal(localization_ready=True)``
 returns the same goal again (the route is resumed, never cut short).
 
 States: WAITING (localisation not ready, or a held goal), READY (a goal may be sent),
@@ -117,11 +117,11 @@ class WaypointFollower:
     def going_home(self) -> bool:
         return self._going_home
 
-    def next_goal(self, localisation_ready: bool = True) -> Optional[Any]:
+    def next_goal(self, localization_ready: bool = True) -> Optional[Any]:
         """The goal to send now, or None (still waiting for localisation, a goal is active, or done)."""
         if self.finished or self.state is FollowerState.ACTIVE:
             return None
-        if not localisation_ready:
+        if not localization_ready:
             self.state = FollowerState.WAITING
             return None
         if self.index >= len(self.goals):
@@ -179,7 +179,7 @@ class WaypointFollower:
     def hold(self, count: bool = True) -> bool:
         """Withdraw the active goal without a result (localisation lost); True when one was active.
 
-        The index stays, so ``next_goal(localisation_ready=True)`` returns the
+        The index stays, so ``next_goal(localization_ready=True)`` returns the
         same goal (or Home) once the caller is ready again. Nothing happens
         when no goal is active (READY / WAITING / FINISHED). count=False: not
         counted in ``summary.holds`` (a halt at bolls, which is counted apart).

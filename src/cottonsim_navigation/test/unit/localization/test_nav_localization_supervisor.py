@@ -85,7 +85,7 @@ def test_an_uncertain_start_with_a_poorly_fitting_scan_is_no_kidnap():
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_a_localised_robot_carried_toward_the_rows_is_detected_and_recovers(seed):
+def test_a_localized_robot_carried_toward_the_rows_is_detected_and_recovers(seed):
     sup, spec, occ = supervisor(seed=seed)
     rng = np.random.default_rng(10 + seed)
     truth, odom = np.array([0.0, -5.0, UP]), np.zeros(3)
@@ -107,7 +107,7 @@ def test_a_localised_robot_carried_toward_the_rows_is_detected_and_recovers(seed
     assert sup.armed
 
 
-def test_a_standing_robot_that_lost_its_localised_signal_regains_it():
+def test_a_standing_robot_that_lost_its_localized_signal_regains_it():
     # localised, then a few scans with clutter turn the signal off (no kidnap: too short); the navigator
     # stops the robot. The filter must go on updating while it stands, or the signal never comes back.
     sup, spec, occ = supervisor()

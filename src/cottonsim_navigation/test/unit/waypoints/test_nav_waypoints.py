@@ -68,7 +68,7 @@ def test_original_reference_files():
 
 def test_follower_skip_and_stop():
     f = WaypointFollower(["a", "b", "c"], FollowerConfig(on_failure="skip"))
-    assert f.next_goal(localisation_ready=False) is None and f.state is FollowerState.WAITING
+    assert f.next_goal(localization_ready=False) is None and f.state is FollowerState.WAITING
     assert f.next_goal() == "a"
     assert f.next_goal() is None                    # one goal at a time
     f.report_result(GoalResult.SUCCEEDED)
@@ -110,7 +110,7 @@ def test_follower_hold_resends_the_same_goal_and_counts_nothing():
     assert not f.passed(0.1)                        # a held goal cannot be driven through
     with pytest.raises(ValueError, match="no active goal"):
         f.report_result(GoalResult.ABORTED)         # a held goal has no result (on_failure=stop untouched)
-    assert f.next_goal(localisation_ready=False) is None
+    assert f.next_goal(localization_ready=False) is None
     assert f.next_goal() == "a"                     # the same goal again, route not cut short
     assert f.hold() and f.next_goal() == "a"
     f.report_result(GoalResult.SUCCEEDED)
@@ -166,7 +166,7 @@ def test_gps_lanes_file(tmp_path):
             load_gps_lanes(p)
 
 
-def test_localisation_gate_is_lost_only_after_having_been_localised():
+def test_localization_gate_is_lost_only_after_having_been_localized():
     g = LocalisationGate()
     assert not g.lost                               # nothing heard
     g.report(False)
