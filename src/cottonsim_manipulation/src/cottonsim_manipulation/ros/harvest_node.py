@@ -81,6 +81,7 @@ _TARGET_STATES = {"tentative": BollTarget.TENTATIVE, "confirmed": BollTarget.CON
 _MARKER_RGB = {"tentative": (0.6, 0.6, 0.6), "confirmed": (1.0, 0.8, 0.0), "picked": (0.1, 0.8, 0.1),
                "abandoned": (0.9, 0.1, 0.1)}
 READY_TOLERANCE_RAD = 0.02                      # the arm is at its ready pose this close [rad]
+TRUTH_POSE_MAX_SKEW_S = 0.05                    # ground-truth targets: true pose and TF at most this far apart [s]
 REST_SPEED_RAD_S = 0.01                         # the arm is at rest below this joint speed [rad/s]
 START_TOLERANCE_RAD = 0.01                      # a trajectory starting farther from the arm gets a lead-in [rad]
 
@@ -129,8 +130,7 @@ class HarvestNode:
         self._odom = None                        # (stamp [s], speed [m/s], yaw rate [rad/s])
         self._holding = False
         self._truth = None                       # (BollArray, world_T_base)
-        self._world_T_base = None
-        self._world_T_base_stamp = rospy.Time(0)     # the truth pose's stamp: TF is looked up at the same moment
+        self._world_T_base = collections.deque(maxlen=200)   # recent true poses: (stamp [s], 4x4 world_T_base)
         self._seq = 0                            # the trajectory in flight (0: none)
         self._parking = False
         self._park_deadline_s = 0.0
@@ -209,8 +209,8 @@ class HarvestNode:
     def _on_truth_pose(self, msg: Odometry):
         p, r = msg.pose.pose.position, msg.pose.pose.orientation
         with self._lock:
-            self._world_T_base = pose_matrix((p.x, p.y, p.z), (r.x, r.y, r.z, r.w))
-            self._world_T_base_stamp = msg.header.stamp
+            world_T_base = pose_matrix((p.x, p.y, p.z), (r.x, r.y, r.z, r.w))
+            self._world_T_base.append((msg.header.stamp.to_sec(), world_T_base))
 
     def _on_enable(self, req):
         with self._lock:
@@ -336,19 +336,23 @@ class HarvestNode:
     def _fuse(self, detections, now: float) -> bool:
         if self.target_source == "ground_truth":
             with self._lock:
-                truth, world_T_base, stamp = self._truth, self._world_T_base, self._world_T_base_stamp
-            if truth is None or world_T_base is None:
+                truth, poses = self._truth, list(self._world_T_base)
+            if truth is None or not poses:
                 return False
+            try:
+                tf_msg = self.tf_buffer.lookup_transform(self.frame, self.robot_frame, rospy.Time(0))
+            except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+                return False
+            # the true pose of the same moment as the newest TF: with the newest of each, a driving robot's
+            # targets were off by its speed times the two messages' age difference
+            tf_stamp_s = tf_msg.header.stamp.to_sec()
+            pose_stamp_s, world_T_base = min(poses, key=lambda sp: abs(sp[0] - tf_stamp_s))
+            if abs(pose_stamp_s - tf_stamp_s) > TRUTH_POSE_MAX_SKEW_S:
+                return False
+            frame_T_base = _matrix(tf_msg)
             bolls = np.array([(b.position.x, b.position.y, b.position.z) for b in truth.bolls
                               if b.state == Boll.ON_PLANT]).reshape(-1, 3)
             near = bolls[np.linalg.norm(bolls[:, :2] - world_T_base[:2, 3], axis=1) <= self.truth_range_m]
-            try:
-                # the robot's pose in the frame at the truth pose's stamp: with the newest TF instead, a driving
-                # robot's targets were off by its speed times the two messages' age difference
-                frame_T_base = _matrix(self.tf_buffer.lookup_transform(self.frame, self.robot_frame, stamp,
-                                                                       rospy.Duration(0.2)))
-            except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
-                return False
             detections = [(transform_points(frame_T_base @ np.linalg.inv(world_T_base), near), now)] if len(near) \
                 else []
             sigma = self.harvester.fusion.config.min_sigma_m
