@@ -130,7 +130,7 @@ class HarvestNode:
         self._odom = None                        # (stamp [s], speed [m/s], yaw rate [rad/s])
         self._holding = False
         self._truth = None                       # (BollArray, world_T_base)
-        self._world_T_base = collections.deque(maxlen=200)   # recent true poses: (stamp [s], 4x4 world_T_base)
+        self._true_poses = collections.deque(maxlen=200)     # recent true poses: (stamp [s], 4x4 world_T_base)
         self._seq = 0                            # the trajectory in flight (0: none)
         self._parking = False
         self._park_deadline_s = 0.0
@@ -210,7 +210,7 @@ class HarvestNode:
         p, r = msg.pose.pose.position, msg.pose.pose.orientation
         with self._lock:
             world_T_base = pose_matrix((p.x, p.y, p.z), (r.x, r.y, r.z, r.w))
-            self._world_T_base.append((msg.header.stamp.to_sec(), world_T_base))
+            self._true_poses.append((msg.header.stamp.to_sec(), world_T_base))
 
     def _on_enable(self, req):
         with self._lock:
@@ -336,7 +336,7 @@ class HarvestNode:
     def _fuse(self, detections, now: float) -> bool:
         if self.target_source == "ground_truth":
             with self._lock:
-                truth, poses = self._truth, list(self._world_T_base)
+                truth, poses = self._truth, list(self._true_poses)
             if truth is None or not poses:
                 return False
             try:
