@@ -10,6 +10,7 @@ from cottonsim_common.kinematics.ur5e import forward_kinematics
 from cottonsim_common.vacuum_capture import check_capture, nozzle_tip
 from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester, estimate_outward, transform_points
 from cottonsim_manipulation.harvest.pick_cycle import (
+    PickCycleConfig,
     CancelTrajectory,
     CaptureConfirmed,
     CaptureMissed,
@@ -103,6 +104,65 @@ def test_a_moving_robot_stops_once_it_is_abeam_of_a_target(model):
     moved[1, 3] = 0.42                               # the robot drove 0.42 m on: the boll is abeam
     h.update_pose(moved, ARM_T_BASE)
     assert h.want_stop(robot_stopped=False)
+
+
+class RecordingPlanner:
+    """The real planner, recording each boll position (arm base frame) it is asked for."""
+
+    def __init__(self, model):
+        self.model, self.calls = model, []
+
+    def __call__(self, p, n, q):
+        self.calls.append(np.array(p))
+        return plan_approach(p, n, q, self.model)
+
+
+def test_a_stop_chooses_and_plans_its_targets_from_where_the_robot_stands(model):
+    """The stop is decided while driving; the robot rolls 0.3 m on while it brakes: the targets are chosen and
+    planned from the standing pose, not from the pose of the decision."""
+    planner = RecordingPlanner(model)
+    h = Harvester(planner, HarvestConfig(outward="lateral"))
+    h.update_pose(np.eye(4), ARM_T_BASE)
+    see(h, [p for p, _ in BOLLS.values()])
+    assert h.want_stop(robot_stopped=False)
+    assert h.start_stop(STOW_RAD, 0.0) == [HaltRoute()] and planner.calls == []   # nothing planned while driving
+    rolled = np.eye(4)
+    rolled[1, 3] = 0.3                       # base_link +x is arm -y: the fixed frame moves +y in the arm frame
+    h.update_pose(rolled, ARM_T_BASE)
+    commands = h.on_event(RobotStopped(), 1.0)
+    assert any(isinstance(c, SendTrajectory) for c in commands)
+    expected = {tuple(np.round(np.add(p, (0.0, 0.3, 0.0)), 6)) for p, _ in BOLLS.values()}
+    assert {tuple(np.round(p, 6)) for p in planner.calls} <= expected and len(planner.calls) == 3
+
+
+def test_the_plans_made_for_the_order_are_used_while_nothing_moved(model):
+    planner = RecordingPlanner(model)
+    h = Harvester(planner, HarvestConfig(outward="lateral"))
+    h.update_pose(np.eye(4), ARM_T_BASE)
+    see(h, [p for p, _ in BOLLS.values()])
+    ready = np.array(PickCycleConfig().bin_joints_rad)   # every pick starts where the last one ended: the bin pose
+    drive(h, h.start_stop(ready, 0.0))
+    assert h.figures.results["ok"] == 3 and len(planner.calls) == 3        # one plan per boll
+    # the robot moved during a stop: the next target is planned again from the new pose
+    planner.calls.clear()
+    h2 = Harvester(planner, HarvestConfig(outward="lateral"))
+    h2.update_pose(np.eye(4), ARM_T_BASE)
+    see(h2, [p for p, _ in BOLLS.values()])
+    h2.start_stop(ready, 0.0)
+    h2.on_event(RobotStopped(), 0.1)
+    assert len(planner.calls) == 3
+    nudged = np.eye(4)
+    nudged[0, 3] = 0.01
+    h2.update_pose(nudged, ARM_T_BASE)
+    h2.on_event(TrajectoryDone(), 2.0)       # transit done -> approach (no new plan)
+    h2.on_event(CaptureConfirmed(), 2.1)
+    h2.on_event(TrajectoryDone(), 3.0)       # approach done -> retreat
+    h2.on_event(TrajectoryDone(), 4.0)       # retreat done -> deliver
+    h2.on_event(TrajectoryDone(), 6.0)       # delivered -> release
+    h2.tick(7.0)                             # released -> the next target, planned from the nudged pose
+    assert len(planner.calls) == 4
+    shifts = [planner.calls[-1] - p for p in planner.calls[:3]]
+    assert any(np.allclose(d, (0.01, 0.0, 0.0), atol=1e-9) for d in shifts)
 
 
 def test_a_stop_picks_every_reachable_boll_and_records_the_figures(harvester):

@@ -271,3 +271,36 @@ def test_compiled_kernels_are_bit_identical_to_the_list_arithmetic():
             _update_two_kernel(s_arr, p_arr, rows[0], rows[1], z[0], z[1], r[0], r[1])
         assert s_arr.tolist() == want_s, trial
         assert p_arr.tolist() == want_p, trial
+
+
+def stand(ekf, seconds, gyro_bias_rad_s, seed=0, dt=0.02):
+    """A standing robot: wheels at zero, the gyro reading its bias plus white noise (the IMU model's 0.005)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(int(round(seconds / dt))):
+        assert ekf.predict(dt) is None
+        assert ekf.update_wheel_odometry(0.0, 0.0, (0.001, 0.03)) is None
+        assert ekf.update_imu(gyro_bias_rad_s + 0.005 * rng.standard_normal(), 2 * 0.005 ** 2) is None
+
+
+def test_a_standing_robot_keeps_its_heading_although_the_gyro_is_biased():
+    ekf = OdometryEkf()
+    stand(ekf, 120.0, gyro_bias_rad_s=0.003)
+    assert ekf.standing
+    assert abs(ekf.state[2]) < 0.005                      # 120 s at 0.003 rad/s would be 0.36 rad
+    assert ekf.gyro_bias_rad_s == pytest.approx(0.003, abs=0.001)
+    # without the standstill handling the yaw follows the biased gyro
+    off = OdometryEkf(OdometryEkfConfig(standstill_yaw_rate_variance=0.03, gyro_bias_time_s=1e9))
+    stand(off, 120.0, gyro_bias_rad_s=0.003)
+    assert abs(off.state[2]) > 0.2
+
+
+def test_the_bias_learnt_standing_is_taken_off_the_gyro_while_driving():
+    ekf = OdometryEkf()
+    stand(ekf, 60.0, gyro_bias_rad_s=0.003)
+    rng = np.random.default_rng(1)
+    for _ in range(500):                                  # 10 s straight on: wheels say 0 rad/s (noisy, var 0.03)
+        ekf.predict(0.02)
+        ekf.update_wheel_odometry(0.5, 0.03 * rng.standard_normal(), (0.001, 0.03))
+        ekf.update_imu(0.003 + 0.005 * rng.standard_normal(), 2 * 0.005 ** 2)
+    assert not ekf.standing
+    assert abs(ekf.state[2]) < 0.01                       # 0.03 rad if the bias were integrated

@@ -23,9 +23,13 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   own (a mean shift; a plant's bolls spread about its stem along the row even
   when only its lane-facing half is seen). 'lateral': along the robot's y
   axis towards its centre line. 'radial': from the boll towards the shoulder.
-* Targets carry their fixed-frame position; each is planned when its turn comes,
-  from the arm-base pose of that moment (:meth:`Harvester.update_pose`), so
-  the robot may still be braking when a stop is decided.
+* A stop halts the route first; its targets are chosen and ordered once the
+  robot stands, from the arm-base pose of that moment (:meth:`Harvester.update_pose`):
+  a robot brakes over some centimetres, and planning a stop's picks takes
+  (sim) time that a driving robot would spend rolling on. The plans made for
+  the order are used for the picks while the arm starts from the same joints
+  and the robot has not moved (every pick ends at the bin pose, where the next
+  one starts); otherwise a target is planned again when its turn comes.
 * Results: an 'ok' marks the target picked (harvest.targets never adds it
   again), any other reason counts a failed attempt (abandoned after
   TargetFusionConfig.max_attempts). Pick goals for a point (no target) get
@@ -49,6 +53,8 @@ from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_pic
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
 
 OUTWARD_MODELS = ("plant", "lateral", "radial")
+PLAN_REUSE_MAX_JOINT_RAD = 0.01       # a stop's plan is used while the arm starts this close to its start ...
+PLAN_REUSE_MAX_SHIFT_M = 0.002        # ... and no point near the arm moved more than this (robot and arm pose)
 
 # plan(boll position, outward direction, current joints), all in the arm's base frame -> ApproachResult
 Planner = Callable[[np.ndarray, np.ndarray, np.ndarray], object]
@@ -180,6 +186,7 @@ class Harvester:
         self._arm_T_base: Optional[np.ndarray] = None
         self._next_point_id = -1
         self._seen = 0
+        self._stop_plans: Dict[int, tuple] = {}   # target id -> (joints, arm_T_frame, result) of this stop's order
 
     # ------------------------------------------------------------------ inputs
     @property
@@ -227,13 +234,16 @@ class Harvester:
         return bool(np.any(base[:, 0] - shoulder_x <= self.config.stop_ahead_m))
 
     def start_stop(self, q_current_rad, now_s: float) -> list:
-        """Start a stop over the targets in reach (their pick order from q_current_rad); the first commands."""
+        """Start a stop: the route halts (the first command); once the robot stands (RobotStopped) the targets
+        in reach then are picked, at most max_targets_per_stop, in their pick order from the joints then."""
         if self.busy:
             raise RuntimeError("a pick cycle is running")
-        chosen = self.in_reach()[: self.config.max_targets_per_stop]
-        targets = [PickTarget(t.target_id, tuple(t.position_m), (0.0, 0.0, 0.0)) for t in chosen]
         self.figures.stops += 1
-        return self._start(self._ordered(targets, q_current_rad), q_current_rad, now_s)
+        return self._start(self._select_stop_targets, q_current_rad, now_s)
+
+    def _select_stop_targets(self, q_rad: np.ndarray) -> List[PickTarget]:
+        chosen = self.in_reach()[: self.config.max_targets_per_stop]
+        return self._ordered([PickTarget(t.target_id, tuple(t.position_m), (0.0, 0.0, 0.0)) for t in chosen], q_rad)
 
     def start_pick(self, q_current_rad, now_s: float, target_id: Optional[int] = None, point_frame_m=None) -> list:
         """Start a cycle for one boll: a target by id, or a point (fixed frame). ValueError when the target is
@@ -272,8 +282,16 @@ class Harvester:
 
     # ------------------------------------------------------------------ internals
     def _plan_target(self, target: PickTarget, q_rad: np.ndarray):
-        """plan_pick of the PickCycle: the target from its fixed-frame position and the arm's pose now."""
+        """plan_pick of the PickCycle: the target from its fixed-frame position and the arm's pose now (the
+        plan made for the stop's order when nothing moved since)."""
         self._require_pose()
+        cached = self._stop_plans.pop(target.target_id, None)
+        if cached is not None:
+            q_planned, arm_T_frame, result = cached
+            shift = np.abs(arm_T_frame - self._arm_T_frame)
+            if np.abs(np.asarray(q_rad) - q_planned).max() <= PLAN_REUSE_MAX_JOINT_RAD and \
+                    shift[:3, 3].max() + 2.0 * self.config.reach_m * shift[:3, :3].max() <= PLAN_REUSE_MAX_SHIFT_M:
+                return result
         base_T_arm = np.linalg.inv(self._arm_T_base)
         base_T_frame = base_T_arm @ self._arm_T_frame
         boll = transform_points(base_T_frame, [target.position_m])[0]
@@ -282,14 +300,17 @@ class Harvester:
         return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad)
 
     def _ordered(self, targets: List[PickTarget], q_rad) -> List[PickTarget]:
-        plans = [(t, self._plan_target(t, np.asarray(q_rad, dtype=float))) for t in targets]
+        q = np.asarray(q_rad, dtype=float)
+        plans = [(t, self._plan_target(t, q)) for t in targets]
+        self._stop_plans = {t.target_id: (q.copy(), self._arm_T_frame.copy(), r) for t, r in plans}
         ok = [(t, r) for t, r in plans if r.ok]
         order = order_picks([t.target_id for t, _ in ok], np.array([r.plan.q_pregrasp_rad for _, r in ok]),
                             q_rad, self.order_config).target_ids if ok else []
         by_id = {t.target_id: t for t in targets}
         return [by_id[i] for i in order] + [t for t, r in plans if not r.ok]
 
-    def _start(self, targets: Sequence[PickTarget], q_rad, now_s: float) -> list:
+    def _start(self, targets, q_rad, now_s: float) -> list:
+        self._stop_plans = {}
         self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config)
         self._seen = 0
         return self._collect(self.cycle.start(now_s))

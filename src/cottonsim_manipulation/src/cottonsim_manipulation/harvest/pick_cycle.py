@@ -4,7 +4,10 @@ Phases, per target in the given order (see harvest.pick_order):
 
     HALT -> [ APPROACH -> CAPTURE -> RETREAT -> DELIVER -> RELEASE ] * targets -> ResumeRoute -> DONE
 
-* HALT: the route is paused (command HaltRoute); waits for the robot to stop.
+* HALT: the route is paused (command HaltRoute); waits for the robot to stop. The targets are either
+  given at the start, or chosen once the robot stands (``targets`` a callable: ``select(q_current)`` ->
+  the ordered targets), from where it stopped: a robot may roll on while it brakes, and the
+  choice and the order take planning time.
 * APPROACH: the target is planned (``plan_pick(target, q_current)``, e.g.
   planning.approach.plan_approach) and the transit to its pre-grasp is sent.
 * CAPTURE: vacuum on, the approach along the boll's outward direction is sent;
@@ -27,7 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, List, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -151,6 +154,14 @@ class PickResult:
 
 
 PlanPick = Callable[[PickTarget, np.ndarray], object]   # -> an ApproachResult (reason, detail, plan)
+SelectTargets = Callable[[np.ndarray], Sequence[PickTarget]]   # current joints -> the stop's targets, in order
+
+
+def _unique(targets: Sequence[PickTarget]) -> List[PickTarget]:
+    ids = [t.target_id for t in targets]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"target ids must be unique, got {ids}")
+    return list(targets)
 
 
 @dataclass
@@ -165,14 +176,12 @@ class _Current:
 class PickCycle:
     """The pick cycle of one stop. Use start(), then on_event() and tick() until done."""
 
-    def __init__(self, targets: Sequence[PickTarget], q_current_rad, plan_pick: PlanPick,
+    def __init__(self, targets: Union[Sequence[PickTarget], SelectTargets], q_current_rad, plan_pick: PlanPick,
                  config: PickCycleConfig = PickCycleConfig(), trajectory_config: TrajectoryConfig = TrajectoryConfig()):
-        ids = [t.target_id for t in targets]
-        if len(set(ids)) != len(ids):
-            raise ValueError(f"target ids must be unique, got {ids}")
         self.config = config
         self.trajectory_config = trajectory_config
-        self._queue: List[PickTarget] = list(targets)
+        self._select: Optional[SelectTargets] = targets if callable(targets) else None
+        self._queue: List[PickTarget] = [] if callable(targets) else _unique(targets)
         self._lost: set = set()
         self._q = joint_vector(q_current_rad, "current joints")
         self._plan_pick = plan_pick
@@ -200,7 +209,7 @@ class PickCycle:
             raise RuntimeError("the pick cycle has already started")
         self._check_time(now_s)
         self._mark_s = now_s
-        if not self._queue:
+        if not self._queue and self._select is None:
             return self._finish(now_s)
         self._enter(HALT, now_s, self.config.halt_timeout_s)
         return [HaltRoute()]
@@ -212,6 +221,8 @@ class PickCycle:
             return self._on_lost(event.target_id, now_s)
         phase, cur = self.phase, self._current
         if phase == HALT and isinstance(event, RobotStopped):
+            if self._select is not None:
+                self._queue = _unique(self._select(self._q.copy()))
             return self._next_target(now_s)
         if phase in (APPROACH, CAPTURE, RETREAT, DELIVER) and isinstance(event, TrajectoryFailed):
             return self._fail(cur, "aborted", f"{phase} trajectory failed: {event.detail}", now_s, cancel=False)

@@ -387,7 +387,7 @@ class HarvestNode:
         if request is None:
             count = min(len(h.in_reach()), self.config.max_targets_per_stop)
             self._carry_out(h.start_stop(q, now))
-            rospy.loginfo("harvest: stop %d: %d targets to pick", h.figures.stops, count)
+            rospy.loginfo("harvest: stop %d: halting for %d targets in reach", h.figures.stops, count)
             return
         goal = request["goal"]
         try:

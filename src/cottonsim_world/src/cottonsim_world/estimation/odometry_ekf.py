@@ -32,6 +32,15 @@ against the plant (the IMU sees it), so its speed stays near zero in the
 filter although the wheels turn. No IMU acceleration (``update_imu``
 without ``accel_body_m_s2``) = no slip check.
 
+Standstill (not in robot_localization; what a robot that stands for minutes, e.g. to pick, needs): the
+IMU's gyro has a slowly drifting bias (physics.imu_model), and the filter trusts the gyro's yaw rate far
+more than the wheels' (variance 5e-5 against 0.03), so a standing robot's odom yaw ran away with the bias
+(0.38 rad in 8 minutes of picking measured). While the wheels stand (forward speed within
+``standstill_speed_m_s``, yaw rate within ``standstill_yaw_rate_rad_s``, not slipping): their zero yaw
+rate is fused with ``standstill_yaw_rate_variance`` (encoders that do not move are exact), and the gyro's
+yaw-rate bias is estimated as the running mean of its readings (time constant ``gyro_bias_time_s``); the
+estimate is taken off every IMU yaw rate, standing or driving (``gyro_bias_rad_s``).
+
 The outputs are a pose and twist with 6x6 covariances in the
 (x, y, z, roll, pitch, yaw) order of nav_msgs/Odometry, and the odom ->
 base_link transform. Non-finite inputs are refused with a reason (returned
@@ -70,6 +79,9 @@ class OdometryEkfConfig:
     slip_speed_variance_m2_s2: variance of the IMU forward speed fused while slipping [m^2/s^2].
     slip_yaw_rate_variance_scale: the wheels' yaw-rate variance is multiplied by this while slipping.
     gravity_m_s2: magnitude of gravity removed from the IMU's specific force [m/s^2].
+    standstill_speed_m_s / standstill_yaw_rate_rad_s: the wheels stand within these [m/s], [rad/s].
+    standstill_yaw_rate_variance: the variance given to the standing wheels' yaw rate [rad^2/s^2].
+    gyro_bias_time_s: time constant of the gyro-bias mean taken while standing [s].
     """
 
     frequency_hz: float = 50.0
@@ -82,12 +94,17 @@ class OdometryEkfConfig:
     slip_speed_variance_m2_s2: float = 0.01
     slip_yaw_rate_variance_scale: float = 100.0
     gravity_m_s2: float = 9.8
+    standstill_speed_m_s: float = 0.001
+    standstill_yaw_rate_rad_s: float = 0.001
+    standstill_yaw_rate_variance: float = 1e-6
+    gyro_bias_time_s: float = 10.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.slip_check, bool):
             raise ValueError(f"OdometryEkfConfig.slip_check must be true or false, got {self.slip_check!r}")
         for name in ("frequency_hz", "max_dt_s", "slip_speed_threshold_m_s", "slip_blend_time_s",
-                     "slip_speed_variance_m2_s2", "gravity_m_s2"):
+                     "slip_speed_variance_m2_s2", "gravity_m_s2", "standstill_speed_m_s", "standstill_yaw_rate_rad_s",
+                     "standstill_yaw_rate_variance", "gyro_bias_time_s"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"OdometryEkfConfig.{name} must be a finite number > 0, got {v!r}")
@@ -280,6 +297,8 @@ class OdometryEkf:
         self._last_dt = 0.0
         self.slipping = False
         self.slip_events = 0                        # times slipping started
+        self.standing = False                       # the wheels stand (the last wheel odometry)
+        self.gyro_bias_rad_s = 0.0                  # the gyro's yaw-rate bias, estimated while standing
 
     @property
     def imu_speed_m_s(self) -> float:
@@ -387,6 +406,10 @@ class OdometryEkf:
                              (c.slip_speed_variance_m2_s2, var_w * c.slip_yaw_rate_variance_scale))
                 return None
             self._v_imu += diff * min(1.0, self._last_dt / c.slip_blend_time_s)
+        c = self.config
+        self.standing = abs(v) <= c.standstill_speed_m_s and abs(float(w_rad_s)) <= c.standstill_yaw_rate_rad_s
+        if self.standing:
+            var_w = min(var_w, c.standstill_yaw_rate_variance)
         self._update((VX, VYAW), (v, float(w_rad_s)), (var_v, var_w))
         return None
 
@@ -412,13 +435,18 @@ class OdometryEkf:
         var_r, err = self._variance(cov, "IMU yaw-rate cov")
         if err:
             return self._reject(f"IMU rejected: {err}")
+        rate = float(yaw_rate_rad_s)
+        if self.standing:
+            weight = min(1.0, 1.0 / (self.config.gyro_bias_time_s * self.config.frequency_hz))
+            self.gyro_bias_rad_s += (rate - self.gyro_bias_rad_s) * weight
+        rate -= self.gyro_bias_rad_s
         if yaw is None:
-            self._update((VYAW,), (float(yaw_rate_rad_s),), (var_r,))
+            self._update((VYAW,), (rate,), (var_r,))
             return None
         var_y, err = self._variance(yaw_cov, "IMU yaw_cov")
         if err:
             return self._reject(f"IMU rejected: {err}")
-        self._update((YAW, VYAW), (float(yaw), float(yaw_rate_rad_s)), (var_y, var_r))
+        self._update((YAW, VYAW), (float(yaw), rate), (var_y, var_r))
         return None
 
     # -------------------------------------------------------------- output
