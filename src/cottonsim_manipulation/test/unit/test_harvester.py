@@ -274,3 +274,23 @@ def test_transform_points_and_pose_checks():
 def test_bad_configs_are_refused_by_name(kwargs, word):
     with pytest.raises(ValueError, match=word):
         HarvestConfig(**kwargs)
+
+
+def test_targets_not_seen_lately_neither_stop_the_robot_nor_are_picked(model):
+    """An odometry jump leaves the targets seen before it 6 cm off their bolls: the bolls' new detections start
+    new targets, and a stop picks those, not the stale ones."""
+    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model), HarvestConfig(outward="lateral",
+                                                                                 max_target_age_s=2.0))
+    h.update_pose(np.eye(4), ARM_T_BASE)
+    a = np.array(BOLLS["a"][0])
+    see(h, [a + (0.0, 0.06, 0.0)], times=(0.0, 0.1))        # before the jump
+    assert h.want_stop(robot_stopped=True, now_s=1.0) and not h.want_stop(robot_stopped=True, now_s=2.5)
+    see(h, [a], times=(3.0, 3.1))                             # after it: a new target
+    assert len(h.fusion.open_targets()) == 2
+    fresh = [t.target_id for t in h.in_reach(now_s=3.5)]
+    assert len(fresh) == 1 and np.allclose(h.fusion.target(fresh[0]).position_m, a)
+    h.start_stop(STOW_RAD, 3.5)
+    h.on_event(RobotStopped(), 3.6)
+    assert h.cycle.current_target_id == fresh[0]
+    with pytest.raises(ValueError, match="max_target_age_s"):
+        HarvestConfig(max_target_age_s=0.0)

@@ -7,6 +7,11 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
 * Workspace: a confirmed target is *in reach* when its distance from the
   shoulder (the arm's base frame origin raised by the UR5e's d1) is within
   [``min_reach_m``, ``reach_m``]; the approach planner decides the rest.
+* Only targets seen lately count (``max_target_age_s`` before now, when the
+  caller gives the time): odometry jumps (a skid-steer robot turning into a
+  lane slips by centimetres) leave targets seen before them behind their
+  bolls; the bolls' new detections start new targets, and the stale ones are
+  never seen again, so they neither stop the robot nor are picked.
 * A stop starts (:meth:`Harvester.want_stop`) when a target in reach lies no
   more than ``stop_ahead_m`` ahead of the shoulder along the robot's heading
   (base_link x: the robot has come abeam of it), or when the robot stands
@@ -71,7 +76,8 @@ class HarvestConfig:
     plant_half_spacing_m: 'plant': half the plant spacing along the row, the mean shift's window [m].
     detection_sigma_m: 1-sigma position error given to each detection [m].
     stopped_speed_m_s: the robot stands when its odometry speed is at most this [m/s].
-    stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s]."""
+    stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s].
+    max_target_age_s: a target counts for stops and picks while its last detection is at most this old [s]."""
 
     reach_m: float = 1.0
     min_reach_m: float = 0.2
@@ -83,6 +89,7 @@ class HarvestConfig:
     detection_sigma_m: float = 0.01
     stopped_speed_m_s: float = 0.02
     stopped_yaw_rate_rad_s: float = 0.02
+    max_target_age_s: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s", "stopped_yaw_rate_rad_s",
@@ -90,6 +97,9 @@ class HarvestConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 < v <= 10.0):
                 raise ValueError(f"HarvestConfig.{name} must be a number in (0, 10], got {v!r}")
+        v = self.max_target_age_s
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 < v <= 3600.0):
+            raise ValueError(f"HarvestConfig.max_target_age_s must be a number in (0, 3600] s, got {v!r}")
         if self.min_reach_m >= self.reach_m:
             raise ValueError(f"HarvestConfig.min_reach_m {self.min_reach_m} must be below reach_m {self.reach_m}")
         v = self.stop_ahead_m
@@ -209,10 +219,13 @@ class Harvester:
         if self._arm_T_frame is None:
             raise RuntimeError("the arm base's pose is not known yet (update_pose)")
 
-    def in_reach(self) -> List[BollTarget]:
-        """Confirmed targets within the arm's workspace now, the nearest to the shoulder first."""
+    def in_reach(self, now_s: Optional[float] = None) -> List[BollTarget]:
+        """Confirmed targets within the arm's workspace now, the nearest to the shoulder first; with now_s
+        [s] only those seen within max_target_age_s before it."""
         self._require_pose()
         targets = self.fusion.open_targets()
+        if now_s is not None:
+            targets = [t for t in targets if now_s - t.last_seen_s <= self.config.max_target_age_s]
         if not targets:
             return []
         arm = transform_points(self._arm_T_frame, [t.position_m for t in targets])
@@ -220,11 +233,11 @@ class Harvester:
         ok = (distance >= self.config.min_reach_m) & (distance <= self.config.reach_m)
         return [targets[i] for i in np.argsort(distance, kind="stable") if ok[i]]
 
-    def want_stop(self, robot_stopped: bool) -> bool:
-        """Whether to stop for a pick now (not while a cycle runs)."""
+    def want_stop(self, robot_stopped: bool, now_s: Optional[float] = None) -> bool:
+        """Whether to stop for a pick now (not while a cycle runs); now_s as in :meth:`in_reach`."""
         if self.busy:
             return False
-        reach = self.in_reach()
+        reach = self.in_reach(now_s)
         if not reach:
             return False
         if robot_stopped:
@@ -241,8 +254,8 @@ class Harvester:
         self.figures.stops += 1
         return self._start(self._select_stop_targets, q_current_rad, now_s)
 
-    def _select_stop_targets(self, q_rad: np.ndarray) -> List[PickTarget]:
-        chosen = self.in_reach()[: self.config.max_targets_per_stop]
+    def _select_stop_targets(self, q_rad: np.ndarray, now_s: float) -> List[PickTarget]:
+        chosen = self.in_reach(now_s)[: self.config.max_targets_per_stop]
         return self._ordered([PickTarget(t.target_id, tuple(t.position_m), (0.0, 0.0, 0.0)) for t in chosen], q_rad)
 
     def start_pick(self, q_current_rad, now_s: float, target_id: Optional[int] = None, point_frame_m=None) -> list:

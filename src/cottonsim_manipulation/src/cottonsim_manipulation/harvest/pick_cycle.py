@@ -5,8 +5,8 @@ Phases, per target in the given order (see harvest.pick_order):
     HALT -> [ APPROACH -> CAPTURE -> RETREAT -> DELIVER -> RELEASE ] * targets -> ResumeRoute -> DONE
 
 * HALT: the route is paused (command HaltRoute); waits for the robot to stop. The targets are either
-  given at the start, or chosen once the robot stands (``targets`` a callable: ``select(q_current)`` ->
-  the ordered targets), from where it stopped: a robot may roll on while it brakes, and the
+  given at the start, or chosen once the robot stands (``targets`` a callable: ``select(q_current,
+  now_s)`` -> the ordered targets), from where it stopped: a robot may roll on while it brakes, and the
   choice and the order take planning time.
 * APPROACH: the target is planned (``plan_pick(target, q_current)``, e.g.
   planning.approach.plan_approach) and the transit to its pre-grasp is sent.
@@ -154,7 +154,7 @@ class PickResult:
 
 
 PlanPick = Callable[[PickTarget, np.ndarray], object]   # -> an ApproachResult (reason, detail, plan)
-SelectTargets = Callable[[np.ndarray], Sequence[PickTarget]]   # current joints -> the stop's targets, in order
+SelectTargets = Callable[[np.ndarray, float], Sequence[PickTarget]]   # (joints, time [s]) -> the stop's targets
 
 
 def _unique(targets: Sequence[PickTarget]) -> List[PickTarget]:
@@ -222,7 +222,7 @@ class PickCycle:
         phase, cur = self.phase, self._current
         if phase == HALT and isinstance(event, RobotStopped):
             if self._select is not None:
-                self._queue = _unique(self._select(self._q.copy()))
+                self._queue = _unique(self._select(self._q.copy(), now_s))
             return self._next_target(now_s)
         if phase in (APPROACH, CAPTURE, RETREAT, DELIVER) and isinstance(event, TrajectoryFailed):
             return self._fail(cur, "aborted", f"{phase} trajectory failed: {event.detail}", now_s, cancel=False)

@@ -369,7 +369,7 @@ class HarvestNode:
         with self._lock:
             request = self._requests.popleft() if self._requests else None
             auto = self.auto
-        if request is None and not (auto and h.want_stop(stopped)):
+        if request is None and not (auto and h.want_stop(stopped, now)):
             if self._route_held:                     # parked for a stop that is no longer wanted
                 self._route_held = False
                 self.hold_pub.publish(Bool(False))
@@ -385,7 +385,7 @@ class HarvestNode:
             self._send(park)
             return
         if request is None:
-            count = min(len(h.in_reach()), self.config.max_targets_per_stop)
+            count = min(len(h.in_reach(now)), self.config.max_targets_per_stop)
             self._carry_out(h.start_stop(q, now))
             rospy.loginfo("harvest: stop %d: halting for %d targets in reach", h.figures.stops, count)
             return
@@ -498,6 +498,6 @@ class HarvestNode:
         status = {"state": "parking" if self._parking else "picking" if h.busy else "idle", "auto": self.auto,
                   "phase": h.cycle.phase if h.busy else None, "target": h.cycle.current_target_id if h.busy else None,
                   "route_held": self._route_held, "targets": counts,
-                  "in_reach": [t.target_id for t in h.in_reach()]}
+                  "in_reach": [t.target_id for t in h.in_reach(now)]}
         status.update(h.figures.as_dict())
         self.status_pub.publish(String(data=json.dumps(status)))
