@@ -294,3 +294,22 @@ def test_targets_not_seen_lately_neither_stop_the_robot_nor_are_picked(model):
     assert h.cycle.current_target_id == fresh[0]
     with pytest.raises(ValueError, match="max_target_age_s"):
         HarvestConfig(max_target_age_s=0.0)
+
+
+def test_a_target_the_planner_failed_for_stops_the_robot_again_only_from_elsewhere(model):
+    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model), HarvestConfig(outward="lateral",
+                                                                                 retry_distance_m=0.2))
+    h.update_pose(np.eye(4), ARM_T_BASE)
+    beyond = (0.3, 0.0, -0.5)                      # in reach of the shoulder; the nozzle cannot get there
+    see(h, [beyond])
+    assert h.want_stop(robot_stopped=True)
+    drive(h, h.start_stop(STOW_RAD, 0.0))
+    assert h.figures.results["unreachable"] == 1
+    assert not h.want_stop(robot_stopped=True)     # from the same place it would fail again
+    moved = np.eye(4)
+    moved[1, 3] = 0.1                              # 0.1 m on: still too close to where it failed
+    h.update_pose(moved, ARM_T_BASE)
+    assert not h.want_stop(robot_stopped=True)
+    moved[1, 3] = -0.25                            # 0.25 m back
+    h.update_pose(moved, ARM_T_BASE)
+    assert h.want_stop(robot_stopped=True)

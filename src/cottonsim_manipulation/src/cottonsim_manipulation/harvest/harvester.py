@@ -12,6 +12,11 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   lane slips by centimetres) leave targets seen before them behind their
   bolls; the bolls' new detections start new targets, and the stale ones are
   never seen again, so they neither stop the robot nor are picked.
+* A target the planner failed for ('unreachable', 'ik_failed', 'collision')
+  counts again for stops and picks once the shoulder has moved
+  ``retry_distance_m`` from where it failed: from the same place the plan
+  fails the same way, and a robot that stopped for it again would stop
+  again and again as it drives off.
 * A stop starts (:meth:`Harvester.want_stop`) when a target in reach lies no
   more than ``stop_ahead_m`` ahead of the shoulder along the robot's heading
   (base_link x: the robot has come abeam of it), or when the robot stands
@@ -58,6 +63,7 @@ from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_pic
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
 
 OUTWARD_MODELS = ("plant", "lateral", "radial")
+PLANNING_FAILURES = ("unreachable", "ik_failed", "collision")   # results the planner decided
 PLAN_REUSE_MAX_JOINT_RAD = 0.01       # a stop's plan is used while the arm starts this close to its start ...
 PLAN_REUSE_MAX_SHIFT_M = 0.002        # ... and no point near the arm moved more than this (robot and arm pose)
 
@@ -77,7 +83,8 @@ class HarvestConfig:
     detection_sigma_m: 1-sigma position error given to each detection [m].
     stopped_speed_m_s: the robot stands when its odometry speed is at most this [m/s].
     stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s].
-    max_target_age_s: a target counts for stops and picks while its last detection is at most this old [s]."""
+    max_target_age_s: a target counts for stops and picks while its last detection is at most this old [s].
+    retry_distance_m: a target the planner failed for counts again once the shoulder moved this far [m]."""
 
     reach_m: float = 1.0
     min_reach_m: float = 0.2
@@ -90,10 +97,11 @@ class HarvestConfig:
     stopped_speed_m_s: float = 0.02
     stopped_yaw_rate_rad_s: float = 0.02
     max_target_age_s: float = 2.0
+    retry_distance_m: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s", "stopped_yaw_rate_rad_s",
-                     "row_offset_m", "plant_half_spacing_m"):
+                     "row_offset_m", "plant_half_spacing_m", "retry_distance_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 < v <= 10.0):
                 raise ValueError(f"HarvestConfig.{name} must be a number in (0, 10], got {v!r}")
@@ -197,6 +205,7 @@ class Harvester:
         self._next_point_id = -1
         self._seen = 0
         self._stop_plans: Dict[int, tuple] = {}   # target id -> (joints, arm_T_frame, result) of this stop's order
+        self._plan_failed_at: Dict[int, np.ndarray] = {}  # target id -> the shoulder (fixed frame) at its plan's failure
 
     # ------------------------------------------------------------------ inputs
     @property
@@ -233,11 +242,20 @@ class Harvester:
         ok = (distance >= self.config.min_reach_m) & (distance <= self.config.reach_m)
         return [targets[i] for i in np.argsort(distance, kind="stable") if ok[i]]
 
+    def _shoulder_in_frame(self) -> np.ndarray:
+        return transform_points(np.linalg.inv(self._arm_T_frame), [self._shoulder_m])[0]
+
+    def _candidates(self, now_s: Optional[float]) -> List[BollTarget]:
+        """in_reach(now_s) less the targets the planner failed for from about here (retry_distance_m)."""
+        shoulder = self._shoulder_in_frame()
+        return [t for t in self.in_reach(now_s) if t.target_id not in self._plan_failed_at or
+                np.linalg.norm(shoulder - self._plan_failed_at[t.target_id]) >= self.config.retry_distance_m]
+
     def want_stop(self, robot_stopped: bool, now_s: Optional[float] = None) -> bool:
         """Whether to stop for a pick now (not while a cycle runs); now_s as in :meth:`in_reach`."""
         if self.busy:
             return False
-        reach = self.in_reach(now_s)
+        reach = self._candidates(now_s)
         if not reach:
             return False
         if robot_stopped:
@@ -255,7 +273,7 @@ class Harvester:
         return self._start(self._select_stop_targets, q_current_rad, now_s)
 
     def _select_stop_targets(self, q_rad: np.ndarray, now_s: float) -> List[PickTarget]:
-        chosen = self.in_reach(now_s)[: self.config.max_targets_per_stop]
+        chosen = self._candidates(now_s)[: self.config.max_targets_per_stop]
         return self._ordered([PickTarget(t.target_id, tuple(t.position_m), (0.0, 0.0, 0.0)) for t in chosen], q_rad)
 
     def start_pick(self, q_current_rad, now_s: float, target_id: Optional[int] = None, point_frame_m=None) -> list:
@@ -339,5 +357,9 @@ class Harvester:
                     self.fusion.mark_picked(result.target_id)
                 elif result.reason != "cancelled":
                     self.fusion.mark_failed(result.target_id)
+                if result.reason in PLANNING_FAILURES and self._arm_T_frame is not None:
+                    self._plan_failed_at[result.target_id] = self._shoulder_in_frame()
+                else:
+                    self._plan_failed_at.pop(result.target_id, None)
         self._seen = len(self.cycle.results)
         return commands
