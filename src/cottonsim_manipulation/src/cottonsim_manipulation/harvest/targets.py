@@ -147,6 +147,11 @@ class TargetFusion:
         pos = np.array([d.position_m for d in detections])
         sig = np.maximum(np.array([d.sigma_m for d in detections]), cfg.min_sigma_m)
         active = [t for t in self._targets.values() if t.state != PICKED]
+        if active:              # only targets within the largest gate of the detections' bounding box can pair
+            tpos = np.array([t.position_m for t in active])
+            near = np.all((tpos >= pos.min(axis=0) - cfg.max_gate_m) & (tpos <= pos.max(axis=0) + cfg.max_gate_m),
+                          axis=1)
+            active = [t for t, keep in zip(active, near) if keep]
         assigned = np.zeros(len(detections), dtype=bool)
         if active:
             tpos = np.array([t.position_m for t in active])
@@ -155,9 +160,13 @@ class TargetFusion:
             combined = np.sqrt(sig[:, None] ** 2 + tsig[None, :] ** 2)
             norm = dist / combined
             gated = dist <= np.clip(cfg.gate_sigma * combined, cfg.min_gate_m, cfg.max_gate_m)
-            # Optimal assignment: least sum of squared normalised distances over gated pairs.
-            cost = np.where(gated, norm ** 2, _NOT_GATED)
-            for d, t in zip(*linear_sum_assignment(cost)):
+            # Optimal assignment: least sum of squared normalised distances over gated pairs, solved over
+            # the detections and targets that have a gated pair at all (the same assignment: any other
+            # pair costs _NOT_GATED; a run's targets far from this frame's detections drop out).
+            rows, cols = np.flatnonzero(gated.any(axis=1)), np.flatnonzero(gated.any(axis=0))
+            cost = np.where(gated[np.ix_(rows, cols)], norm[np.ix_(rows, cols)] ** 2, _NOT_GATED)
+            for i, j in zip(*linear_sum_assignment(cost)):
+                d, t = rows[i], cols[j]
                 if gated[d, t]:
                     assigned[d] = True
                     self._absorb(active[t], pos[d], sig[d], stamp_s)
