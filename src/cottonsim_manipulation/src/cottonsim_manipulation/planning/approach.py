@@ -79,6 +79,11 @@ class ApproachConfig:
     max_deviation_rad: combinations of yaw and tilt that turn the approach further than
         this from the outward direction are not tried (default: the capture cone's half
         angle, CaptureConfig.cone_half_angle_rad, 45 deg) [rad].
+    stem_radius_m, stem_height_m, stem_merge_distance_m: the plants' estimated stems as
+        obstacles (planning.stems.stem_obstacles, passed to plan_approach as `obstacles`):
+        vertical capsules of this radius (a stem's ~1 cm plus the estimate's error) [m]
+        from the ground up this high (the plants' height) [m]; estimates closer than the
+        merge distance are one stem (every boll of a plant estimates its stem) [m].
     """
 
     pregrasp_distance_m: float = 0.10
@@ -92,10 +97,14 @@ class ApproachConfig:
     tilt_samples_rad: Tuple[float, ...] = (0.0, 0.35, 0.7)
     yaw_samples_rad: Tuple[float, ...] = (0.0, 0.4, -0.4, 0.7, -0.7)
     max_deviation_rad: float = CaptureConfig().cone_half_angle_rad
+    stem_radius_m: float = 0.02
+    stem_height_m: float = 1.0
+    stem_merge_distance_m: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("pregrasp_distance_m", "retreat_distance_m", "grasp_standoff_m", "max_step_jump_rad",
-                     "max_line_deviation_m", "collision_step_rad", "max_deviation_rad"):
+                     "max_line_deviation_m", "collision_step_rad", "max_deviation_rad", "stem_radius_m",
+                     "stem_height_m", "stem_merge_distance_m"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ApproachConfig.{name} must be a finite number, got {value!r}")
@@ -104,6 +113,9 @@ class ApproachConfig:
         if self.pregrasp_distance_m > 0.5 or self.retreat_distance_m > 0.5 or self.grasp_standoff_m > 0.2:
             raise ValueError("ApproachConfig distances must stay within the arm's scale "
                              "(pre-grasp and retreat <= 0.5 m, standoff <= 0.2 m)")
+        for name, high in (("stem_radius_m", 0.2), ("stem_height_m", 5.0), ("stem_merge_distance_m", 1.0)):
+            if getattr(self, name) > high:
+                raise ValueError(f"ApproachConfig.{name} must be at most {high} m, got {getattr(self, name)!r}")
         tilts = self.tilt_samples_rad
         if not isinstance(tilts, tuple) or not tilts or not all(
                 isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 <= t <= 0.5 * math.pi for t in tilts):
