@@ -35,9 +35,9 @@ from cottonsim_common.kinematics.ur5e import (  # noqa: E402
 )
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks  # noqa: E402
 from cottonsim_manipulation.harvest.targets import BollDetection3D, TargetFusion  # noqa: E402
-from cottonsim_manipulation.planning.approach import plan_approach  # noqa: E402
-from cottonsim_common.capsules import CapsuleSet
-from cottonsim_manipulation.planning.collision import ArmCollisionModel# noqa: E402
+from cottonsim_manipulation.planning.approach import ApproachConfig, plan_approach  # noqa: E402
+from cottonsim_common.capsules import CapsuleSet  # noqa: E402
+from cottonsim_manipulation.planning.collision import ArmCollisionModel  # noqa: E402
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf  # noqa: E402
 from timing import wall_and_cpu_ms  # noqa: E402
 
@@ -104,23 +104,36 @@ def bench_collision(model, plants, rng):
 
 
 def bench_approach(model, plants, repeats):
-    bolls = []
+    """Per boll, the planner without approach yaw samples (the outward direction's vertical plane only)
+    and with ApproachConfig's defaults, interleaved so that both see the same load. Two sets: the
+    lane-facing halves (almost all planned) and bolls on the far halves facing away from the robot
+    (none can be planned: every direction is tried)."""
+    near, far = [], []
     for h in (0.35, 0.5, 0.65, 0.8, 0.95):
         for dy in (-0.2, 0.0, 0.2):
             for dx in (0.15, 0.25):
-                bolls.append((np.array([0.9 - dx, dy, GROUND_Z_M + h]), np.array([-1.0, 0.5 * dy, 0.0])))
-    times, reasons, durations = [], Counter(), []
-    for _ in range(repeats):
-        for boll, outward in bolls:
-            t = time.perf_counter()
-            result = plan_approach(boll, outward, STOW_RAD, model, plants)
-            times.append((time.perf_counter() - t) * 1e3)
-            reasons[result.reason] += 1
-            if result.ok:
-                durations.append(result.plan.duration_s)
-    print(f"approach plan per boll ({len(bolls)} bolls x {repeats}): {statistics.median(times):7.1f} ms median, "
-          f"{np.percentile(times, 95):.1f} ms p95; {dict(reasons)}; "
-          f"pick motion (transit + approach + retreat) {statistics.median(durations):.2f} s median")
+                near.append((np.array([0.9 - dx, dy, GROUND_Z_M + h]), np.array([-1.0, 0.5 * dy, 0.0])))
+            far.append((np.array([1.1, dy, GROUND_Z_M + h]), np.array([1.0, 0.5 * dy, 0.0])))
+    configs = {"yaw_samples_rad=(0.0,)": ApproachConfig(yaw_samples_rad=(0.0,)), "defaults": ApproachConfig()}
+    for label, bolls in (("lane-facing", near), ("far halves", far)):
+        times = {name: [] for name in configs}
+        reasons = {name: Counter() for name in configs}
+        durations = {name: [] for name in configs}
+        for _ in range(repeats):
+            for boll, outward in bolls:
+                for name, config in configs.items():
+                    t = time.perf_counter()
+                    result = plan_approach(boll, outward, STOW_RAD, model, plants, config)
+                    times[name].append((time.perf_counter() - t) * 1e3)
+                    reasons[name][result.reason] += 1
+                    if result.ok:
+                        durations[name].append(result.plan.duration_s)
+        for name in configs:
+            motion = (f"; pick motion (transit + approach + retreat) {statistics.median(durations[name]):.2f} s median"
+                      if durations[name] else "")
+            print(f"approach plan per boll, {label}, {name} ({len(bolls)} bolls x {repeats}): "
+                  f"{statistics.median(times[name]):7.1f} ms median, {np.percentile(times[name], 95):.1f} ms p95, "
+                  f"{statistics.mean(times[name]):.1f} ms mean; {dict(reasons[name])}{motion}")
 
 
 def bench_fusion(rng):
@@ -148,6 +161,7 @@ def bench_pick_order(rng):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ik-poses", type=int, default=2000, help="poses timed for IK (default 2000)")
+    parser.add_argument("--only-approach", action="store_true", help="time the approach planning only")
     parser.add_argument("--repeats", type=int, default=2, help="rounds over the approach bolls (default 2)")
     args = parser.parse_args()
     print(f"machine: {machine()}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
@@ -155,6 +169,9 @@ def main():
     body = body_boxes_from_urdf((ROOT / "src/cottonsim_description/urdf/cottonsim_robot.urdf").read_text())
     model = ArmCollisionModel(body=body)
     plants = CapsuleSet.from_list(plant(0.9, -0.7, "p0") + plant(0.9, 0.0, "p1") + plant(0.9, 0.7, "p2"))
+    if args.only_approach:
+        bench_approach(model, plants, args.repeats)
+        return
     bench_ik(rng, args.ik_poses)
     bench_collision(model, plants, rng)
     bench_approach(model, plants, args.repeats)

@@ -8,6 +8,7 @@ import pytest
 
 from cottonsim_experiments.harvest.reachability import (ReachabilityConfig, farm_reachability, lane_facing,
                                                         lane_stops, reach_boll, robot_geometry_from_urdf)
+from cottonsim_manipulation.planning.approach import ApproachConfig
 from cottonsim_world.farm.model import Lane, Plant, PlantModel, PlantSkeleton
 from cottonsim_world.farm.plant_obstacles import PlantObstacles
 
@@ -28,7 +29,11 @@ def plant(plant_id, x, y, bolls_local=(), stem_radius=0.01, height=1.0):
     return Plant(plant_id, 0, plant_id, x, y, 0.0, model)
 
 
-def judge(robot, boll_world, outward, plants, config=ReachabilityConfig(roll_samples=8)):
+def study(roll_samples, **approach):
+    return ReachabilityConfig(approach=ApproachConfig(roll_samples=roll_samples, **approach))
+
+
+def judge(robot, boll_world, outward, plants, config=study(8)):
     stops = lane_stops([LANE], config.stop_spacing_m)
     return reach_boll(0, boll_world, outward, stops, PlantObstacles.from_plants(plants), robot, config)
 
@@ -64,12 +69,11 @@ def test_a_thick_stem_in_front_of_the_boll_makes_it_unreachable_by_collision(rob
     assert free.reachable and blocked.reason == "collision"
 
 
-def test_a_boll_facing_along_the_row_needs_the_approach_turned_towards_the_lane(robot):
+def test_a_boll_facing_along_the_row_needs_the_planners_approach_turned_towards_the_lane(robot):
     # the boll faces the next plant (+y), whose 8 cm thick stem stands 12 cm ahead of it
     plants = [plant(0, 0.9, 1.0), plant(1, 0.85, 1.17, stem_radius=0.04, height=2.0)]
-    straight = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants)
-    turned = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants,
-                   ReachabilityConfig(roll_samples=8, yaw_samples_rad=(0.0, 0.7, -0.7)))
+    straight = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants, study(8, yaw_samples_rad=(0.0,)))
+    turned = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants)          # the planner's yaw samples
     assert not straight.reachable and turned.reachable
 
 
@@ -83,7 +87,7 @@ def test_lane_facing_halves():
 def test_farm_reachability_numbers_bolls_as_the_simulator_does(robot):
     plants = [plant(0, 0.9, 0.5, [(-0.15, 0.0, 0.5), (0.15, 0.0, 0.5)]), plant(1, 0.9, 1.5, [(-0.15, 0.1, 0.6)])]
     farm = SimpleNamespace(plants=plants)
-    verdicts = farm_reachability(farm, [LANE], robot, ReachabilityConfig(roll_samples=6))
+    verdicts = farm_reachability(farm, [LANE], robot, study(6))
     assert [v.boll_id for v in verdicts] == [0, 1, 2]
     assert verdicts[0].reachable and verdicts[2].reachable
     assert not verdicts[1].reachable                               # behind its stem, facing away from the lane
@@ -92,9 +96,9 @@ def test_farm_reachability_numbers_bolls_as_the_simulator_does(robot):
 def test_bad_config_and_input_are_refused(robot):
     with pytest.raises(ValueError, match="stop_spacing_m"):
         ReachabilityConfig(stop_spacing_m=0.0)
-    with pytest.raises(ValueError, match="yaw_samples_rad"):
-        ReachabilityConfig(yaw_samples_rad=(3.0,))
-    with pytest.raises(ValueError, match="roll_samples"):
-        ReachabilityConfig(roll_samples=0)
+    with pytest.raises(ValueError, match="max_reach_m"):
+        ReachabilityConfig(max_reach_m=float("nan"))
+    with pytest.raises(ValueError, match="approach must be an ApproachConfig"):
+        ReachabilityConfig(approach={"roll_samples": 8})
     with pytest.raises(ValueError, match="finite"):
         judge(robot, (np.nan, 1.0, 0.5), (-1.0, 0.0, 0.0), [])

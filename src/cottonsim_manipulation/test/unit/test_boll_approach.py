@@ -9,6 +9,7 @@ from cottonsim_common.kinematics.ur5e import forward_kinematics, inverse_kinemat
 from cottonsim_common.vacuum_capture import check_capture, nozzle_tip
 from cottonsim_manipulation.planning.approach import (
     ApproachConfig,
+    approach_directions,
     plan_approach,
     tilted_up,
     tool_rotations,
@@ -33,7 +34,7 @@ def assert_plan_is_sound(result, boll, outward, model, obstacles, config=Approac
     tip, axis = tip_and_axis(plan.q_grasp_rad)
     np.testing.assert_allclose(tip, boll, atol=1e-6)
     np.testing.assert_allclose(axis, plan.approach_direction, atol=1e-6)
-    assert np.dot(direction, n) >= math.cos(max(config.tilt_samples_rad)) - 1e-9
+    assert np.dot(direction, n) >= math.cos(config.max_deviation_rad) - 1e-9
     assert check_capture(tip, axis, boll, direction).captured
     tip, _ = tip_and_axis(plan.q_pregrasp_rad)
     np.testing.assert_allclose(tip, boll + config.pregrasp_distance_m * direction, atol=1e-6)
@@ -79,6 +80,46 @@ def test_most_bolls_of_a_plant_face_are_planned_soundly(model):
             planned += 1
             assert_plan_is_sound(result, boll, outward, model, plants)
     assert planned >= 0.8 * len(cases)
+
+
+def test_a_boll_facing_along_the_row_past_a_stem_is_reached_with_a_yawed_approach(model):
+    # The boll faces along the row (+y, arm frame) towards the next plant, whose 6 cm thick stem
+    # stands 12 cm ahead of it: every approach in the outward direction's vertical plane hits it.
+    boll = np.array([0.75, 0.05, GROUND_Z_M + 0.5])
+    outward = np.array([0.0, 1.0, 0.0])
+    stem = CapsuleSet.from_list([((0.75, 0.17, GROUND_Z_M), (0.75, 0.17, GROUND_Z_M + 2.0), 0.03, "next/stem")])
+    without_yaw = plan_approach(boll, outward, STOW_RAD, model, stem, ApproachConfig(yaw_samples_rad=(0.0,)))
+    assert without_yaw.reason == "collision" and "next/stem" in without_yaw.detail
+    result = plan_approach(boll, outward, STOW_RAD, model, stem)
+    assert_plan_is_sound(result, boll, outward, model, stem)
+    assert result.plan.yaw_rad != 0.0 and result.plan.yaw_rad in ApproachConfig().yaw_samples_rad
+    # turned about the vertical, towards the lane (arm -x), and still inside the capture cone
+    tip, axis = tip_and_axis(result.plan.q_grasp_rad)
+    assert result.plan.approach_direction[0] > 0.0
+    assert check_capture(tip, axis, boll, outward).captured
+
+
+def test_approach_directions_least_deviation_first_inside_the_capture_cone():
+    outward = np.array([0.0, 1.0, 0.0])
+    cfg = ApproachConfig(tilt_samples_rad=(0.0, 0.35, 0.7), yaw_samples_rad=(0.0, 0.4, -0.4, 0.7, -0.7))
+    directions = approach_directions(outward, cfg)
+    deviations = [d.deviation_rad for d in directions]
+    assert deviations == sorted(deviations) and deviations[0] == 0.0
+    assert cfg.max_deviation_rad == pytest.approx(math.radians(45.0))          # the capture cone
+    assert max(deviations) <= cfg.max_deviation_rad + 1e-9
+    # 15 combinations; (+-0.4, 0.7) at 45.2 deg and (+-0.7, 0.7) at 54 deg lie outside the cone
+    assert len(directions) == 11
+    assert {(d.yaw_rad, d.tilt_rad) for d in directions} == {
+        (y, t) for y in cfg.yaw_samples_rad for t in cfg.tilt_samples_rad} - {(0.4, 0.7), (-0.4, 0.7), (0.7, 0.7),
+                                                                               (-0.7, 0.7)}
+    for d in directions:
+        assert np.linalg.norm(d.vector) == pytest.approx(1.0)
+        assert math.acos(np.clip(d.vector @ outward, -1, 1)) == pytest.approx(d.deviation_rad)
+        assert math.asin(d.vector[2]) == pytest.approx(d.tilt_rad)
+        assert math.atan2(-d.vector[0], d.vector[1]) == pytest.approx(d.yaw_rad)       # turned about +z
+    # the planner's previous order when there is no yaw: the tilts in turn
+    only_tilts = approach_directions(outward, ApproachConfig(yaw_samples_rad=(0.0,)))
+    assert [(d.yaw_rad, d.tilt_rad) for d in only_tilts] == [(0.0, 0.0), (0.0, 0.35), (0.0, 0.7)]
 
 
 def test_the_least_travel_candidate_is_chosen_without_obstacles():
@@ -155,5 +196,13 @@ def test_bad_input_is_rejected():
         ApproachConfig(approach_steps=1)
     with pytest.raises(ValueError, match="tilt_samples_rad"):
         ApproachConfig(tilt_samples_rad=(0.0, 2.0))
+    for yaws in ((), (0.0, 2.0), [0.0, 0.4], (0.0, "0.4"), (0.0, float("nan")), (True,)):
+        with pytest.raises(ValueError, match="yaw_samples_rad"):
+            ApproachConfig(yaw_samples_rad=yaws)
+    for deviation in (-0.1, 4.0, float("inf"), "0.5"):
+        with pytest.raises(ValueError, match="max_deviation_rad"):
+            ApproachConfig(max_deviation_rad=deviation)
+    with pytest.raises(ValueError, match="every combination of tilt_samples_rad and yaw_samples_rad"):
+        ApproachConfig(tilt_samples_rad=(0.7,), yaw_samples_rad=(0.7, -0.7))
     with pytest.raises(ValueError, match="pregrasp_distance_m"):
         ApproachConfig(pregrasp_distance_m=-0.1)

@@ -3,11 +3,12 @@
 A boll is reachable from a lane when, from some stop on the lane's centre
 line (stops every ``stop_spacing_m``, the robot heading along the lane), the
 UR5e has a configuration within its joint limits that puts the nozzle tip on
-the boll's centre with the nozzle pointing into the boll (against its
-outward direction, tilted up by one of ``tilt_samples_rad``, rolled about
-its axis by one of ``roll_samples``; optionally also turned about the vertical
-by one of ``yaw_samples_rad``), and the same IK branch reaches the
-pre-grasp ``pregrasp_distance_m`` out along that direction, both free of the
+the boll's centre with the nozzle pointing into the boll (against one of the
+approach directions the planner tries: the outward direction turned about the
+vertical and tilted up, planning.approach.approach_directions with the
+planner's ApproachConfig; rolled about its axis by one of its ``roll_samples``),
+and the same IK branch reaches the pre-grasp ``pregrasp_distance_m`` out along
+that direction, both free of the
 plants' stems and main branches, the robot's own body and the arm itself
 (leaves are soft and ignored). This is what the approach planner
 (cottonsim_manipulation.planning.approach) needs at the ends of its
@@ -23,12 +24,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence
 
 import numpy as np
 
 from cottonsim_common.kinematics.ur5e import NUM_JOINTS, inverse_kinematics_batch
-from cottonsim_manipulation.planning.approach import tilted_up, tool_rotations
+from cottonsim_manipulation.planning.approach import ApproachConfig, approach_directions, tool_rotations
 from cottonsim_manipulation.planning.collision import ArmCollisionModel
 
 REASONS = ("reachable", "no_stop_in_range", "no_ik", "collision")
@@ -40,39 +41,23 @@ class ReachabilityConfig:
     """stop_spacing_m: stops along each lane's centre line this far apart [m].
     max_reach_m: only stops within this horizontal distance of a boll are tried [m] (the arm's
         reach plus its mount's offset from base_link).
-    tilt_samples_rad, roll_samples, pregrasp_distance_m: the nozzle poses tried, as the approach
-        planner tries them (ApproachConfig's defaults) [rad], [-], [m].
-    yaw_samples_rad: the approach direction also turned about the vertical by each of these [rad]
-        (default (0,): only the outward direction, as the planner does; bolls that face along the
-        row need a turn towards the lane, which the capture cone of 45 deg allows).
+    approach: the planner's configuration (planning.approach.ApproachConfig, default its defaults, as the
+        harvest node's config/harvest.yaml sets them): its approach directions (yaw and tilt samples,
+        max_deviation_rad), roll_samples and pregrasp_distance_m are the nozzle poses tried.
     """
 
     stop_spacing_m: float = 0.1
     max_reach_m: float = 1.4
-    tilt_samples_rad: Tuple[float, ...] = (0.0, 0.35, 0.7)
-    roll_samples: int = 12
-    pregrasp_distance_m: float = 0.10
-    yaw_samples_rad: Tuple[float, ...] = (0.0,)
+    approach: ApproachConfig = ApproachConfig()
 
     def __post_init__(self) -> None:
-        for name, low, high in (("stop_spacing_m", 0.01, 5.0), ("max_reach_m", 0.1, 5.0),
-                                ("pregrasp_distance_m", 0.0, 0.5)):
+        for name, low, high in (("stop_spacing_m", 0.01, 5.0), ("max_reach_m", 0.1, 5.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (low <= v <= high):
                 raise ValueError(f"ReachabilityConfig.{name} must be a number in [{low}, {high}], got {v!r}")
-        tilts = self.tilt_samples_rad
-        if not isinstance(tilts, tuple) or not tilts or not all(
-                isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 <= t <= 0.5 * math.pi for t in tilts):
-            raise ValueError(f"ReachabilityConfig.tilt_samples_rad must be a non-empty tuple of angles in "
-                             f"[0, pi/2], got {tilts!r}")
-        yaws = self.yaw_samples_rad
-        if not isinstance(yaws, tuple) or not yaws or not all(
-                isinstance(t, (int, float)) and not isinstance(t, bool) and abs(t) <= 0.5 * math.pi for t in yaws):
-            raise ValueError(f"ReachabilityConfig.yaw_samples_rad must be a non-empty tuple of angles in "
-                             f"[-pi/2, pi/2], got {yaws!r}")
-        r = self.roll_samples
-        if isinstance(r, bool) or not isinstance(r, int) or not 1 <= r <= 360:
-            raise ValueError(f"ReachabilityConfig.roll_samples must be an integer in [1, 360], got {r!r}")
+        if not isinstance(self.approach, ApproachConfig):
+            raise ValueError(f"ReachabilityConfig.approach must be an ApproachConfig, got "
+                             f"{type(self.approach).__name__}")
 
 
 @dataclass(frozen=True)
@@ -152,14 +137,13 @@ def reach_boll(boll_id: int, centre_m, outward, stops: Sequence[LaneStop], obsta
         return BollReach(boll_id, "no_stop_in_range")
     model = robot.model
     nozzle = model.config.nozzle_length_m
-    rolls = np.arange(config.roll_samples) * (2.0 * math.pi / config.roll_samples)
+    approach = config.approach
+    rolls = np.arange(approach.roll_samples) * (2.0 * math.pi / approach.roll_samples)
     woody = obstacles.woody_capsules(obstacles.plants_near(p, config.max_reach_m))
     any_ik = False
     arm_T_world = [_rigid_inverse(_world_T_arm(stops[i], robot)) for i in order]
-    turned = [np.array([math.cos(y) * n[0] - math.sin(y) * n[1], math.sin(y) * n[0] + math.cos(y) * n[1], n[2]])
-              for y in config.yaw_samples_rad]
-    for out, tilt in ((out, tilt) for out in turned for tilt in config.tilt_samples_rad):
-        direction_world = tilted_up(out, tilt)
+    for candidate in approach_directions(n, approach):
+        direction_world = candidate.vector
         rot_world = tool_rotations(-direction_world, rolls)                        # (R, 3, 3)
         # the nozzle's grasp and pre-grasp poses from every stop in range, in one IK call
         poses = np.zeros((len(order), len(rolls), 2, 4, 4))
@@ -167,7 +151,7 @@ def reach_boll(boll_id: int, centre_m, outward, stops: Sequence[LaneStop], obsta
             direction = t[:3, :3] @ direction_world
             p_arm = t[:3, :3] @ p + t[:3, 3]
             poses[k, :, :, :3, :3] = (t[:3, :3] @ rot_world)[:, None]
-            for j, s in enumerate((0.0, config.pregrasp_distance_m)):             # grasp, pre-grasp
+            for j, s in enumerate((0.0, approach.pregrasp_distance_m)):             # grasp, pre-grasp
                 poses[k, :, j, :3, 3] = p_arm + (s + nozzle) * direction          # the flange behind the tip
         poses[..., 3, 3] = 1.0
         q, _ = inverse_kinematics_batch(poses.reshape(-1, 4, 4), np.zeros(NUM_JOINTS), model.kinematics)

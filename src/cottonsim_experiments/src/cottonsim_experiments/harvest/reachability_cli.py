@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import dataclasses
 import json
 import math
 import pathlib
@@ -17,6 +18,7 @@ from typing import List, Optional
 
 from cottonsim_experiments.harvest.reachability import (ReachabilityConfig, farm_reachability, lane_facing,
                                                         robot_geometry_from_urdf)
+from cottonsim_manipulation.planning.approach import ApproachConfig
 
 
 def _default_urdf() -> pathlib.Path:
@@ -58,9 +60,11 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="the farm's seed (default 0)")
     parser.add_argument("--rows", type=int, nargs="*", help="only the plants of these rows (default: all)")
     parser.add_argument("--urdf", type=pathlib.Path, help="robot description (default: cottonsim_description's)")
-    parser.add_argument("--roll-samples", type=int, default=ReachabilityConfig().roll_samples)
-    parser.add_argument("--yaw-samples", type=float, nargs="+", default=[0.0],
-                        help="approach directions turned about the vertical by these [rad] (default 0: the planner's)")
+    parser.add_argument("--roll-samples", type=int, help="nozzle rolls tried (default: the planner's, "
+                                                            "ApproachConfig.roll_samples)")
+    parser.add_argument("--yaw-samples", type=float, nargs="+",
+                        help="approach directions turned about the vertical by these [rad] (default: the "
+                             "planner's, ApproachConfig.yaw_samples_rad; 0 for the outward direction's plane only)")
     parser.add_argument("--json", type=pathlib.Path, help="write the summary and every boll's verdict here")
     args = parser.parse_args(argv)
     from cottonsim_world.farm.config import FarmConfig
@@ -70,9 +74,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     if args.rows:
         farm.plants = [p for p in farm.plants if p.row in set(args.rows)]
     robot = robot_geometry_from_urdf((args.urdf or _default_urdf()).read_text())
+    approach = ApproachConfig()
+    if args.roll_samples is not None:
+        approach = dataclasses.replace(approach, roll_samples=args.roll_samples)
+    if args.yaw_samples is not None:
+        approach = dataclasses.replace(approach, yaw_samples_rad=tuple(args.yaw_samples))
     start = time.perf_counter()
-    verdicts = farm_reachability(farm, farm.lanes, robot, ReachabilityConfig(roll_samples=args.roll_samples,
-                                                                          yaw_samples_rad=tuple(args.yaw_samples)),
+    verdicts = farm_reachability(farm, farm.lanes, robot, ReachabilityConfig(approach=approach),
                                  route_headings(farm))
     summary = summarise(farm, verdicts)
     summary["wall_s"] = round(time.perf_counter() - start, 1)

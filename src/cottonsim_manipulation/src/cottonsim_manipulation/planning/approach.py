@@ -17,16 +17,21 @@ follows each branch along the approach line at ``approach_steps`` points
 points, or leaves the joint limits, is dropped). The survivors are sorted by
 joint travel (sum over joints of |dq| from the current joints through the
 whole pick) and checked for collisions in that order; the first that is free
-is the plan. Otherwise the result says why: 'unreachable' (no arm
+is the plan. When no candidate of a direction is free, the next approach direction
+is tried (approach_directions: the outward direction turned about the vertical by
+each of ``yaw_samples_rad`` and tilted up by each of ``tilt_samples_rad``, the
+least deviation from the outward direction first, none beyond
+``max_deviation_rad``). Otherwise the result says why: 'unreachable' (no arm
 configuration puts the nozzle there), 'ik_failed' (configurations exist but
 none stays within the joint limits and on one branch along the approach),
 'collision' (every candidate hits a plant, the robot or itself).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Optional, Tuple
+from typing import List, Optional, Tuple
 
 import numpy as np
 
@@ -39,11 +44,13 @@ from cottonsim_common.kinematics.ur5e import (
     link_frames,
 )
 from cottonsim_common.validation import require_unit_vector
+from cottonsim_common.vacuum_capture import CaptureConfig
 from cottonsim_common.capsules import CapsuleSet
 from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
 
 REASONS = ("ok", "unreachable", "ik_failed", "collision")
+_ANGLE_TOLERANCE_RAD = 1e-9
 
 
 @dataclass(frozen=True)
@@ -65,6 +72,18 @@ class ApproachConfig:
         turned upwards by each angle (the nozzle then comes from above, which
         reaches low bolls near the robot); the first that gives a plan wins [rad].
         Keep them inside the capture cone (cottonsim_common.vacuum_capture).
+    yaw_samples_rad: the outward direction is also turned about the vertical (the arm
+        base's z) by each of these, combined with every tilt; a boll that faces along the
+        row (towards the next plant) is reached from the lane's side [rad], each in
+        [-pi/2, pi/2]. (0.0,) tries the outward direction's own vertical plane only.
+    max_deviation_rad: combinations of yaw and tilt that turn the approach further than
+        this from the outward direction are not tried (default: the capture cone's half
+        angle, CaptureConfig.cone_half_angle_rad, 45 deg) [rad].
+    stem_radius_m, stem_height_m, stem_merge_distance_m: the plants' estimated stems as
+        obstacles (planning.stems.stem_obstacles, passed to plan_approach as `obstacles`):
+        vertical capsules of this radius (a stem's ~1 cm plus the estimate's error) [m]
+        from the ground up this high (the plants' height) [m]; estimates closer than the
+        merge distance are one stem (every boll of a plant estimates its stem) [m].
     """
 
     pregrasp_distance_m: float = 0.10
@@ -76,10 +95,16 @@ class ApproachConfig:
     max_line_deviation_m: float = 0.005
     collision_step_rad: float = 0.02
     tilt_samples_rad: Tuple[float, ...] = (0.0, 0.35, 0.7)
+    yaw_samples_rad: Tuple[float, ...] = (0.0, 0.4, -0.4, 0.7, -0.7)
+    max_deviation_rad: float = CaptureConfig().cone_half_angle_rad
+    stem_radius_m: float = 0.02
+    stem_height_m: float = 1.0
+    stem_merge_distance_m: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("pregrasp_distance_m", "retreat_distance_m", "grasp_standoff_m", "max_step_jump_rad",
-                     "max_line_deviation_m", "collision_step_rad"):
+                     "max_line_deviation_m", "collision_step_rad", "max_deviation_rad", "stem_radius_m",
+                     "stem_height_m", "stem_merge_distance_m"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ApproachConfig.{name} must be a finite number, got {value!r}")
@@ -88,11 +113,26 @@ class ApproachConfig:
         if self.pregrasp_distance_m > 0.5 or self.retreat_distance_m > 0.5 or self.grasp_standoff_m > 0.2:
             raise ValueError("ApproachConfig distances must stay within the arm's scale "
                              "(pre-grasp and retreat <= 0.5 m, standoff <= 0.2 m)")
+        for name, high in (("stem_radius_m", 0.2), ("stem_height_m", 5.0), ("stem_merge_distance_m", 1.0)):
+            if getattr(self, name) > high:
+                raise ValueError(f"ApproachConfig.{name} must be at most {high} m, got {getattr(self, name)!r}")
         tilts = self.tilt_samples_rad
         if not isinstance(tilts, tuple) or not tilts or not all(
                 isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 <= t <= 0.5 * math.pi for t in tilts):
             raise ValueError(f"ApproachConfig.tilt_samples_rad must be a non-empty tuple of angles in [0, pi/2], "
                              f"got {tilts!r}")
+        yaws = self.yaw_samples_rad
+        if not isinstance(yaws, tuple) or not yaws or not all(
+                isinstance(y, (int, float)) and not isinstance(y, bool) and abs(y) <= 0.5 * math.pi for y in yaws):
+            raise ValueError(f"ApproachConfig.yaw_samples_rad must be a non-empty tuple of angles in "
+                             f"[-pi/2, pi/2], got {yaws!r}")
+        if self.max_deviation_rad > math.pi:
+            raise ValueError(f"ApproachConfig.max_deviation_rad must be in [0, pi], got {self.max_deviation_rad!r}")
+        least = min(math.acos(math.cos(t) * math.cos(y)) for t in tilts for y in yaws)
+        if least > self.max_deviation_rad + _ANGLE_TOLERANCE_RAD:
+            raise ValueError(f"ApproachConfig: every combination of tilt_samples_rad and yaw_samples_rad turns "
+                             f"a horizontal approach more than max_deviation_rad {self.max_deviation_rad!r} "
+                             f"from the outward direction (the least by {least:.3f} rad)")
         for name, low in (("approach_steps", 2), ("roll_samples", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (low <= value <= 360):
@@ -104,7 +144,8 @@ class ApproachPlan:
     """A pick's motion: transit (current -> pre-grasp), approach (-> grasp), retreat.
 
     approach_direction: the unit direction the nozzle moves in during the approach
-    (its axis; the outward direction reversed, tilted up by the tilt that worked).
+    (its axis; the outward direction reversed, turned by the yaw and tilted up by the tilt
+    that worked: yaw_rad, tilt_rad).
     """
 
     q_pregrasp_rad: np.ndarray
@@ -117,6 +158,8 @@ class ApproachPlan:
     branch: Tuple[int, int, int]
     joint_travel_rad: float
     approach_direction: np.ndarray
+    yaw_rad: float = 0.0
+    tilt_rad: float = 0.0
 
     @property
     def duration_s(self) -> float:
@@ -184,18 +227,57 @@ def plan_approach(
     if np.any(q0 < lower - 1e-9) or np.any(q0 > upper + 1e-9):
         raise ValueError(f"current joints {q0.tolist()} are outside the joint limits")
     results = []
-    for tilt in config.tilt_samples_rad:
-        direction = tilted_up(n, tilt)
-        result = _plan_direction(p, direction, q0, model, obstacles, config, trajectory_config, ik_cfg)
+    for direction in approach_directions(n, config):
+        result = _plan_direction(p, direction.vector, q0, model, obstacles, config, trajectory_config, ik_cfg)
         if result.ok:
-            return result
-        results.append(result)
-    # None worked: the most telling reason (collision > ik_failed > unreachable), of the least tilt.
+            plan = dataclasses.replace(result.plan, yaw_rad=direction.yaw_rad, tilt_rad=direction.tilt_rad)
+            return dataclasses.replace(result, plan=plan)
+        results.append((direction, result))
+    # None worked: the most telling reason (collision > ik_failed > unreachable), of the least deviation.
     for reason in ("collision", "ik_failed", "unreachable"):
-        for tilt, result in zip(config.tilt_samples_rad, results):
+        for direction, result in results:
             if result.reason == reason:
-                return ApproachResult(reason, f"tilt {tilt:.2f} rad: {result.detail}", None, result.candidates)
+                return ApproachResult(reason, f"yaw {direction.yaw_rad:.2f} rad, tilt {direction.tilt_rad:.2f} rad: "
+                                              f"{result.detail}", None, result.candidates)
     raise AssertionError("unreachable code: every result has a reason")
+
+
+@dataclass(frozen=True)
+class ApproachDirection:
+    """A direction tried: the outward direction turned about z by yaw_rad, then tilted up by tilt_rad;
+    vector (unit, from the boll out: the nozzle moves against it); deviation_rad: its angle from the
+    outward direction."""
+
+    yaw_rad: float
+    tilt_rad: float
+    vector: np.ndarray
+    deviation_rad: float
+
+
+def approach_directions(outward, config: ApproachConfig = ApproachConfig()) -> List[ApproachDirection]:
+    """The approach directions plan_approach tries for `outward` (unit after scaling), in order: every
+    yaw sample x tilt sample, the least deviation from the outward direction first (ties in the
+    order of yaw_samples_rad, then tilt_samples_rad), none deviating more than max_deviation_rad
+    (the least deviating one is always kept); repeats are dropped."""
+    n = require_unit_vector("outward direction", outward, 3)
+    found: List[ApproachDirection] = []
+    for yaw in config.yaw_samples_rad:
+        turned = turned_about_z(n, yaw)
+        for tilt in config.tilt_samples_rad:
+            vector = tilted_up(turned, tilt)
+            deviation = math.acos(min(1.0, max(-1.0, float(vector @ n))))
+            if not any(np.abs(d.vector - vector).max() < 1e-9 for d in found):
+                found.append(ApproachDirection(float(yaw), float(tilt), vector, deviation))
+    found.sort(key=lambda d: round(d.deviation_rad, 9))
+    kept = [d for d in found if d.deviation_rad <= config.max_deviation_rad + _ANGLE_TOLERANCE_RAD]
+    return kept or found[:1]
+
+
+def turned_about_z(direction: np.ndarray, yaw_rad: float) -> np.ndarray:
+    """The direction turned by yaw_rad about the z axis (counter-clockwise seen from above)."""
+    d = np.asarray(direction, dtype=float).reshape(3)
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]])
 
 
 def tilted_up(direction: np.ndarray, tilt_rad: float) -> np.ndarray:
