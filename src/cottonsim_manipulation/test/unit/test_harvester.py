@@ -43,7 +43,8 @@ def harvester(model):
     plants = plant_row()
     # The hand-built bolls face their own outward directions (within 17 deg of the robot's y axis), not away
     # from a stem: the 'lateral' estimate fits them (the 'plant' estimate is tested on its own below).
-    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model, plants), HarvestConfig(outward="lateral"))
+    h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, plants if stems is None else plants + stems),
+                  HarvestConfig(outward="lateral"))
     h.update_pose(np.eye(4), ARM_T_BASE)       # the fixed frame is the arm's base frame here
     return h
 
@@ -96,7 +97,7 @@ def test_detections_become_confirmed_targets_and_only_those_in_reach_count(harve
 
 
 def test_a_moving_robot_stops_once_it_is_abeam_of_a_target(model):
-    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model), HarvestConfig(stop_ahead_m=0.05))
+    h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(stop_ahead_m=0.05))
     ahead = (0.7, -0.4, GROUND_Z_M + 0.6)            # arm -y is ahead of the robot (base_link +x)
     see(h, [ahead])
     h.update_pose(np.eye(4), ARM_T_BASE)
@@ -113,9 +114,9 @@ class RecordingPlanner:
     def __init__(self, model):
         self.model, self.calls = model, []
 
-    def __call__(self, p, n, q):
+    def __call__(self, p, n, q, stems):
         self.calls.append(np.array(p))
-        return plan_approach(p, n, q, self.model)
+        return plan_approach(p, n, q, self.model, stems)
 
 
 def test_a_stop_chooses_and_plans_its_targets_from_where_the_robot_stands(model):
@@ -261,7 +262,7 @@ def test_transform_points_and_pose_checks():
     np.testing.assert_allclose(transform_points(BASE_T_ARM, [[1.0, 0.0, 0.0]]), [[0.3452, 1.0, 0.251]])
     with pytest.raises(ValueError, match="4x4"):
         transform_points(np.eye(3), [[0.0, 0.0, 0.0]])
-    h = Harvester(lambda p, n, q: None)
+    h = Harvester(lambda p, n, q, stems: None)
     with pytest.raises(RuntimeError, match="pose is not known"):
         h.in_reach()
 
@@ -280,7 +281,7 @@ def test_bad_configs_are_refused_by_name(kwargs, word):
 def test_targets_not_seen_lately_neither_stop_the_robot_nor_are_picked(model):
     """An odometry jump leaves the targets seen before it 6 cm off their bolls: the bolls' new detections start
     new targets, and a stop picks those, not the stale ones."""
-    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model), HarvestConfig(outward="lateral",
+    h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(outward="lateral",
                                                                                  max_target_age_s=2.0))
     h.update_pose(np.eye(4), ARM_T_BASE)
     a = np.array(BOLLS["a"][0])
@@ -298,7 +299,7 @@ def test_targets_not_seen_lately_neither_stop_the_robot_nor_are_picked(model):
 
 
 def test_a_target_the_planner_failed_for_stops_the_robot_again_only_from_elsewhere(model):
-    h = Harvester(lambda p, n, q: plan_approach(p, n, q, model), HarvestConfig(outward="lateral",
+    h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(outward="lateral",
                                                                                  retry_distance_m=0.2))
     h.update_pose(np.eye(4), ARM_T_BASE)
     beyond = (0.3, 0.0, -0.5)                      # in reach of the shoulder; the nozzle cannot get there
@@ -314,3 +315,33 @@ def test_a_target_the_planner_failed_for_stops_the_robot_again_only_from_elsewhe
     moved[1, 3] = -0.25                            # 0.25 m back
     h.update_pose(moved, ARM_T_BASE)
     assert h.want_stop(robot_stopped=True)
+
+
+def test_the_estimated_stems_are_obstacles_of_the_plan(model):
+    """'plant': a boll 0.2 m inside the row line; its stem (row line, plant centre) goes to the planner as a
+    vertical capsule from the ground up, in the arm's base frame; off with stem_obstacles false."""
+    seen_obstacles = []
+
+    def planner(p, n, q, stems):
+        seen_obstacles.append(stems)
+        return plan_approach(p, n, q, model, stems)
+
+    boll_base = np.array([0.5, 0.7, 0.3])                 # base_link; the row line at y 0.9
+    boll_arm = transform_points(ARM_T_BASE, [boll_base])[0]
+    for enabled in (True, False):
+        seen_obstacles.clear()
+        h = Harvester(planner, HarvestConfig(outward="plant", row_offset_m=0.9, stem_obstacles=enabled))
+        h.update_pose(np.eye(4), ARM_T_BASE)              # the fixed frame is the arm's base frame
+        see(h, [boll_arm])
+        h.start_stop(STOW_RAD, 0.0)
+        h.on_event(RobotStopped(), 0.1)
+        if not enabled:
+            assert seen_obstacles and all(o is None for o in seen_obstacles)
+            continue
+        stems = seen_obstacles[0]
+        assert len(stems.radius_m) == 1
+        foot, top = transform_points(BASE_T_ARM, [stems.start_m[0], stems.end_m[0]])
+        np.testing.assert_allclose(foot, [0.5, 0.9, HarvestConfig().ground_z_m], atol=1e-9)
+        np.testing.assert_allclose(top - foot, [0.0, 0.0, 1.0], atol=1e-9)
+    with pytest.raises(ValueError, match="stem_obstacles"):
+        HarvestConfig(stem_obstacles=1)

@@ -33,6 +33,10 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   own (a mean shift; a plant's bolls spread about its stem along the row even
   when only its lane-facing half is seen). 'lateral': along the robot's y
   axis towards its centre line. 'radial': from the boll towards the shoulder.
+* Stems as obstacles (``stem_obstacles``): the robot does not perceive stems, but the 'plant'
+  estimate places each target's stem (:func:`estimate_stem`); the stems of the targets within
+  reach of the boll go to the planner as vertical capsules (planning.stems) from the ground
+  (``ground_z_m`` in base_link) up, so an approach does not run into the plant.
 * A stop halts the route first; its targets are chosen and ordered once the
   robot stands, from the arm-base pose of that moment (:meth:`Harvester.update_pose`):
   a robot brakes over some centimetres, and planning a stop's picks takes
@@ -57,18 +61,22 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from cottonsim_common.capsules import CapsuleSet
 from cottonsim_common.kinematics.ur5e import Ur5eKinematics
 from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
+from cottonsim_manipulation.planning.approach import ApproachConfig
+from cottonsim_manipulation.planning.stems import stem_obstacles
 
 OUTWARD_MODELS = ("plant", "lateral", "radial")
 PLANNING_FAILURES = ("unreachable", "ik_failed", "collision")   # results the planner decided
 PLAN_REUSE_MAX_JOINT_RAD = 0.01       # a stop's plan is used while the arm starts this close to its start ...
 PLAN_REUSE_MAX_SHIFT_M = 0.002        # ... and no point near the arm moved more than this (robot and arm pose)
 
-# plan(boll position, outward direction, current joints), all in the arm's base frame -> ApproachResult
-Planner = Callable[[np.ndarray, np.ndarray, np.ndarray], object]
+# plan(boll position, outward direction, current joints, obstacles or None), all in the arm's base frame
+# -> ApproachResult (planning.approach.plan_approach)
+Planner = Callable[[np.ndarray, np.ndarray, np.ndarray, Optional[CapsuleSet]], object]
 
 
 @dataclass(frozen=True)
@@ -84,7 +92,9 @@ class HarvestConfig:
     stopped_speed_m_s: the robot stands when its odometry speed is at most this [m/s].
     stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s].
     max_target_age_s: a target counts for stops and picks while its last detection is at most this old [s].
-    retry_distance_m: a target the planner failed for counts again once the shoulder moved this far [m]."""
+    retry_distance_m: a target the planner failed for counts again once the shoulder moved this far [m].
+    stem_obstacles: the estimated stems of the targets near the boll are obstacles of its plan.
+    ground_z_m: the ground's height in base_link [m], where the stems stand (the Husky: base_link 0.13228 m up)."""
 
     reach_m: float = 1.0
     min_reach_m: float = 0.2
@@ -98,6 +108,8 @@ class HarvestConfig:
     stopped_yaw_rate_rad_s: float = 0.02
     max_target_age_s: float = 2.0
     retry_distance_m: float = 0.2
+    stem_obstacles: bool = True
+    ground_z_m: float = -0.13228
 
     def __post_init__(self) -> None:
         for name in ("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s", "stopped_yaw_rate_rad_s",
@@ -116,6 +128,11 @@ class HarvestConfig:
         v = self.max_targets_per_stop
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not (1 <= v <= 1000):
             raise ValueError(f"HarvestConfig.max_targets_per_stop must be an integer in [1, 1000], got {v!r}")
+        if not isinstance(self.stem_obstacles, bool):
+            raise ValueError(f"HarvestConfig.stem_obstacles must be true or false, got {self.stem_obstacles!r}")
+        v = self.ground_z_m
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and abs(v) <= 5.0):
+            raise ValueError(f"HarvestConfig.ground_z_m must be a number in [-5, 5] m, got {v!r}")
         if self.outward not in OUTWARD_MODELS:
             raise ValueError(f"HarvestConfig.outward must be one of {OUTWARD_MODELS}, got {self.outward!r}")
 
@@ -156,6 +173,23 @@ def transform_points(transform, points_m) -> np.ndarray:
     return p @ t[:3, :3].T + t[:3, 3]
 
 
+def estimate_stem(boll_base_m, targets_base_m, config: HarvestConfig = HarvestConfig()) -> np.ndarray:
+    """The boll's stem (x, y) in base_link [m] as the 'plant' model estimates it: on the row line
+    ``row_offset_m`` to the boll's side; along the row at the centre of its plant (a mean shift over the
+    targets (N, 3) on that side within ``plant_half_spacing_m``, from the boll's own x)."""
+    p = np.asarray(boll_base_m, dtype=float).reshape(3)
+    side = 1.0 if p[1] >= 0.0 else -1.0
+    others = np.asarray(targets_base_m, dtype=float).reshape(-1, 3)
+    along = others[others[:, 1] * side >= 0.0, 0]
+    x = p[0]
+    for _ in range(20):
+        window = along[np.abs(along - x) <= config.plant_half_spacing_m]
+        if not len(window) or abs(window.mean() - x) < 1e-4:
+            break
+        x = float(window.mean())
+    return np.array([x, side * config.row_offset_m])
+
+
 def estimate_outward(boll_base_m, targets_base_m, shoulder_base_m, config: HarvestConfig = HarvestConfig()
                      ) -> np.ndarray:
     """The boll's outward direction (unit, horizontal, base_link) as config.outward estimates it.
@@ -171,15 +205,8 @@ def estimate_outward(boll_base_m, targets_base_m, shoulder_base_m, config: Harve
         d = np.asarray(shoulder_base_m, dtype=float).reshape(3) - p
         d[2] = 0.0
     else:
-        others = np.asarray(targets_base_m, dtype=float).reshape(-1, 3)
-        along = others[others[:, 1] * side >= 0.0, 0]
-        x = p[0]
-        for _ in range(20):
-            window = along[np.abs(along - x) <= config.plant_half_spacing_m]
-            if not len(window) or abs(window.mean() - x) < 1e-4:
-                break
-            x = float(window.mean())
-        d = np.array([p[0] - x, p[1] - side * config.row_offset_m, 0.0])
+        stem = estimate_stem(p, targets_base_m, config)
+        d = np.array([p[0] - stem[0], p[1] - stem[1], 0.0])
     n = float(np.linalg.norm(d))
     return d / n if n > 1e-9 else lateral
 
@@ -189,8 +216,9 @@ class Harvester:
 
     def __init__(self, plan: Planner, config: HarvestConfig = HarvestConfig(), fusion: Optional[TargetFusion] = None,
                  cycle_config: PickCycleConfig = PickCycleConfig(), order_config: PickOrderConfig = PickOrderConfig(),
-                 kinematics: Optional[Ur5eKinematics] = None):
+                 kinematics: Optional[Ur5eKinematics] = None, approach_config: ApproachConfig = ApproachConfig()):
         self.config = config
+        self.approach_config = approach_config      # the stems' radius, height and merge distance
         self.fusion = fusion or TargetFusion()
         self.cycle_config = cycle_config
         self.order_config = order_config
@@ -328,7 +356,18 @@ class Harvester:
         boll = transform_points(base_T_frame, [target.position_m])[0]
         others = transform_points(base_T_frame, [t.position_m for t in self.fusion.targets()])
         outward = estimate_outward(boll, others, transform_points(base_T_arm, [self._shoulder_m])[0], self.config)
-        return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad)
+        return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad,
+                          self._stems(boll, others))
+
+    def _stems(self, boll_base_m: np.ndarray, targets_base_m: np.ndarray) -> Optional[CapsuleSet]:
+        """The estimated stems of the targets within the arm's reach of the boll, in the arm's base frame."""
+        if not self.config.stem_obstacles:
+            return None
+        near = targets_base_m[np.linalg.norm(targets_base_m[:, :2] - boll_base_m[:2], axis=1) <= self.config.reach_m]
+        stems = [estimate_stem(t, targets_base_m, self.config) for t in near] or \
+            [estimate_stem(boll_base_m, targets_base_m, self.config)]
+        return stem_obstacles(np.array(stems), self.config.ground_z_m, self.approach_config).transformed(
+            self._arm_T_base)
 
     def _ordered(self, targets: List[PickTarget], q_rad) -> List[PickTarget]:
         q = np.asarray(q_rad, dtype=float)

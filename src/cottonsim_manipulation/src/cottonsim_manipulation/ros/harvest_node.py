@@ -34,8 +34,8 @@ Service
   ~enable (std_srvs/SetBool): automatic picking on / off (~auto_harvest at the start).
 Parameters: config/harvest.yaml (each key with its unit and default).
 Before a pick the arm goes to its ready pose (the bin pose, PickCycleConfig.bin_joints_rad) when it is
-elsewhere. Plants are not obstacles of the plan (the robot does not perceive stems); the robot's own body
-(from /robot_description) is.
+elsewhere. The obstacles of a plan are the robot's own body (from /robot_description) and the stems the
+harvester estimates (~stem_obstacles); the robot does not perceive the plants themselves.
 """
 from __future__ import annotations
 
@@ -116,8 +116,9 @@ class HarvestNode:
             raise ValueError("no /robot_description: the arm's collision model needs the robot's body")
         model = ArmCollisionModel(config_from_params(ArmCollisionConfig, "~collision/"),
                                   body=body_boxes_from_urdf(urdf, arm_base_frame=self.arm_base_frame))
-        self.harvester = Harvester(lambda p, n, q: plan_approach(p, n, q, model, None, approach),
-                                   self.config, fusion, cycle, config_from_params(PickOrderConfig, "~order/"))
+        self.harvester = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems, approach),
+                                   self.config, fusion, cycle, config_from_params(PickOrderConfig, "~order/"),
+                                   approach_config=approach)
         self.ready_rad = np.asarray(cycle.bin_joints_rad, dtype=float)
 
         self._lock = threading.Lock()
