@@ -221,3 +221,34 @@ def test_cancel_while_halting_sends_no_trajectory_cancel():
     cycle.start(0.0)
     assert cycle.cancel(0.2) == [SetVacuum(False), ResumeRoute()]
     assert [r.reason for r in cycle.results] == ["cancelled"]
+
+
+def test_targets_chosen_once_the_robot_stands_and_deadlines_counted_after_planning():
+    """A stop that chooses its targets when the robot stands (a callable): the selection sees the joints and
+    the time of the stop; planning the selection took 8 s (the clock moved on), so the transit's deadline
+    counts from the end of the planning, not from the RobotStopped call's time."""
+    clock = {"now": 0.0}
+    asked = []
+
+    def select(q, now_s):
+        asked.append((q.copy(), now_s))
+        clock["now"] = now_s + 8.0                    # the plans of the stop took 8 s
+        return targets(2)
+
+    cycle = PickCycle(select, START, planner(), PickCycleConfig(motion_margin_s=1.0), clock=lambda: clock["now"])
+    assert cycle.start(0.0) == [HaltRoute()] and asked == []
+    commands = cycle.on_event(RobotStopped(), 2.0)
+    assert len(asked) == 1 and np.allclose(asked[0][0], START) and asked[0][1] == 2.0
+    assert purposes(commands) == ["transit"]
+    transit_s = commands[0].trajectory.duration_s
+    assert cycle.tick(2.0 + transit_s + 1.5) == []     # past the deadline counted from the call: not timed out
+    assert cycle.phase == "approach"
+    assert not any(r.reason == "timeout" for r in cycle.results)
+    cycle.tick(10.0 + transit_s + 1.1)                 # past the deadline counted from the plan's end
+    assert cycle.results[0].reason == "timeout"
+
+
+def test_an_empty_selection_resumes_the_route():
+    cycle = PickCycle(lambda q, now_s: [], START, planner())
+    assert cycle.start(0.0) == [HaltRoute()]
+    assert cycle.on_event(RobotStopped(), 1.0) == [ResumeRoute()] and cycle.done

@@ -216,8 +216,10 @@ class Harvester:
 
     def __init__(self, plan: Planner, config: HarvestConfig = HarvestConfig(), fusion: Optional[TargetFusion] = None,
                  cycle_config: PickCycleConfig = PickCycleConfig(), order_config: PickOrderConfig = PickOrderConfig(),
-                 kinematics: Optional[Ur5eKinematics] = None, approach_config: ApproachConfig = ApproachConfig()):
+                 kinematics: Optional[Ur5eKinematics] = None, approach_config: ApproachConfig = ApproachConfig(),
+                 clock: Optional[Callable[[], float]] = None):
         self.config = config
+        self.clock = clock                          # the time now [s], for the pick cycles (harvest.pick_cycle)
         self.approach_config = approach_config      # the stems' radius, height and merge distance
         self.fusion = fusion or TargetFusion()
         self.cycle_config = cycle_config
@@ -273,8 +275,9 @@ class Harvester:
     def _shoulder_in_frame(self) -> np.ndarray:
         return transform_points(np.linalg.inv(self._arm_T_frame), [self._shoulder_m])[0]
 
-    def _candidates(self, now_s: Optional[float]) -> List[BollTarget]:
-        """in_reach(now_s) less the targets the planner failed for from about here (retry_distance_m)."""
+    def pickable(self, now_s: Optional[float] = None) -> List[BollTarget]:
+        """What a stop would pick now: in_reach(now_s) less the targets the planner failed for from about
+        here (retry_distance_m)."""
         shoulder = self._shoulder_in_frame()
         return [t for t in self.in_reach(now_s) if t.target_id not in self._plan_failed_at or
                 np.linalg.norm(shoulder - self._plan_failed_at[t.target_id]) >= self.config.retry_distance_m]
@@ -283,7 +286,7 @@ class Harvester:
         """Whether to stop for a pick now (not while a cycle runs); now_s as in :meth:`in_reach`."""
         if self.busy:
             return False
-        reach = self._candidates(now_s)
+        reach = self.pickable(now_s)
         if not reach:
             return False
         if robot_stopped:
@@ -301,7 +304,7 @@ class Harvester:
         return self._start(self._select_stop_targets, q_current_rad, now_s)
 
     def _select_stop_targets(self, q_rad: np.ndarray, now_s: float) -> List[PickTarget]:
-        chosen = self._candidates(now_s)[: self.config.max_targets_per_stop]
+        chosen = self.pickable(now_s)[: self.config.max_targets_per_stop]
         return self._ordered([PickTarget(t.target_id, tuple(t.position_m), (0.0, 0.0, 0.0)) for t in chosen], q_rad)
 
     def start_pick(self, q_current_rad, now_s: float, target_id: Optional[int] = None, point_frame_m=None) -> list:
@@ -381,7 +384,7 @@ class Harvester:
 
     def _start(self, targets, q_rad, now_s: float) -> list:
         self._stop_plans = {}
-        self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config)
+        self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config, clock=self.clock)
         self._seen = 0
         return self._collect(self.cycle.start(now_s))
 

@@ -17,7 +17,10 @@ Phases, per target in the given order (see harvest.pick_order):
 * RELEASE: vacuum off, ``release_dwell_s`` for the boll to drop; the target is 'ok'.
 
 The machine is driven by calls with the current time [s]: start(), on_event()
-and tick(); each returns the commands to carry out. Every phase has a timeout,
+and tick(); each returns the commands to carry out. Planning takes time (a
+stop's selection plans every target): with a ``clock`` (a function returning
+the time now [s]) the phase deadlines after a plan count from the time the
+plan was done, not from the call's time. Every phase has a timeout,
 so the cycle ends even when no event ever arrives: a timed-out target is
 reported 'timeout' (the trajectory cancelled, the vacuum off) and the next one
 starts. A failed target's result carries a reason: 'unreachable', 'ik_failed',
@@ -177,8 +180,10 @@ class PickCycle:
     """The pick cycle of one stop. Use start(), then on_event() and tick() until done."""
 
     def __init__(self, targets: Union[Sequence[PickTarget], SelectTargets], q_current_rad, plan_pick: PlanPick,
-                 config: PickCycleConfig = PickCycleConfig(), trajectory_config: TrajectoryConfig = TrajectoryConfig()):
+                 config: PickCycleConfig = PickCycleConfig(), trajectory_config: TrajectoryConfig = TrajectoryConfig(),
+                 clock: Optional[Callable[[], float]] = None):
         self.config = config
+        self._clock = clock
         self.trajectory_config = trajectory_config
         self._select: Optional[SelectTargets] = targets if callable(targets) else None
         self._queue: List[PickTarget] = [] if callable(targets) else _unique(targets)
@@ -288,6 +293,8 @@ class PickCycle:
                 self.results.append(PickResult(target.target_id, "lost", "lost before its turn", 0.0))
                 continue
             result = self._plan_pick(target, self._q.copy())
+            if self._clock is not None:
+                now_s = max(now_s, float(self._clock()))
             if not result.ok:
                 self._current = _Current(target)
                 self._record(result.reason, result.detail, now_s)

@@ -19,7 +19,8 @@ Publications
       yellow confirmed, green picked, red abandoned.
   ~status (std_msgs/String, latched): JSON {"state": idle|parking|picking, "auto": bool, "phase": the pick
       cycle's phase or null, "target": id or null, "route_held": bool, "targets": {state: count},
-      "in_reach": ids of the confirmed targets in the arm's workspace now, the nearest first,
+      "in_reach": ids of the targets a stop would pick now (recently seen, in the arm's workspace, not
+      failed to plan from about here), the nearest first,
       "results": {reason: count}, "picked", "attempted", "stops", "cycle_time_median_s",
       "cycle_time_p95_s", "cycle_times_s": [...]}, every ~status_period_s and after each pick.
   ~hold_topic (std_msgs/Bool, /harvest/hold_route): true every loop cycle while the route must stand
@@ -118,7 +119,7 @@ class HarvestNode:
                                   body=body_boxes_from_urdf(urdf, arm_base_frame=self.arm_base_frame))
         self.harvester = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems, approach),
                                    self.config, fusion, cycle, config_from_params(PickOrderConfig, "~order/"),
-                                   approach_config=approach)
+                                   approach_config=approach, clock=rospy.get_time)
         self.ready_rad = np.asarray(cycle.bin_joints_rad, dtype=float)
 
         self._lock = threading.Lock()
@@ -386,7 +387,7 @@ class HarvestNode:
             self._send(park)
             return
         if request is None:
-            count = min(len(h.in_reach(now)), self.config.max_targets_per_stop)
+            count = min(len(h.pickable(now)), self.config.max_targets_per_stop)
             self._carry_out(h.start_stop(q, now))
             rospy.loginfo("harvest: stop %d: halting for %d targets in reach", h.figures.stops, count)
             return
@@ -499,6 +500,6 @@ class HarvestNode:
         status = {"state": "parking" if self._parking else "picking" if h.busy else "idle", "auto": self.auto,
                   "phase": h.cycle.phase if h.busy else None, "target": h.cycle.current_target_id if h.busy else None,
                   "route_held": self._route_held, "targets": counts,
-                  "in_reach": [t.target_id for t in h.in_reach(now)]}
+                  "in_reach": [t.target_id for t in h.pickable(now)]}
         status.update(h.figures.as_dict())
         self.status_pub.publish(String(data=json.dumps(status)))
