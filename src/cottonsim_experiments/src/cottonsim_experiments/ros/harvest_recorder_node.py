@@ -8,7 +8,8 @@ so the file holds the last state whichever way the run ends.
 Subscriptions
   /harvest/status (std_msgs/String, JSON), /harvest/targets (cottonsim_msgs/BollTargetArray), /sim/bolls
   (cottonsim_msgs/BollArray, world), /ground_truth/odom (nav_msgs/Odometry, world): with TF (targets' frame
-  -> ~robot_frame) the pose of the targets' frame in the world, so each target gets position_world.
+  -> ~robot_frame) the pose of the targets' frame in the world, so each target gets position_world, as of the
+  message in which its position last changed (the odom frame drifts from the world over a run).
 Parameters
   ~output_file (str, required): where harvest.json goes (its folder is created)
   ~robot_frame (str, base_link): the robot's frame, the child of /ground_truth/odom
@@ -50,6 +51,7 @@ class HarvestRecorderNode:
         self.dirty = False
         self.last_write_wall_s = 0.0
         self.world_T_base = None          # (stamp, 4x4) from /ground_truth/odom
+        self.world_of_target = {}         # target id -> (position in the targets' frame, in the world) when estimated
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth_pose, queue_size=5)
@@ -91,7 +93,15 @@ class HarvestRecorderNode:
         targets = []
         for t in msg.targets:
             position = [t.position.x, t.position.y, t.position.z]
-            world = None if world_T_frame is None else (world_T_frame @ np.array(position + [1.0]))[:3].tolist()
+            # a target's world position as of its last estimate: the odom frame drifts from the world
+            # (by decimetres over a long run), and a target not seen since keeps where it was believed then
+            known = self.world_of_target.get(t.id)
+            if known is not None and known[0] == position:
+                world = known[1]
+            else:
+                world = None if world_T_frame is None else (world_T_frame @ np.array(position + [1.0]))[:3].tolist()
+                if world is not None:
+                    self.world_of_target[t.id] = (position, world)
             targets.append({"id": t.id, "position": position, "position_world": world, "sigma_m": t.sigma_m,
                             "observations": t.observations, "state": t.state, "attempts": t.attempts,
                             "last_result": t.last_result})
