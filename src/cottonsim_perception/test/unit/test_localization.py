@@ -80,17 +80,52 @@ def test_localize_box_is_the_median_of_its_front_points():
     depth = np.full((80, 100), 3.0)      # a wall 3 m away (the next row, seen through a gap)
     depth[20:40, 60:80] = 1.0            # a boll-like patch 1 m away, covering most of the box
     box = np.array([[58.0, 18.0, 82.0, 42.0]])
-    pos, valid = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(box_shrink_fraction=0.0))
+    flat = BollLocalizationConfig(box_shrink_fraction=0.0, surface_to_centre=False)   # a flat patch: no centre
+    pos, valid = localize_boxes(box, organized_cloud(depth), K, flat)
     assert valid.tolist() == [True]
     # hand value: centre pixel column 69.5 +- -> x = (69.5 - 49.5) / 100 * 1 m = 0.2 m (median of 60..79)
     assert pos[0] == pytest.approx([0.2, (29.5 - 39.5) / 100.0, 1.0], abs=1e-9)
     # without the front-surface rule the wall points (28 % of the box) still leave the median on the
     # patch, but a box mostly over the wall is pulled back: the rule keeps the patch
     big = np.array([[50.0, 10.0, 90.0, 50.0]])                    # patch is 25 % of this box
-    p_front, _ = localize_boxes(big, organized_cloud(depth), K, BollLocalizationConfig(box_shrink_fraction=0.0))
+    p_front, _ = localize_boxes(big, organized_cloud(depth), K, flat)
     p_all, _ = localize_boxes(big, organized_cloud(depth), K,
-                              BollLocalizationConfig(box_shrink_fraction=0.0, front_depth_m=10.0))
+                              BollLocalizationConfig(box_shrink_fraction=0.0, front_depth_m=10.0,
+                                                     surface_to_centre=False))
     assert p_front[0, 2] == pytest.approx(1.0) and p_all[0, 2] == pytest.approx(3.0)
+
+
+def sphere_depth(centre, radius_m, background_m=3.0, shape=(80, 100)):
+    """Depth image of a sphere (optical frame) in front of a wall: each pixel's ray hits the sphere's near side."""
+    h, w = shape
+    v, u = np.mgrid[0:h, 0:w].astype(float)
+    rays = np.stack([(u - CX) / FX, (v - CY) / FY, np.ones_like(u)], axis=-1)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    c = np.asarray(centre, dtype=float)
+    along = rays @ c
+    miss = along ** 2 - (c @ c - radius_m ** 2)
+    hit = miss >= 0.0
+    rng = np.where(hit, along - np.sqrt(np.where(hit, miss, 0.0)), np.inf)
+    depth = np.where(hit, rng * rays[..., 2], background_m)
+    return depth
+
+
+@pytest.mark.parametrize("centre", [(0.1, 0.05, 0.9), (-0.2, 0.1, 1.2), (0.0, 0.0, 0.6)])
+def test_a_boll_is_localised_at_its_centre_not_on_its_visible_surface(centre):
+    """A 6 cm sphere: the median of its visible surface lies ~2 cm in front of its centre; moved along the
+    ray by the box's radius it lands within 5 mm of the centre (this coarse camera: a pixel is 6-12 mm there)."""
+    radius = 0.03
+    depth = sphere_depth(centre, radius)
+    c = np.asarray(centre)
+    uv = project_points(np.array([c - [radius, radius, 0.0], c + [radius, radius, 0.0]]), FX, FY, CX, CY)
+    box = np.array([[uv[0, 0], uv[0, 1], uv[1, 0], uv[1, 1]]])    # the boll's tight box
+    surface, _ = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(surface_to_centre=False))
+    centred, valid = localize_boxes(box, organized_cloud(depth), K)
+    assert valid.tolist() == [True]
+    assert np.linalg.norm(surface[0] - c) > 0.015
+    assert np.linalg.norm(centred[0] - c) < 0.005
+    with pytest.raises(ValueError, match="surface_to_centre"):
+        BollLocalizationConfig(surface_to_centre="yes")
 
 
 def test_localize_handles_empty_nan_and_decimated_clouds():
@@ -98,7 +133,7 @@ def test_localize_handles_empty_nan_and_decimated_clouds():
     cloud = organized_cloud(depth)
     cloud[::2] = np.nan
     boxes = np.array([[10.0, 10.0, 20.0, 20.0], [99.0, 79.0, 100.0, 80.0]])
-    pos, valid = localize_boxes(boxes, cloud[::3], K, BollLocalizationConfig(min_points=3))
+    pos, valid = localize_boxes(boxes, cloud[::3], K, BollLocalizationConfig(min_points=3, surface_to_centre=False))
     assert valid.tolist() == [True, False] and np.isnan(pos[1]).all()
     assert pos[0, 2] == pytest.approx(2.0)
     pos, valid = localize_boxes(boxes, np.zeros((0, 3)), K)

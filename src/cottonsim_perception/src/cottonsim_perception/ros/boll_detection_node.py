@@ -51,7 +51,7 @@ Parameters (private; config/boll_detection.yaml documents each)
   ~backend (str, onnxruntime), ~device (str, cpu), ~conf_threshold (float, 0.25), ~iou_threshold (float, 0.7),
   ~threads (int, 1), ~target_frame (str, base_link), ~arm_base_frame (str, ur5e_base_link), ~reach_m (float, 0.85),
   ~min_box_area_px (int, 4), ~min_points (int, 3), ~box_shrink_fraction (float, 0.15),
-  ~max_depth_m (float, 4.0), ~front_depth_m (float, 0.15), ~rate_hz (float, 2.0),
+  ~max_depth_m (float, 4.0), ~front_depth_m (float, 0.15), ~surface_to_centre (bool, true), ~rate_hz (float, 2.0),
   ~stale_after_s (float, 1.0), ~black_max_mean (float, 2.0), ~black_warn_frames (int, 10), ~health_period_s (float, 1.0)
 TF (looked up): ~target_frame <- <c>_color_optical_frame, ~arm_base_frame <- <c>_color_optical_frame
 """
@@ -72,6 +72,7 @@ from std_msgs.msg import Bool
 from cottonsim_common.rate_slots import slot_index
 from cottonsim_common.ros import conversions as conv
 from cottonsim_common.ros.frames_done import FramesDonePublisher
+from cottonsim_common.ros.params import config_from_params
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter
@@ -147,11 +148,7 @@ class BollDetectionNode:
         self.min_box_area_px = int(rospy.get_param("~min_box_area_px", 4))
         if self.min_box_area_px < 1:
             raise ValueError(f"~min_box_area_px must be >= 1, got {self.min_box_area_px}")
-        self.loc_config = BollLocalizationConfig(
-            min_points=int(rospy.get_param("~min_points", 3)),
-            box_shrink_fraction=float(rospy.get_param("~box_shrink_fraction", 0.15)),
-            max_depth_m=float(rospy.get_param("~max_depth_m", 4.0)),
-            front_depth_m=float(rospy.get_param("~front_depth_m", 0.15)))
+        self.loc_config = config_from_params(BollLocalizationConfig, "~")
         self.rate_hz = check_rate_hz(rospy.get_param("~rate_hz", 2.0), "~rate_hz")
         self.weights = str(rospy.get_param("~weights", ""))
         self.predictor, backend, error = None, "ground_truth", ""
