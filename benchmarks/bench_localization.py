@@ -32,6 +32,21 @@ def farm_map():
     return spec, disc_occupancy(spec, stems, 0.3)
 
 
+def timed_lane_updates(occ, spec, rng, start_xy, angles, steps: int, warmup: int, update):
+    """Drive north from start_xy in 0.3 m steps, scanning ``angles`` at each, and time ``update(k, scan)``
+    from step ``warmup`` on; (times [ms], the last update's result)."""
+    truth = np.array([start_xy[0], start_xy[1], math.pi / 2])
+    times, result = [], None
+    for k in range(steps):
+        truth = truth + [0.0, 0.3, 0.0]
+        scan = simulate_scan(occ, spec, truth, angles, range_max_m=20.0, noise_sd_m=0.01, rng=rng)
+        t = time.perf_counter()
+        result = update(k, scan)
+        if k >= warmup:
+            times.append((time.perf_counter() - t) * 1000)
+    return times, result
+
+
 def main():
     spec, occ = farm_map()
     rng = np.random.default_rng(0)
@@ -41,29 +56,15 @@ def main():
     amcl = Amcl(AmclConfig(), rng=rng)
     amcl.set_map(occ, spec)
     amcl.initialise((-3.25, 10.0, math.pi / 2), np.diag([0.25, 0.25, 0.07]))
-    truth = np.array([-3.25, 10.0, math.pi / 2])
-    times = []
-    for k in range(25):
-        truth = truth + [0.0, 0.3, 0.0]
-        scan = simulate_scan(occ, spec, truth, sector, range_max_m=20.0, noise_sd_m=0.01, rng=rng)
-        t = time.perf_counter()
-        res = amcl.update((0.3 * (k + 1), 0.0, 0.0), scan)
-        if k > 0:
-            times.append((time.perf_counter() - t) * 1000)
+    times, res = timed_lane_updates(occ, spec, rng, (-3.25, 10.0), sector, 25, 1,
+                                    lambda k, scan: amcl.update((0.3 * (k + 1), 0.0, 0.0), scan))
     print(f"AMCL update (2000 -> {res.n_particles} particles, 60 beams): median {statistics.median(times):6.2f} ms, "
           f"max {max(times):6.2f} ms   [target <= 20 ms]")
     bench_relocalizing(spec, occ, rng)
     for name, angles in (("+/-45 deg sector, 181 beams", sector), ("360 deg, 720 beams", full)):
         slam = RbpfSlam(SlamConfig(particles=30), rng=np.random.default_rng(1))
-        truth = np.array([-3.25, 7.0, math.pi / 2])
-        times = []
-        for k in range(30):
-            truth = truth + [0.0, 0.3, 0.0]
-            scan = simulate_scan(occ, spec, truth, angles, range_max_m=20.0, noise_sd_m=0.01, rng=rng)
-            t = time.perf_counter()
-            slam.update((0.3 * (k + 1) * 1.01, 0.0, 0.0), scan, float(k))
-            if k > 1:
-                times.append((time.perf_counter() - t) * 1000)
+        times, _ = timed_lane_updates(occ, spec, rng, (-3.25, 7.0), angles, 30, 2,
+                                      lambda k, scan: slam.update((0.3 * (k + 1) * 1.01, 0.0, 0.0), scan, float(k)))
         print(f"SLAM update (30 particles, {name}): median {statistics.median(times):6.1f} ms, "
               f"max {max(times):6.1f} ms, maps {slam.memory_bytes() / 1e6:.1f} MB   [target <= 100 ms]")
 

@@ -4,11 +4,12 @@ Every config dataclass validates its fields in ``__post_init__``; these helpers
 keep the checks to one line each and the messages alike across packages
 (``"<name> must be ..., got <value>"``). Each returns the value converted
 (float, int, tuple or array) so a caller can store the clean form.
+``require_fields`` applies one check to several fields of a config in one call.
 """
 from __future__ import annotations
 
 import math
-from typing import Optional, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -25,6 +26,13 @@ def require_instance(name: str, value, cls: type):
     if not isinstance(value, cls):
         article = "an" if cls.__name__[:1].lower() in "aeiou" else "a"
         raise ValueError(f"{name} must be {article} {cls.__name__}, got {type(value).__name__}")
+    return value
+
+
+def require_bool(name: str, value) -> bool:
+    """``value`` when it is True or False (not 0 or 1, not a string), else ValueError naming ``name``."""
+    if not isinstance(value, bool):
+        raise ValueError(f"{name} must be true or false, got {value!r}")
     return value
 
 
@@ -121,3 +129,29 @@ def require_unit_vector(name: str, value, size: int, zero_name: str = "zero") ->
     if norm < 1e-9:
         raise ValueError(f"{name} must not be {zero_name}")
     return arr / norm
+
+
+_FIELD_CHECKS: Dict[str, Callable] = {
+    "flags": require_bool,
+    "positive": require_positive,
+    "non_negative": lambda name, value: require_positive(name, value, allow_zero=True),
+    "fractions": lambda name, value: require_number(name, value, 0.0, 1.0),
+    "counts": lambda name, value: require_int(name, value, 1),
+}
+
+
+def require_fields(config, prefix: str = "", **fields: Sequence[str]) -> None:
+    """Check several fields of ``config`` in one call, one rule per keyword, in the order given:
+
+    flags: True or False; positive: finite numbers > 0; non_negative: finite numbers >= 0;
+    fractions: numbers in [0, 1]; counts: integers >= 1.
+    E.g. ``require_fields(self, flags=("enabled",), positive=("rate_hz", "range_m"))``. The first bad
+    field raises that check's ValueError naming ``prefix + field`` (prefix e.g. ``"CameraConfig."``).
+    """
+    for rule, names in fields.items():
+        if rule not in _FIELD_CHECKS:
+            raise TypeError(f"require_fields: unknown rule {rule!r} (one of {', '.join(_FIELD_CHECKS)})")
+        if isinstance(names, str):
+            raise TypeError(f"require_fields: {rule} must be a sequence of field names, not the string {names!r}")
+        for name in names:
+            _FIELD_CHECKS[rule](prefix + name, getattr(config, name))

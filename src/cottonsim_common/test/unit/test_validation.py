@@ -4,8 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from cottonsim_common.validation import (is_number, require_finite, require_finite_array, require_finite_values,
-                                         require_instance, require_int, require_min_max, require_number, require_positive)
+from cottonsim_common.validation import (is_number, require_bool, require_fields, require_finite, require_finite_array,
+                                         require_finite_values, require_instance, require_int, require_min_max,
+                                         require_number, require_positive)
 
 
 def test_numbers_and_bounds():
@@ -91,3 +92,32 @@ def test_require_unit_vector_scales_to_length_one_and_names_a_zero_or_bad_vector
         require_unit_vector("q", [0.0, 0.0, 1.0], 4)
     with pytest.raises(ValueError, match="q must not be the zero quaternion"):
         require_unit_vector("q", [0.0] * 4, 4, "the zero quaternion")
+
+
+def test_flags_are_true_or_false_only():
+    assert require_bool("enabled", False) is False
+    for bad in (0, 1, "true", None):
+        with pytest.raises(ValueError, match="enabled must be true or false"):
+            require_bool("enabled", bad)
+
+
+def test_require_fields_checks_each_named_field_by_its_rule():
+    class Config:
+        enabled, rate_hz, margin_m, share, workers = True, 10.0, 0.0, 0.5, 2
+
+    good = Config()
+    require_fields(good, flags=("enabled",), positive=("rate_hz",), non_negative=("margin_m",), fractions=("share",),
+                   counts=("workers",))
+    cases = [("enabled", 1, "must be true or false", "flags"),
+             ("rate_hz", 0.0, "must be a finite number > 0", "positive"),
+             ("margin_m", -1.0, "must be a finite number >= 0", "non_negative"),
+             ("share", 1.5, r"must be in \[0, 1\]", "fractions"), ("workers", 0, "must be an integer >= 1", "counts")]
+    for field, bad, message, rule in cases:
+        config = Config()
+        setattr(config, field, bad)
+        with pytest.raises(ValueError, match=f"Config.{field} {message}"):
+            require_fields(config, "Config.", **{rule: (field,)})
+    with pytest.raises(TypeError, match="unknown rule"):
+        require_fields(good, finite=("rate_hz",))
+    with pytest.raises(TypeError, match="not the string"):
+        require_fields(good, positive="rate_hz")

@@ -15,7 +15,7 @@ from typing import List
 
 from .harvest import anchors_lines, figures_table
 from .row_spacing import seeds_markdown, summary_markdown
-from .runs import read_report
+from ..sweep.records import read_json_mapping
 from cottonsim_navigation.evaluation.vision_ablation import ablation_section
 from cottonsim_perception.evaluation.paper import PAPER_TABLES
 from .seeds import format_spread
@@ -64,7 +64,7 @@ COMMANDS = {
 
 def _route_section(name: str, title: str, results_root: str, doc_dir: str) -> List[str]:
     out = [f"## {title}", "", f"Command: `{COMMANDS[name]}` (writes `results/{name}/`).", ""]
-    summary = read_report(os.path.join(results_root, name, "summary.json"))
+    summary = read_json_mapping(os.path.join(results_root, name, "summary.json"))
     if summary is None:
         return out + ["No results yet: run the command above.", ""]
     spread = summary.get("spread", {})
@@ -108,7 +108,7 @@ def _row_spacing_section(results_root: str) -> List[str]:
            "GPS-navigation bringup on a two-row farm: the robot drives from Home into the lane between the rows "
            "(entry, middle and exit waypoints on the centre line); it traverses when it reaches all three without "
            "touching a plant.", ""]
-    summary = read_report(os.path.join(results_root, "row_spacing", "summary.json"))
+    summary = read_json_mapping(os.path.join(results_root, "row_spacing", "summary.json"))
     if summary is None or "per_seed" not in summary:
         return out + ["No results yet: run the command above.", ""]
     out += [seeds_markdown(summary), ""]
@@ -138,13 +138,13 @@ def _perception_section(results_root: str) -> List[str]:
            "farther away are ignore boxes: `det_synthetic` leaves predictions on them out, "
            "`det_synthetic_no_ignore` counts them as false positives (docs/perception_data.md).",
            ""]
-    summary = read_report(os.path.join(results_root, "perception", "summary.json"))
+    summary = read_json_mapping(os.path.join(results_root, "perception", "summary.json"))
     if summary is None:
         return out + ["No results yet: run the command above.", ""]
     out += ["| data | task | split | class | ours P / R / mAP50 / mAP50-95 | paper P / R / mAP50 |",
             "|---|---|---|---|---|---|"]
     for name, table in summary.get("tables", {}).items():
-        evaluation = read_report(table.get("json", ""))
+        evaluation = read_json_mapping(table.get("json", ""))
         if evaluation is None:
             out.append(f"| {name} | {table.get('task')} | - | - | failed: {table.get('error', '')[:80]} | - |")
             continue
@@ -171,7 +171,7 @@ def _harvest_section(results_root: str, doc_dir: str) -> List[str]:
            "boll with the vacuum nozzle within 2 cm; it has no fibre pull-off force.", ""]
     found = False
     for name, what in (("harvest", "the networks' detections"), ("harvest_ground_truth", "ground-truth targets")):
-        summary = read_report(os.path.join(results_root, name, "summary.json"))
+        summary = read_json_mapping(os.path.join(results_root, name, "summary.json"))
         if summary is None:
             continue
         found = True

@@ -22,6 +22,7 @@ import yaml
 
 from cottonsim_common.config.yaml_files import load_yaml_file
 
+from ..sweep.records import read_json_mapping
 from .packages import package_path, rosrun_command
 
 
@@ -106,16 +107,6 @@ def write_sim_config(base_path: str, overrides: Mapping, out_path: str) -> str:
     return out_path
 
 
-def read_report(path: str) -> Optional[Dict]:
-    """report.json as a dict, or None when the file is missing or not valid JSON."""
-    try:
-        with open(path, "r", encoding="utf-8") as fh:
-            report = json.load(fh)
-    except (OSError, ValueError):
-        return None
-    return report if isinstance(report, dict) else None
-
-
 def widest_collision_radius_m(farm_config) -> Optional[float]:
     """The largest horizontal collision radius among the farm's plants [m] (None without a farm)."""
     if farm_config is None:
@@ -179,7 +170,7 @@ def offline_report_check(mode: str, run_dir: str, waypoints: str, sim_yaml: str,
                          [os.path.join(run_dir, "run.bag"), "--waypoints", waypoints, "--mode", mode,
                           "--sim-config", sim_yaml, "--out", out])
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    offline = read_report(os.path.join(out, "report.json"))
+    offline = read_json_mapping(os.path.join(out, "report.json"))
     if proc.returncode != 0 or offline is None:
         return {"matches": False, "error": proc.stdout.strip()[-500:]}
     return compare_reports(report, offline)

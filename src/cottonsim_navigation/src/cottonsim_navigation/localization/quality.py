@@ -62,7 +62,7 @@ from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
-from cottonsim_common.validation import require_instance, require_int, require_positive
+from cottonsim_common.validation import require_fields, require_instance, require_int
 from .particle_filter import mean_resultant_length
 from .sensor_models import LikelihoodField, Scan
 
@@ -125,16 +125,11 @@ class LocalizationQualityConfig:
     relocalize_particles: int = 10000
 
     def __post_init__(self) -> None:
-        for name in ("max_std_xy_m", "max_std_yaw_rad", "hit_distance_m", "relocalize_std_xy_m",
-                     "relocalize_std_yaw_rad", "max_crossed_m"):
-            require_positive(name, getattr(self, name))
-        for name in ("stationary_update_period_s", "roughen_std_xy_m", "roughen_std_yaw_rad",
-                     "relocalize_std_across_m"):
-            require_positive(name, getattr(self, name), allow_zero=True)
-        for name in ("min_hit_fraction", "relocalize_round_fraction"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= 1.0):
-                raise ValueError(f"{name} must lie in [0, 1], got {v!r}")
+        require_fields(self, positive=("max_std_xy_m", "max_std_yaw_rad", "hit_distance_m", "relocalize_std_xy_m",
+                                       "relocalize_std_yaw_rad", "max_crossed_m"),
+                       non_negative=("stationary_update_period_s", "roughen_std_xy_m", "roughen_std_yaw_rad",
+                                     "relocalize_std_across_m"),
+                       fractions=("min_hit_fraction", "relocalize_round_fraction"))
         require_int("switch_after", self.switch_after, 1)
         require_int("relocalize_particles", self.relocalize_particles, 0)
         require_int("relocalize_after", self.relocalize_after, 0)

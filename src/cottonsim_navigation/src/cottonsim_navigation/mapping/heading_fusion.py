@@ -44,6 +44,7 @@ from typing import Optional
 import numpy as np
 
 from cottonsim_common.angles import wrap_angle
+from cottonsim_common.validation import require_bool
 
 
 class HeadingFuser:
@@ -60,8 +61,7 @@ class HeadingFuser:
         for name, v in (("tau_s", tau_s), ("still_m", still_m), ("still_rad", still_rad)):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        if not isinstance(track_rate, bool):
-            raise ValueError(f"track_rate must be true or false, got {track_rate!r}")
+        require_bool("track_rate", track_rate)
         self.track_rate = track_rate
         self._r = 0.0
         self.tau_s = float(tau_s)

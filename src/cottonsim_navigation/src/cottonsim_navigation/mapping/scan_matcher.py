@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cottonsim_common.validation import require_instance, require_positive
+from cottonsim_common.validation import require_fields, require_instance, require_int
 from ..core.grid import GridSpec
 
 try:
@@ -74,16 +74,10 @@ class ScanMatcherConfig:
     prior_sigma_yaw_rad: float = 0.15
 
     def __post_init__(self) -> None:
-        for name in ("sigma_m", "max_dist_m", "linear_step_m", "angular_step_rad", "prior_sigma_along_m",
-                     "prior_sigma_lateral_m", "prior_sigma_yaw_rad"):
-            require_positive(name, getattr(self, name))
-        for name in ("min_score", "prior_weight"):
-            require_positive(name, getattr(self, name), allow_zero=True)
-        for name in ("refinements", "max_moves", "min_points"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < (0 if name == "refinements" else 1):
-                raise ValueError(f"{name} must be a non-negative integer (max_moves, min_points >= 1), "
-                                 f"got {value!r}")
+        require_fields(self, positive=("sigma_m", "max_dist_m", "linear_step_m", "angular_step_rad",
+                                       "prior_sigma_along_m", "prior_sigma_lateral_m", "prior_sigma_yaw_rad"),
+                       non_negative=("min_score", "prior_weight"), counts=("max_moves", "min_points"))
+        require_int("refinements", self.refinements, 0)
 
 
 @dataclass(frozen=True)

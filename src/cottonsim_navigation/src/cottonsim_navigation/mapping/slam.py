@@ -46,7 +46,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
-from cottonsim_common.validation import require_instance, require_int, require_positive
+from cottonsim_common.validation import require_bool, require_instance, require_int, require_positive
 
 from ..core.grid import GridSpec
 from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
@@ -140,8 +140,7 @@ class SlamConfig:
             a, b = getattr(self, lo), getattr(self, hi)
             if not (math.isfinite(a) and math.isfinite(b) and a < b):
                 raise ValueError(f"need finite {lo} < {hi}, got {a}, {b}")
-        if not isinstance(self.heading_track_rate, bool):
-            raise ValueError(f"heading_track_rate must be true or false, got {self.heading_track_rate!r}")
+        require_bool("heading_track_rate", self.heading_track_rate)
         require_instance("matcher", self.matcher, ScanMatcherConfig)
 
     def motion_config(self) -> OdometryMotionModelConfig:

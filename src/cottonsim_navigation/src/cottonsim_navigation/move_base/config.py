@@ -7,6 +7,8 @@ from typing import Tuple
 
 import numpy as np
 
+from cottonsim_common.validation import require_bool, require_fields
+
 from cottonsim_navigation.move_base.recovery import RECOVERY_NAMES
 
 DEFAULT_RECOVERIES = ("conservative_reset", "rotate_recovery", "aggressive_reset", "rotate_recovery")
@@ -73,9 +75,7 @@ class MoveBaseConfig:
         r = self.max_planning_retries
         if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or r < -1:
             raise ValueError(f"max_planning_retries must be an integer >= -1, got {r!r}")
-        for name in ("recovery_behavior_enabled", "clearing_rotation_allowed", "abort_on_blocked_goal"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        require_fields(self, flags=("recovery_behavior_enabled", "clearing_rotation_allowed", "abort_on_blocked_goal"))
         names = self.recovery_behaviours
         if isinstance(names, str) or not all(isinstance(n, str) for n in names):
             raise ValueError(f"recovery_behaviours must be a list of names, got {names!r}")
@@ -104,8 +104,7 @@ class VisionBiasConfig:
     row_reach_m: float = 1.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"enabled must be true or false, got {self.enabled!r}")
+        require_bool("enabled", self.enabled)
         _check_number("max_age_s", self.max_age_s)
         _check_number("max_vision_rate", self.max_vision_rate)
         _check_number("row_reach_m", self.row_reach_m, strict=True)

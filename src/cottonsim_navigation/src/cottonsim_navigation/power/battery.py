@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cottonsim_common.validation import require_positive
+from cottonsim_common.validation import require_fields
 
 
 @dataclass(frozen=True)
@@ -47,14 +47,10 @@ class BatteryConfig:
     drain_scale: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("design_capacity_ah", "idle_power_w", "motion_power_w_per_mps", "turn_power_w_per_radps",
-                     "voltage_full_v", "voltage_empty_v", "internal_resistance_ohm", "drain_scale",
-                     "initial_percentage"):
-            require_positive(name, getattr(self, name), allow_zero=True)
-        if self.design_capacity_ah <= 0:
-            raise ValueError(f"design_capacity_ah must be > 0, got {self.design_capacity_ah}")
-        if not 0.0 <= self.initial_percentage <= 1.0:
-            raise ValueError(f"initial_percentage must lie in [0, 1], got {self.initial_percentage}")
+        require_fields(self, positive=("design_capacity_ah",),
+                       non_negative=("idle_power_w", "motion_power_w_per_mps", "turn_power_w_per_radps",
+                                     "voltage_full_v", "voltage_empty_v", "internal_resistance_ohm", "drain_scale"),
+                       fractions=("initial_percentage",))
         if not 0 < self.voltage_empty_v < self.voltage_full_v:
             raise ValueError("need 0 < voltage_empty_v < voltage_full_v")
 

@@ -56,22 +56,17 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import Bool, String
 
-from cottonsim_common.ros.params import config_from_params
 from cottonsim_common.transforms import yaw_to_quaternion
-from cottonsim_navigation.waypoints.boll_halt import BollHalt, BollHaltConfig, BollVerdicts
-from cottonsim_navigation.waypoints.route_hold import RouteHold, RouteHoldConfig
+from cottonsim_navigation.ros.navigator_params import NavigatorStartError, read_navigator_params
+from cottonsim_navigation.waypoints.boll_halt import BollHalt, BollVerdicts
+from cottonsim_navigation.waypoints.route_hold import RouteHold
 from cottonsim_navigation.waypoints.files import MapWaypoint, WaypointFileError
 from cottonsim_navigation.waypoints.goals import pass_through_flags
-from cottonsim_navigation.waypoints.follower import (FollowerConfig, FollowerState, GoalResult,
-                                                     LocalisationGate, WaypointFollower)
+from cottonsim_navigation.waypoints.follower import FollowerState, GoalResult, LocalisationGate, WaypointFollower
 from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 
 _STATUS_NAMES = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", "SUCCEEDED", "ABORTED",
                                                      "REJECTED", "PREEMPTING", "RECALLING", "RECALLED", "LOST")}
-
-
-class NavigatorStartError(RuntimeError):
-    """The navigator cannot start (bad parameter, unreadable waypoint file); the node exits non-zero."""
 
 
 class WaypointNavigatorBase:
@@ -97,23 +92,7 @@ class WaypointNavigatorBase:
       reads ~goal_frame -> ~robot_frame (map -> base_link): localisation is ready once it exists;
       the robot's pose there when the route starts is Home.
     Parameters (private)
-      ~waypoints_file (str, required): the route file
-      ~on_failure (str, "skip"): after an aborted goal, "skip" to the next one or "stop" the route
-      ~return_home_percentage (float, 40.0): battery charge [%] at which the robot drives Home; 0 = never
-      ~battery_topic (str, "/battery/state")
-      ~move_base_action (str, "move_base"): action namespace
-      ~goal_frame (str, "map"), ~robot_frame (str, "base_link")
-      ~server_timeout_s (float, 60.0): wall time to wait for the move_base server; 0 = forever
-      ~goal_timeout_s (float, 300.0): sim time after which a goal counts as aborted (cancelled); 0 = never
-      ~loop_hz (float, 10.0): decision loop rate [Hz, sim time]
-      ~pass_through_radius_m (float, 0.0): a waypoint where the route goes on straight (turn <=
-        ~pass_through_max_turn_rad) counts as reached once the robot (TF) is this close, and the next
-        goal is sent at once (preempting), so the robot drives through instead of stopping; 0 = off
-      ~pass_through_max_turn_rad (float, 0.35 = 20 deg): the largest turn a pass-through waypoint may have
-      ~boll_halt/enabled (bool, true), ~boll_halt/dwell_s (float, 2.0 s), ~boll_halt/rearm_distance_m
-        (float, 0.7 m), ~boll_halt/min_gap_s (float, 1.0 s), ~boll_halt/max_age_s (float, 1.0 s): the halt at
-        bolls (waypoints.boll_halt.BollHaltConfig; config/boll_halt.yaml); the way Home never halts
-      ~route_hold/max_age_s (float, 1.0 s): a hold request on ~hold_topic older than this releases the route
+      see :mod:`cottonsim_navigation.ros.navigator_params` (read once at start)
     """
 
     NAME = "waypoint_navigator"
@@ -137,52 +116,15 @@ class WaypointNavigatorBase:
 
     # ------------------------------------------------------------------ setup
     def __init__(self):
-        self.waypoints_file = str(rospy.get_param("~waypoints_file", ""))
-        on_failure = str(rospy.get_param("~on_failure", "skip"))
-        self.return_home_percentage = float(rospy.get_param("~return_home_percentage", 40.0))
-        self.battery_topic = str(rospy.get_param("~battery_topic", "/battery/state"))
-        self.action_ns = str(rospy.get_param("~move_base_action", "move_base"))
-        self.goal_frame = str(rospy.get_param("~goal_frame", "map"))
-        self.robot_frame = str(rospy.get_param("~robot_frame", "base_link"))
-        self.server_timeout_s = float(rospy.get_param("~server_timeout_s", 60.0))
-        self.goal_timeout_s = float(rospy.get_param("~goal_timeout_s", 300.0))
-        self.loop_hz = float(rospy.get_param("~loop_hz", 10.0))
-        self.pass_through_max_turn_rad = float(rospy.get_param("~pass_through_max_turn_rad", math.radians(20.0)))
-        self.localized_topic = str(rospy.get_param("~localized_topic", self.DEFAULT_LOCALIZED_TOPIC))
+        self.params = read_navigator_params(self.NAME, self.DEFAULT_LOCALIZED_TOPIC)
+        self.route_hold = RouteHold(self.params.route_hold_config)
         try:
-            self.follower_config = FollowerConfig(
-                on_failure=on_failure, pass_through_radius_m=float(rospy.get_param("~pass_through_radius_m", 0.0)))
-        except ValueError as exc:
-            raise NavigatorStartError(f"~{str(exc).split(' ')[0]}: {exc}") from None
-        if not (math.isfinite(self.pass_through_max_turn_rad) and 0.0 <= self.pass_through_max_turn_rad <= math.pi):
-            raise NavigatorStartError(f"~pass_through_max_turn_rad must be in [0, pi], got "
-                                      f"{self.pass_through_max_turn_rad}")
-        if not (math.isfinite(self.return_home_percentage) and 0.0 <= self.return_home_percentage <= 100.0):
-            raise NavigatorStartError(f"~return_home_percentage must be a percentage in [0, 100], "
-                                      f"got {self.return_home_percentage}")
-        if 0.0 < self.return_home_percentage < 1.0:
-            rospy.logwarn("%s: ~return_home_percentage %.3f is in percent (40 = 40 %%), not a fraction",
-                          self.NAME, self.return_home_percentage)
-        for name in ("server_timeout_s", "goal_timeout_s"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise NavigatorStartError(f"~{name} must be finite and >= 0, got {v}")
-        if not (math.isfinite(self.loop_hz) and self.loop_hz > 0.0):
-            raise NavigatorStartError(f"~loop_hz must be > 0, got {self.loop_hz}")
-        if not self.waypoints_file:
-            raise NavigatorStartError("~waypoints_file is not set")
-        try:
-            self.halt_config = config_from_params(BollHaltConfig, "~boll_halt/")
-            self.route_hold = RouteHold(config_from_params(RouteHoldConfig, "~route_hold/"))
-        except ValueError as exc:
-            raise NavigatorStartError(str(exc)) from None
-        try:
-            self.waypoints = self.load_route(self.waypoints_file)
+            self.waypoints = self.load_route(self.params.waypoints_file)
         except WaypointFileError as exc:
             raise NavigatorStartError(f"bad waypoint file {exc}") from None
         except ValueError as exc:
-            raise NavigatorStartError(f"bad waypoint file {self.waypoints_file}: {exc}") from None
-        rospy.loginfo("%s: %d waypoints from %s", self.NAME, len(self.waypoints), self.waypoints_file)
+            raise NavigatorStartError(f"bad waypoint file {self.params.waypoints_file}: {exc}") from None
+        rospy.loginfo("%s: %d waypoints from %s", self.NAME, len(self.waypoints), self.params.waypoints_file)
 
         self._lock = threading.Lock()
         self._goal_seq = 0              # sequence number of the goal in flight (0: none)
@@ -191,24 +133,25 @@ class WaypointNavigatorBase:
         self._battery_low = False
         self._gate = LocalisationGate()                # the localiser's verdicts
         self._paused_since: Optional[rospy.Time] = None
-        self.boll_halt = BollHalt(self.halt_config)
-        self._verdicts = BollVerdicts(self.halt_config.max_age_s)
+        self.boll_halt = BollHalt(self.params.halt_config)
+        self._verdicts = BollVerdicts(self.params.halt_config.max_age_s)
         self.follower: Optional[WaypointFollower] = None
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.state_pub = rospy.Publisher("~state", String, queue_size=10, latch=True)
-        self.client = actionlib.ActionClient(self.action_ns, MoveBaseAction)
+        self.client = actionlib.ActionClient(self.params.action_ns, MoveBaseAction)
         self._goal_handle = None
-        rospy.Subscriber(self.battery_topic, BatteryState, self._on_battery, queue_size=5)
-        if self.localized_topic:
-            rospy.Subscriber(self.localized_topic, Bool, self._on_localized, queue_size=5)
-            rospy.loginfo("%s: pausing the route while %s reports not localised", self.NAME, self.localized_topic)
-        if self.halt_config.enabled:
-            topic = str(rospy.get_param("~bolls_in_reach_topic", "/cotton_eye/bolls_in_reach"))
+        rospy.Subscriber(self.params.battery_topic, BatteryState, self._on_battery, queue_size=5)
+        if self.params.localized_topic:
+            rospy.Subscriber(self.params.localized_topic, Bool, self._on_localized, queue_size=5)
+            rospy.loginfo("%s: pausing the route while %s reports not localised", self.NAME,
+                          self.params.localized_topic)
+        if self.params.halt_config.enabled:
+            topic = self.params.bolls_in_reach_topic
             rospy.Subscriber(topic, Bool, self._on_bolls_in_reach, queue_size=10)
             rospy.loginfo("%s: halting %.1f s while %s reports bolls in reach", self.NAME,
-                          self.halt_config.dwell_s, topic)
-        hold_topic = str(rospy.get_param("~hold_topic", ""))
+                          self.params.halt_config.dwell_s, topic)
+        hold_topic = self.params.hold_topic
         if hold_topic:
             rospy.Subscriber(hold_topic, Bool, self._on_hold, queue_size=10)
             rospy.loginfo("%s: standing while %s holds the route", self.NAME, hold_topic)
@@ -219,9 +162,10 @@ class WaypointNavigatorBase:
         if not math.isfinite(pct):
             rospy.logwarn_throttle(10.0, f"{self.NAME}: battery percentage is NaN; ignored")
             return
-        if self.return_home_percentage > 0.0 and pct * 100.0 <= self.return_home_percentage and not self._battery_low:
+        threshold = self.params.return_home_percentage
+        if threshold > 0.0 and pct * 100.0 <= threshold and not self._battery_low:
             rospy.logwarn("%s: battery at %.1f %% (<= %.1f %%): returning Home", self.NAME, pct * 100.0,
-                          self.return_home_percentage)
+                          self.params.return_home_percentage)
             self._battery_low = True
 
     def _on_localized(self, msg: Bool):
@@ -255,7 +199,7 @@ class WaypointNavigatorBase:
     def robot_pose(self) -> Optional[MapWaypoint]:
         """The robot's pose in ~goal_frame from TF, or None when the transform is not there yet."""
         try:
-            t = self.tf_buffer.lookup_transform(self.goal_frame, self.robot_frame, rospy.Time(0))
+            t = self.tf_buffer.lookup_transform(self.params.goal_frame, self.params.robot_frame, rospy.Time(0))
         except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
             return None
         tr = t.transform.translation
@@ -286,7 +230,7 @@ class WaypointNavigatorBase:
 
     def _send(self, goal: MapWaypoint):
         mb = MoveBaseGoal()
-        mb.target_pose.header.frame_id = self.goal_frame
+        mb.target_pose.header.frame_id = self.params.goal_frame
         mb.target_pose.header.stamp = rospy.Time.now()
         mb.target_pose.pose.position.x = goal.x_m
         mb.target_pose.pose.position.y = goal.y_m
@@ -330,16 +274,17 @@ class WaypointNavigatorBase:
     def run(self) -> int:
         """Drive the route; returns the process exit code (0 = ran to the end, even with skipped goals)."""
         self.publish_state("waiting", reason="waiting for move_base and localisation")
-        wall_deadline = None if self.server_timeout_s == 0 else time.monotonic() + self.server_timeout_s
+        wall_deadline = None if self.params.server_timeout_s == 0 else time.monotonic() + self.params.server_timeout_s
         while not rospy.is_shutdown():
             if self.client.wait_for_server(rospy.Duration(0.5)):
                 break
             if wall_deadline is not None and time.monotonic() > wall_deadline:
-                rospy.logfatal("%s: no move_base action server at '%s' after %.0f s", self.NAME, self.action_ns,
-                               self.server_timeout_s)
+                rospy.logfatal("%s: no move_base action server at '%s' after %.0f s", self.NAME, self.params.action_ns,
+                               self.params.server_timeout_s)
                 self.publish_state("finished", reason="no move_base action server")
                 return 1
-        if not self._wait("localisation (TF %s -> %s)" % (self.goal_frame, self.robot_frame), self.localization_ready):
+        if not self._wait(f"localisation (TF {self.params.goal_frame} -> {self.params.robot_frame})",
+                          self.localization_ready):
             return 0
         home = self.robot_pose()
         try:
@@ -349,14 +294,14 @@ class WaypointNavigatorBase:
             self.publish_state("finished", reason=str(exc))
             return 1
         flags = pass_through_flags(np.array([[g.x_m, g.y_m] for g in goals], dtype=float),
-                                   self.pass_through_max_turn_rad)
-        self.follower = WaypointFollower(goals, self.follower_config, home=home, pass_through=flags)
-        if self.follower_config.pass_through_radius_m > 0:
+                                   self.params.pass_through_max_turn_rad)
+        self.follower = WaypointFollower(goals, self.params.follower_config, home=home, pass_through=flags)
+        if self.params.follower_config.pass_through_radius_m > 0:
             rospy.loginfo("%s: %d of %d waypoints are driven through (within %.2f m)", self.NAME, int(flags.sum()),
-                          len(goals), self.follower_config.pass_through_radius_m)
+                          len(goals), self.params.follower_config.pass_through_radius_m)
         rospy.loginfo("%s: Home = (%.2f, %.2f, yaw %.2f) in %s; starting the route", self.NAME, home.x_m, home.y_m,
-                      home.yaw_rad, self.goal_frame)
-        rate = rospy.Rate(self.loop_hz)
+                      home.yaw_rad, self.params.goal_frame)
+        rate = rospy.Rate(self.params.loop_hz)
         while not rospy.is_shutdown() and not self.follower.finished:
             self._step()
             if self.follower.finished:
@@ -405,19 +350,20 @@ class WaypointNavigatorBase:
                 f"move_base {_STATUS_NAMES.get(status, status)}"
             if not ok:
                 rospy.logwarn("%s: goal %s ended: %s; %s", self.NAME, "Home" if f.going_home else f.index + 1,
-                              reason, "going on with the route" if self.follower_config.on_failure == "skip"
+                              reason, "going on with the route" if self.params.follower_config.on_failure == "skip"
                               else "stopping")
             f.report_result(GoalResult.SUCCEEDED if ok else GoalResult.ABORTED, reason)
         elif lost or self._paused_since is not None or self.boll_halt.halted or self.route_hold.held:
             pass                         # paused, halted or resuming: no pass-through or time-out of a held goal
         elif f.current_is_pass_through and self._passed_current():
             rospy.loginfo("%s: goal %d passed (within %.2f m); on to the next", self.NAME, f.index,
-                          self.follower_config.pass_through_radius_m)
-        elif (f.state is FollowerState.ACTIVE and self.goal_timeout_s > 0 and self._goal_sent_at is not None
-              and (rospy.Time.now() - self._goal_sent_at).to_sec() > self.goal_timeout_s):
-            rospy.logwarn("%s: goal %s timed out after %.0f s; cancelled", self.NAME, f.index + 1, self.goal_timeout_s)
+                          self.params.follower_config.pass_through_radius_m)
+        elif (f.state is FollowerState.ACTIVE and self.params.goal_timeout_s > 0 and self._goal_sent_at is not None
+              and (rospy.Time.now() - self._goal_sent_at).to_sec() > self.params.goal_timeout_s):
+            rospy.logwarn("%s: goal %s timed out after %.0f s; cancelled", self.NAME, f.index + 1,
+                          self.params.goal_timeout_s)
             self._cancel_active()
-            f.report_result(GoalResult.ABORTED, f"timed out after {self.goal_timeout_s:.0f} s (goal_timeout_s)")
+            f.report_result(GoalResult.ABORTED, f"timed out after {self.params.goal_timeout_s:.0f} s (goal_timeout_s)")
         if f.finished:
             return
         if lost:
@@ -435,7 +381,7 @@ class WaypointNavigatorBase:
 
     def _halt_at_bolls(self) -> bool:
         """The halt at bolls for this cycle; True while the robot stands (no goal may be sent)."""
-        if not self.halt_config.enabled:
+        if not self.params.halt_config.enabled:
             return False
         f = self.follower
         now_s = rospy.get_time()
@@ -452,7 +398,7 @@ class WaypointNavigatorBase:
             self._cancel_active()          # move_base stops the robot
             f.hold(count=False)
             rospy.loginfo("%s: bolls in reach: halt %d for %.1f s (%s held)", self.NAME, self.boll_halt.halts,
-                          self.halt_config.dwell_s, self._describe_current())
+                          self.params.halt_config.dwell_s, self._describe_current())
             self.publish_state("halted", reason="bolls in reach", goal=f.current_goal)
         elif d.ended:
             rospy.loginfo("%s: halt %d done: resuming %s", self.NAME, self.boll_halt.halts, self._describe_current())
@@ -495,7 +441,7 @@ class WaypointNavigatorBase:
             f.hold()
         goal = f.goals[f.index] if f.index < len(f.goals) else None
         rospy.logwarn("%s: %s (%s is false): %s %s, robot stopped; waiting to be localised again",
-                      self.NAME, self.LOST_REASON, self.localized_topic, self._describe_current(),
+                      self.NAME, self.LOST_REASON, self.params.localized_topic, self._describe_current(),
                       "held" if held else "not sent yet")
         self.publish_state("paused", reason=self.LOST_REASON, goal=goal)
 

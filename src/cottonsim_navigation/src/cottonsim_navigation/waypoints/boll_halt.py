@@ -29,10 +29,7 @@ import math
 from dataclasses import dataclass
 from typing import Dict, Optional, Tuple
 
-
-def _check_non_negative(name: str, value) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+from cottonsim_common.validation import require_fields, require_positive
 
 
 @dataclass(frozen=True)
@@ -58,13 +55,8 @@ class BollHaltConfig:
     max_age_s: float = 1.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"enabled must be true or false, got {self.enabled!r}")
-        for name in ("dwell_s", "rearm_distance_m", "min_gap_s", "max_age_s"):
-            _check_non_negative(name, getattr(self, name))
-        for name in ("dwell_s", "rearm_distance_m", "max_age_s"):
-            if getattr(self, name) == 0:
-                raise ValueError(f"{name} must be > 0, got 0")
+        require_fields(self, flags=("enabled",), positive=("dwell_s", "rearm_distance_m", "max_age_s"),
+                       non_negative=("min_gap_s",))
 
 
 @dataclass(frozen=True)
@@ -142,7 +134,7 @@ class BollVerdicts:
     """The newest in-reach verdict of each publisher; see the module docstring."""
 
     def __init__(self, max_age_s: float = 1.0):
-        _check_non_negative("max_age_s", max_age_s)
+        require_positive("max_age_s", max_age_s, allow_zero=True)
         self.max_age_s = float(max_age_s)
         self._latest: Dict[str, Tuple[bool, float]] = {}
 

@@ -19,7 +19,7 @@ import io
 import math
 import os
 from dataclasses import dataclass
-from typing import List, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 from cottonsim_common.config.yaml_files import DuplicateKeyError, YamlSyntaxError, load_yaml_text
 
@@ -114,27 +114,17 @@ def _data_lines(text: str) -> List[Tuple[int, str]]:
     return [(n, line) for n, line in lines if line]
 
 
+def _yaml_waypoints(path, text: str, parse_item: Callable) -> list:
+    """Each item of a YAML waypoint list as ``parse_item(item, where)`` (where: "waypoint N", 1-based)."""
+    return [parse_item(item, f"waypoint {i + 1}") for i, item in enumerate(_yaml_items(path, text))]
+
+
 def load_gps_waypoints(path) -> List[GpsWaypoint]:
     """Read GPS waypoints (text 'lat lon' lines or YAML); see the module docstring."""
     text = _read_text(path)
-    out: List[GpsWaypoint] = []
     if _is_yaml(path):
-        for i, item in enumerate(_yaml_items(path, text)):
-            where = f"waypoint {i + 1}"
-            if not isinstance(item, dict):
-                raise WaypointFileError(path, f"{where} must be a mapping with lat/lon")
-            lat = item.get("lat", item.get("latitude"))
-            lon = item.get("lon", item.get("longitude"))
-            if lat is None or lon is None:
-                raise WaypointFileError(path, f"{where} needs lat and lon (or latitude and longitude)")
-            lat = _number(path, None, lat, f"{where} latitude")
-            lon = _number(path, None, lon, f"{where} longitude")
-            try:
-                _check_gps(path, None, lat, lon)
-            except WaypointFileError as exc:
-                raise WaypointFileError(path, f"{where}: {str(exc).split(': ', 1)[1]}") from None
-            out.append(GpsWaypoint(lat, lon, str(item.get("label", ""))))
-        return out
+        return _yaml_waypoints(path, text, lambda item, where: _gps_waypoint_item(path, item, where))
+    out: List[GpsWaypoint] = []
     for n, line in _data_lines(text):
         cols = _split(line)
         if len(cols) != 2:
@@ -148,20 +138,38 @@ def load_gps_waypoints(path) -> List[GpsWaypoint]:
     return out
 
 
+def _gps_waypoint_item(path, item, where: str) -> GpsWaypoint:
+    """One YAML GPS waypoint: a mapping with lat and lon (or latitude and longitude), label optional."""
+    if not isinstance(item, dict):
+        raise WaypointFileError(path, f"{where} must be a mapping with lat/lon")
+    lat = item.get("lat", item.get("latitude"))
+    lon = item.get("lon", item.get("longitude"))
+    if lat is None or lon is None:
+        raise WaypointFileError(path, f"{where} needs lat and lon (or latitude and longitude)")
+    lat = _number(path, None, lat, f"{where} latitude")
+    lon = _number(path, None, lon, f"{where} longitude")
+    try:
+        _check_gps(path, None, lat, lon)
+    except WaypointFileError as exc:
+        raise WaypointFileError(path, f"{where}: {str(exc).split(': ', 1)[1]}") from None
+    return GpsWaypoint(lat, lon, str(item.get("label", "")))
+
+
+def _map_waypoint_item(path, item, where: str) -> MapWaypoint:
+    """One YAML map waypoint: a mapping with x and y, yaw_rad (or yaw) and label optional."""
+    if not isinstance(item, dict) or "x" not in item or "y" not in item:
+        raise WaypointFileError(path, f"{where} must be a mapping with x and y")
+    yaw = item.get("yaw_rad", item.get("yaw", 0.0))
+    return MapWaypoint(_number(path, None, item["x"], f"{where} x"), _number(path, None, item["y"], f"{where} y"),
+                       _number(path, None, yaw, f"{where} yaw"), str(item.get("label", "")))
+
+
 def load_map_waypoints(path) -> List[MapWaypoint]:
     """Read map-frame waypoints (CSV with header, 'x y yaw' lines, or YAML)."""
     text = _read_text(path)
-    out: List[MapWaypoint] = []
     if _is_yaml(path):
-        for i, item in enumerate(_yaml_items(path, text)):
-            where = f"waypoint {i + 1}"
-            if not isinstance(item, dict) or "x" not in item or "y" not in item:
-                raise WaypointFileError(path, f"{where} must be a mapping with x and y")
-            yaw = item.get("yaw_rad", item.get("yaw", 0.0))
-            out.append(MapWaypoint(_number(path, None, item["x"], f"{where} x"),
-                                   _number(path, None, item["y"], f"{where} y"),
-                                   _number(path, None, yaw, f"{where} yaw"), str(item.get("label", ""))))
-        return out
+        return _yaml_waypoints(path, text, lambda item, where: _map_waypoint_item(path, item, where))
+    out: List[MapWaypoint] = []
     lines = _data_lines(text)
     if not lines:
         raise WaypointFileError(path, "no waypoints in file")

@@ -22,6 +22,8 @@ from typing import List, Optional, Sequence
 import numpy as np
 import torch
 
+from cottonsim_common.validation import require_fields
+
 from ..types import Detections
 from .assigner import bbox_iou
 from .letterbox import LetterboxTransform, MaskWindow, dense_masks
@@ -41,14 +43,8 @@ class PostprocessConfig:
     mask_threshold: float = 0.5
 
     def __post_init__(self) -> None:
-        for name in ("conf_threshold", "iou_threshold", "mask_threshold"):
-            v = getattr(self, name)
-            if not 0.0 <= v <= 1.0:
-                raise ValueError(f"PostprocessConfig.{name} must be in [0, 1], got {v}")
-        for name in ("max_candidates", "max_detections"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or v < 1:
-                raise ValueError(f"PostprocessConfig.{name} must be a positive int, got {v!r}")
+        require_fields(self, "PostprocessConfig.", fractions=("conf_threshold", "iou_threshold", "mask_threshold"),
+                       counts=("max_candidates", "max_detections"))
 
 
 def pairwise_iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:

@@ -56,6 +56,7 @@ import numpy as np
 from numba import njit
 
 from cottonsim_common.angles import wrap_angle_scalar
+from cottonsim_common.validation import require_fields
 from cottonsim_world.physics.wheel_odometry import OdometryEstimate
 
 X, Y, YAW, VX, VYAW = range(5)
@@ -100,14 +101,10 @@ class OdometryEkfConfig:
     gyro_bias_time_s: float = 10.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.slip_check, bool):
-            raise ValueError(f"OdometryEkfConfig.slip_check must be true or false, got {self.slip_check!r}")
-        for name in ("frequency_hz", "max_dt_s", "slip_speed_threshold_m_s", "slip_blend_time_s",
-                     "slip_speed_variance_m2_s2", "gravity_m_s2", "standstill_speed_m_s", "standstill_yaw_rate_rad_s",
-                     "standstill_yaw_rate_variance", "gyro_bias_time_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"OdometryEkfConfig.{name} must be a finite number > 0, got {v!r}")
+        require_fields(self, "OdometryEkfConfig.", flags=("slip_check",),
+                       positive=("frequency_hz", "max_dt_s", "slip_speed_threshold_m_s", "slip_blend_time_s",
+                                 "slip_speed_variance_m2_s2", "gravity_m_s2", "standstill_speed_m_s",
+                                 "standstill_yaw_rate_rad_s", "standstill_yaw_rate_variance", "gyro_bias_time_s"))
         v = self.slip_yaw_rate_variance_scale
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 1):
             raise ValueError(f"OdometryEkfConfig.slip_yaw_rate_variance_scale must be a finite number >= 1, got {v!r}")

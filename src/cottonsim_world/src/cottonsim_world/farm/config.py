@@ -22,6 +22,8 @@ import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Dict, Mapping, Tuple
 
+from cottonsim_common.validation import require_bool
+
 GROWTH_STAGES = ("cutout", "defoliated")
 PLANT_DETAILS = ("high", "low")
 
@@ -103,8 +105,7 @@ class FarmConfig:
             raise ValueError(f"bolls_per_plant must hold integers, got {bolls!r}")
         object.__setattr__(self, "bolls_per_plant", (int(bolls[0]), int(bolls[1])))
 
-        if not isinstance(self.require_lane_fit, bool):
-            raise ValueError(f"require_lane_fit must be true or false, got {self.require_lane_fit!r}")
+        require_bool("require_lane_fit", self.require_lane_fit)
         for name in ("rows", "plants_per_row", "plant_variants", "seed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not _is_int(value):

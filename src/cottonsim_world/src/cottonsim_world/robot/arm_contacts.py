@@ -29,6 +29,7 @@ import numpy as np
 
 from cottonsim_common.capsules import point_segment_distance, segment_segment_distance
 from cottonsim_common.kinematics.arm_capsules import ARM_LINKS, ArmCollisionConfig
+from cottonsim_common.validation import require_bool, require_number
 from cottonsim_world.farm.plant_obstacles import WOODY_KIND_NAMES, PlantObstacles
 
 KINDS = ("stem", "leaf")
@@ -52,12 +53,9 @@ class ArmContactConfig:
     nozzle_tip_allowance_m: float = 0.03
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"ArmContactConfig.enabled must be true or false, got {self.enabled!r}")
+        require_bool("ArmContactConfig.enabled", self.enabled)
         for name, high in (("check_period_s", 1.0), ("rearm_s", 10.0), ("nozzle_tip_allowance_m", 0.15)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= high):
-                raise ValueError(f"ArmContactConfig.{name} must be a number in [0, {high}], got {v!r}")
+            require_number(f"ArmContactConfig.{name}", getattr(self, name), 0.0, high)
 
     def arm_shape(self) -> ArmCollisionConfig:
         """The link capsules counted: the UR5e's, unpadded."""

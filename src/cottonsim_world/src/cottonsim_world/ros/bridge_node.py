@@ -26,8 +26,8 @@ Publications
   /ground_truth/arm_contacts               cottonsim_msgs/ArmContacts  arm-stem and arm-leaf contacts
                                                                     (robot/arm_contacts.py), at contacts_rate_hz
   /sim/stats                               cottonsim_msgs/SimStats  achieved real-time factor, cost per sensor
-  /sim/faults/active                       cottonsim_msgs/SensorFaults  latched: the sensor faults active now,
-                                                                    republished whenever one starts or ends
+  /sim/faults/active                       cottonsim_msgs/SensorFaults  latched: the sensor faults active now
+                                                                    (ros/fault_topics.py)
   /sim/bolls                               cottonsim_msgs/BollArray latched: every boll's id, plant, position,
                                                                     state (ros/boll_topics.py)
 Subscriptions
@@ -45,11 +45,8 @@ Services
   /sim/set_robot_pose                      cottonsim_msgs/SetRobotPose  teleport the robot (world frame, at rest)
                                            between two physics steps; wheel odometry / EKF do not see it (a
                                            kidnap for localisation tests). success false + message when refused
-  /sim/inject_fault                        cottonsim_msgs/InjectFault  start a sensor fault now (sim time) for
-                                           duration_s: kind, target (camera), parameters (YAML mapping of the
-                                           kind's keys, config/sim.yaml 'faults'); success false + message when
-                                           refused (unknown kind or key, bad value, camera not simulated)
-  /sim/clear_faults                        cottonsim_msgs/ClearFaults  end every fault, scheduled or injected
+  /sim/inject_fault, /sim/clear_faults     cottonsim_msgs/InjectFault, ClearFaults  start a sensor fault now,
+                                           end them all (ros/fault_topics.py)
   /sim/set_boll_state                      cottonsim_msgs/SetBollState  detach / carry / bin one boll (ros/boll_topics.py)
 TF
   odom -> base_link (from the EKF, ~publish_tf); the robot's own frames come from
@@ -77,23 +74,18 @@ Parameters (private)
 """
 from __future__ import annotations
 
-import dataclasses
-import json
 import math
 import pathlib
 import threading
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Dict
 
 import numpy as np
 import rospkg
 import rospy
 import tf2_ros
-from cottonsim_common.config.yaml_files import load_yaml_text
-from cottonsim_msgs.msg import (ArmContact, ArmContacts, PlantContact, PlantContacts, SensorFault, SensorFaults,
-                                SimStats)
-from cottonsim_msgs.srv import (ClearFaults, ClearFaultsResponse, InjectFault, InjectFaultResponse, SetRobotPose,
-                                SetRobotPoseResponse)
+from cottonsim_msgs.msg import ArmContact, ArmContacts, PlantContact, PlantContacts, SimStats
+from cottonsim_msgs.srv import SetRobotPose, SetRobotPoseResponse
 from geometry_msgs.msg import Point, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -101,10 +93,11 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, NavSa
 from trajectory_msgs.msg import JointTrajectory
 
 from cottonsim_common.ros import conversions as conv
+from cottonsim_common.transforms import yaw_to_quaternion
 from cottonsim_world.config_io import simulator_config_from_dict
-from cottonsim_world.faults import FaultSpec, fault_from_mapping
 from cottonsim_world.robot.urdf_model import UrdfModel
 from cottonsim_world.ros.boll_topics import BollTopics
+from cottonsim_world.ros.fault_topics import FaultTopics
 from cottonsim_world.ros.arm_interface import ArmRosInterface
 from cottonsim_world.readings import (ArmContactsReading, CameraReading, ContactsReading, GpsReading,
                                       GroundTruthReading, ImuReading, JointStatesReading, LidarReading,
@@ -167,10 +160,7 @@ class SimBridgeNode:
         rospy.Subscriber("/arm_controller/command", JointTrajectory, self._on_arm_command, queue_size=2)
         self._pending_teleport = None       # [pose, threading.Event, refusal or None], done by the sim loop
         rospy.Service("/sim/set_robot_pose", SetRobotPose, self._on_set_robot_pose)
-        self._pending_faults: List[list] = []   # [FaultSpec or None (= clear), Event, answer], done by the sim loop
-        self._published_faults: Optional[Tuple] = None
-        rospy.Service("/sim/inject_fault", InjectFault, self._on_inject_fault)
-        rospy.Service("/sim/clear_faults", ClearFaults, self._on_clear_faults)
+        self.fault_topics = FaultTopics(self.sim)     # /sim/inject_fault, /sim/clear_faults, /sim/faults/active
         self.boll_topics = BollTopics(self.sim.bolls)
         self.arm_ros = ArmRosInterface(self.sim)     # /arm_controller/follow_joint_trajectory, vacuum
         self.pacing = ConsumerPacing.for_cameras(self.sim.config.cameras)   # cameras' consumer_wait_s
@@ -202,7 +192,6 @@ class SimBridgeNode:
         self.contacts_pub = rospy.Publisher("/ground_truth/plant_contacts", PlantContacts, queue_size=10)
         self.arm_contacts_pub = rospy.Publisher("/ground_truth/arm_contacts", ArmContacts, queue_size=10)
         self.stats_pub = rospy.Publisher("/sim/stats", SimStats, queue_size=2)
-        self.faults_pub = rospy.Publisher("/sim/faults/active", SensorFaults, queue_size=2, latch=True)
         self.tf_pub = tf2_ros.TransformBroadcaster()
 
     # ------------------------------------------------------------------ inputs
@@ -237,68 +226,12 @@ class SimBridgeNode:
         rospy.logwarn("sim_bridge: robot teleported to (%.2f, %.2f, yaw %.2f) in world", *job[0])
         return SetRobotPoseResponse(True, "robot at (%.3f, %.3f, yaw %.3f) in world" % job[0])
 
-    def _on_inject_fault(self, req):
-        """Validate the fault here; the simulation loop starts it at its sim time (waits for that)."""
-        try:
-            spec = fault_spec_from_request(req.kind, req.target, req.duration_s, req.parameters)
-        except ValueError as exc:
-            return InjectFaultResponse(False, str(exc))
-        answer = self._hand_to_loop(spec)
-        if answer is None:
-            return InjectFaultResponse(False, "the simulation loop did not take the fault within 10 s (wall)")
-        if isinstance(answer, str):
-            return InjectFaultResponse(False, answer)
-        rospy.logwarn("sim_bridge: fault injected: %s", answer.describe())
-        return InjectFaultResponse(True, answer.describe())
-
-    def _on_clear_faults(self, _req):
-        answer = self._hand_to_loop(None)
-        if answer is None:
-            return ClearFaultsResponse(0, "the simulation loop did not take the request within 10 s (wall)")
-        rospy.logwarn("sim_bridge: %d sensor fault(s) cleared", answer)
-        return ClearFaultsResponse(answer, f"{answer} fault(s) ended")
-
-    def _hand_to_loop(self, spec: Optional[FaultSpec]):
-        job = [spec, threading.Event(), None]
-        with self._cmd_lock:
-            self._pending_faults.append(job)
-        return job[2] if job[1].wait(10.0) else None
-
-    def _apply_fault_requests(self, jobs: List[list]):
-        now = self.sim.time_s
-        for job in jobs:
-            spec = job[0]
-            if spec is None:
-                job[2] = self.sim.faults.clear(now)
-            else:
-                try:
-                    spec = dataclasses.replace(spec, start_s=now)
-                    self.sim.faults.add(spec)
-                    job[2] = spec
-                except ValueError as exc:
-                    job[2] = str(exc)
-            job[1].set()
-
-    def _publish_faults(self, now_s: float):
-        """/sim/faults/active when the set of active faults differs from the last one published."""
-        active = self.sim.faults.active(now_s) if not self.sim.faults.idle else []
-        key = tuple((f.kind, f.target, f.start_s, f.end_s) for f in active)
-        if key == self._published_faults:
-            return
-        self._published_faults = key
-        msg = SensorFaults(active=[SensorFault(kind=f.kind, target=f.target, start_s=f.start_s, end_s=f.end_s,
-                                               parameters=json.dumps(f.parameters())) for f in active])
-        msg.header.stamp = conv.to_time(now_s)
-        self.faults_pub.publish(msg)
-
     def _apply_inputs(self):
         with self._cmd_lock:
             cmd, self._pending_cmd = self._pending_cmd, None
             arm, self._pending_arm = self._pending_arm, None
             teleport, self._pending_teleport = self._pending_teleport, None
-            fault_jobs, self._pending_faults = self._pending_faults, []
-        if fault_jobs:
-            self._apply_fault_requests(fault_jobs)
+        self.fault_topics.apply_requests()
         if teleport is not None:
             try:
                 self.sim.teleport_robot(*teleport[0])
@@ -335,7 +268,7 @@ class SimBridgeNode:
         window = (wall0, sim0)
         clock_s = sim0
         self.clock_pub.publish(conv.clock_msg(clock_s))
-        self._publish_faults(clock_s)
+        self.fault_topics.publish_active(clock_s)
         step = 0
         while not rospy.is_shutdown():
             now_wall = time.monotonic()
@@ -356,7 +289,7 @@ class SimBridgeNode:
                 clock_s = delivered_s
                 self.clock_pub.publish(conv.clock_msg(clock_s))
                 if not self.sim.faults.idle:
-                    self._publish_faults(clock_s)
+                    self.fault_topics.publish_active(clock_s)
             for reading in readings:
                 self._publish(reading)
             if step % stats_steps == 0:
@@ -451,7 +384,7 @@ class SimBridgeNode:
     def _publish_odometry(self, r: OdometryReading, stamp):
         w = r.wheel
         self.wheel_odom_pub.publish(conv.odometry_msg(
-            (w.x_m, w.y_m, 0.0), _yaw_quaternion(w.yaw_rad), (w.linear_x_m_s, 0.0, 0.0), (0.0, 0.0, w.angular_z_rad_s),
+            (w.x_m, w.y_m, 0.0), yaw_to_quaternion(w.yaw_rad), (w.linear_x_m_s, 0.0, 0.0), (0.0, 0.0, w.angular_z_rad_s),
             w.pose_covariance.reshape(-1), w.twist_covariance.reshape(-1), stamp, "odom", "base_link"))
         f = r.filtered
         self.filtered_odom_pub.publish(conv.odometry_msg(
@@ -483,31 +416,3 @@ class SimBridgeNode:
                                    depth=e.depth_m) for e in r.events]
         self.arm_contacts_pub.publish(msg)
 
-
-def fault_spec_from_request(kind: str, target: str, duration_s: float, parameters: str) -> FaultSpec:
-    """A FaultSpec (start_s 0, set by the caller) from /sim/inject_fault's fields; ValueError naming the problem."""
-    try:
-        params = load_yaml_text(parameters, source="parameters") if parameters.strip() else {}
-    except ValueError as exc:
-        raise ValueError(f"parameters must be a YAML mapping of the fault's keys: {exc}") from None
-    if params is None:
-        params = {}
-    if not isinstance(params, dict):
-        raise ValueError(f"parameters must be a YAML mapping of the fault's keys, got {parameters!r}")
-    for key in ("kind", "start_s", "duration_s"):
-        if key in params:
-            raise ValueError(f"parameters must not set '{key}' (the request's own field, or now for start_s)")
-    mapping = dict(params, kind=kind, start_s=0.0, duration_s=duration_s)
-    target = target.strip()
-    if kind == "camera_blackout":
-        if target and "camera" in params and params["camera"] != target:
-            raise ValueError(f"target {target!r} and parameters camera {params['camera']!r} disagree")
-        if target:
-            mapping["camera"] = target
-    elif target and target != {"lidar_dropout": "lidar"}.get(kind, "gps"):
-        raise ValueError(f"target {target!r} does not fit {kind} (leave it empty)")
-    return fault_from_mapping(mapping, f"fault {kind!r}")
-
-
-def _yaw_quaternion(yaw: float):
-    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))

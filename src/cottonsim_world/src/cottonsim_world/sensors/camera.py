@@ -36,7 +36,7 @@ from typing import Optional, Tuple
 import numpy as np
 import pybullet as pb
 
-from cottonsim_common.validation import require_instance
+from cottonsim_common.validation import require_fields, require_instance
 from cottonsim_world.farm.model import SemanticClass
 from cottonsim_world.sensors.fast.image_compose import compose_image, fill_cloud_xyzrgb, tile_texture
 from cottonsim_world.sensors.fast.raster import draw_plants
@@ -101,10 +101,8 @@ class CameraConfig:
     consumer_wait_s: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("width", "height", "cloud_stride"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        require_fields(self, counts=("width", "height", "cloud_stride"),
+                       non_negative=("depth_noise_std_m", "rgb_noise_std"))
         if self.width > 4096 or self.height > 4096:
             raise ValueError(f"width/height must be <= 4096 px, got {self.width}x{self.height}")
         if not (0.0 < self.horizontal_fov_rad < math.pi):
@@ -116,10 +114,6 @@ class CameraConfig:
         if not (0.0 <= self.cloud_min_m < self.cloud_max_m):
             raise ValueError(f"cloud_min_m/cloud_max_m must satisfy 0 <= min < max, got "
                              f"{self.cloud_min_m}, {self.cloud_max_m}")
-        for name in ("depth_noise_std_m", "rgb_noise_std"):
-            v = getattr(self, name)
-            if not (v >= 0.0 and math.isfinite(v)):
-                raise ValueError(f"{name} must be >= 0, got {v}")
         if self.renderer not in _RENDERERS:
             raise ValueError(f"renderer must be one of {_RENDERERS}, got {self.renderer!r}")
         if not (self.lod_max_error_px >= 0.0 and math.isfinite(self.lod_max_error_px)):
