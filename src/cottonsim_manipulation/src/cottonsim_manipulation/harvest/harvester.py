@@ -63,6 +63,7 @@ import numpy as np
 
 from cottonsim_common.capsules import CapsuleSet
 from cottonsim_common.kinematics.ur5e import Ur5eKinematics
+from cottonsim_common.validation import require_fields, require_int, require_number
 from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
@@ -112,27 +113,15 @@ class HarvestConfig:
     ground_z_m: float = -0.13228
 
     def __post_init__(self) -> None:
-        for name in ("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s", "stopped_yaw_rate_rad_s",
-                     "row_offset_m", "plant_half_spacing_m", "retry_distance_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 < v <= 10.0):
-                raise ValueError(f"HarvestConfig.{name} must be a number in (0, 10], got {v!r}")
-        v = self.max_target_age_s
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 < v <= 3600.0):
-            raise ValueError(f"HarvestConfig.max_target_age_s must be a number in (0, 3600] s, got {v!r}")
+        require_fields(self, "HarvestConfig.", flags=("stem_obstacles",),
+                       positive=("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s",
+                                 "stopped_yaw_rate_rad_s", "row_offset_m", "plant_half_spacing_m", "retry_distance_m",
+                                 "max_target_age_s"))
+        require_number("HarvestConfig.stop_ahead_m", self.stop_ahead_m, -10.0, 10.0)
+        require_number("HarvestConfig.ground_z_m", self.ground_z_m, -5.0, 5.0)
+        require_int("HarvestConfig.max_targets_per_stop", self.max_targets_per_stop, 1, 1000)
         if self.min_reach_m >= self.reach_m:
             raise ValueError(f"HarvestConfig.min_reach_m {self.min_reach_m} must be below reach_m {self.reach_m}")
-        v = self.stop_ahead_m
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and abs(v) <= 10.0):
-            raise ValueError(f"HarvestConfig.stop_ahead_m must be a number in [-10, 10] m, got {v!r}")
-        v = self.max_targets_per_stop
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not (1 <= v <= 1000):
-            raise ValueError(f"HarvestConfig.max_targets_per_stop must be an integer in [1, 1000], got {v!r}")
-        if not isinstance(self.stem_obstacles, bool):
-            raise ValueError(f"HarvestConfig.stem_obstacles must be true or false, got {self.stem_obstacles!r}")
-        v = self.ground_z_m
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and abs(v) <= 5.0):
-            raise ValueError(f"HarvestConfig.ground_z_m must be a number in [-5, 5] m, got {v!r}")
         if self.outward not in OUTWARD_MODELS:
             raise ValueError(f"HarvestConfig.outward must be one of {OUTWARD_MODELS}, got {self.outward!r}")
 
