@@ -51,7 +51,7 @@ import numpy as np
 import rospy
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
-from cottonsim_msgs.msg import (Boll, BollArray, BollDetections, BollTarget, BollTargetArray,
+from cottonsim_msgs.msg import (BollDetections, BollTarget, BollTargetArray,
                                 FollowJointTrajectoryAction, FollowJointTrajectoryGoal, PickBollAction,
                                 PickBollFeedback, PickBollResult)
 from nav_msgs.msg import Odometry
@@ -63,7 +63,6 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from cottonsim_common.kinematics.ur5e import JOINT_NAMES
 from cottonsim_common.ros.params import config_from_params, typed_param
-from cottonsim_common.transforms import pose_matrix
 from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester, transform_points
 from cottonsim_manipulation.harvest.pick_cycle import (CancelTrajectory, CaptureConfirmed, HaltRoute, PickCycleConfig,
                                                        ResumeRoute, RobotStopped, SendTrajectory, SetVacuum,
@@ -75,6 +74,7 @@ from cottonsim_common.kinematics.arm_capsules import ArmCollisionConfig
 from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf
 from cottonsim_manipulation.planning.trajectory import plan_trajectory
+from cottonsim_manipulation.ros.truth_targets import TruthTargets, transform_matrix
 
 TARGET_SOURCES = ("detections", "ground_truth")
 _TARGET_STATES = {"tentative": BollTarget.TENTATIVE, "confirmed": BollTarget.CONFIRMED,
@@ -82,14 +82,8 @@ _TARGET_STATES = {"tentative": BollTarget.TENTATIVE, "confirmed": BollTarget.CON
 _MARKER_RGB = {"tentative": (0.6, 0.6, 0.6), "confirmed": (1.0, 0.8, 0.0), "picked": (0.1, 0.8, 0.1),
                "abandoned": (0.9, 0.1, 0.1)}
 READY_TOLERANCE_RAD = 0.02                      # the arm is at its ready pose this close [rad]
-TRUTH_POSE_MAX_SKEW_S = 0.05                    # ground-truth targets: true pose and TF at most this far apart [s]
 REST_SPEED_RAD_S = 0.01                         # the arm is at rest below this joint speed [rad/s]
 START_TOLERANCE_RAD = 0.01                      # a trajectory starting farther from the arm gets a lead-in [rad]
-
-
-def _matrix(transform) -> np.ndarray:
-    t, r = transform.transform.translation, transform.transform.rotation
-    return pose_matrix((t.x, t.y, t.z), (r.x, r.y, r.z, r.w))
 
 
 class HarvestNode:
@@ -131,8 +125,6 @@ class HarvestNode:
         self._waiting = None                     # a trajectory to send once the arm is at rest
         self._odom = None                        # (stamp [s], speed [m/s], yaw rate [rad/s])
         self._holding = False
-        self._truth = None                       # (BollArray, world_T_base)
-        self._true_poses = collections.deque(maxlen=200)     # recent true poses: (stamp [s], 4x4 world_T_base)
         self._seq = 0                            # the trajectory in flight (0: none)
         self._parking = False
         self._park_deadline_s = 0.0
@@ -161,8 +153,7 @@ class HarvestNode:
                 rospy.Subscriber(str(topic), BollDetections, self._on_detections, queue_size=5)
         else:
             rospy.logwarn("harvest: ground-truth targets from /sim/bolls (a study option, not the robot's view)")
-            rospy.Subscriber("/sim/bolls", BollArray, self._on_truth, queue_size=2)
-            rospy.Subscriber("/ground_truth/odom", Odometry, self._on_truth_pose, queue_size=5)
+            self.truth = TruthTargets(self.tf_buffer, self.frame, self.robot_frame, self.truth_range_m)
         self.server = actionlib.SimpleActionServer("~pick", PickBollAction, execute_cb=self._execute_pick,
                                                    auto_start=False)
         self.server.start()
@@ -199,20 +190,10 @@ class HarvestNode:
             rospy.logwarn_throttle(10.0, f"harvest: detections of {msg.camera} dropped: no TF {self.frame} <- "
                                          f"{msg.header.frame_id}: {exc}")
             return
-        pts = transform_points(_matrix(tf), np.array(points, dtype=float))
+        pts = transform_points(transform_matrix(tf), np.array(points, dtype=float))
         if np.all(np.isfinite(pts)):
             with self._lock:
                 self._detections.append((pts, msg.header.stamp.to_sec()))
-
-    def _on_truth(self, msg: BollArray):
-        with self._lock:
-            self._truth = msg
-
-    def _on_truth_pose(self, msg: Odometry):
-        p, r = msg.pose.pose.position, msg.pose.pose.orientation
-        with self._lock:
-            world_T_base = pose_matrix((p.x, p.y, p.z), (r.x, r.y, r.z, r.w))
-            self._true_poses.append((msg.header.stamp.to_sec(), world_T_base))
 
     def _on_enable(self, req):
         with self._lock:
@@ -271,8 +252,8 @@ class HarvestNode:
 
     def _pose(self) -> bool:
         try:
-            arm_T_frame = _matrix(self.tf_buffer.lookup_transform(self.arm_base_frame, self.frame, rospy.Time(0)))
-            arm_T_base = _matrix(self.tf_buffer.lookup_transform(self.arm_base_frame, self.robot_frame,
+            arm_T_frame = transform_matrix(self.tf_buffer.lookup_transform(self.arm_base_frame, self.frame, rospy.Time(0)))
+            arm_T_base = transform_matrix(self.tf_buffer.lookup_transform(self.arm_base_frame, self.robot_frame,
                                                                  rospy.Time(0)))
         except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
             rospy.logwarn_throttle(10.0, f"harvest: waiting for TF {self.arm_base_frame} <- {self.frame}")
@@ -337,26 +318,8 @@ class HarvestNode:
 
     def _fuse(self, detections, now: float) -> bool:
         if self.target_source == "ground_truth":
-            with self._lock:
-                truth, poses = self._truth, list(self._true_poses)
-            if truth is None or not poses:
-                return False
-            try:
-                tf_msg = self.tf_buffer.lookup_transform(self.frame, self.robot_frame, rospy.Time(0))
-            except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
-                return False
-            # the true pose of the same moment as the newest TF: with the newest of each, a driving robot's
-            # targets were off by its speed times the two messages' age difference
-            tf_stamp_s = tf_msg.header.stamp.to_sec()
-            pose_stamp_s, world_T_base = min(poses, key=lambda sp: abs(sp[0] - tf_stamp_s))
-            if abs(pose_stamp_s - tf_stamp_s) > TRUTH_POSE_MAX_SKEW_S:
-                return False
-            frame_T_base = _matrix(tf_msg)
-            bolls = np.array([(b.position.x, b.position.y, b.position.z) for b in truth.bolls
-                              if b.state == Boll.ON_PLANT]).reshape(-1, 3)
-            near = bolls[np.linalg.norm(bolls[:, :2] - world_T_base[:2, 3], axis=1) <= self.truth_range_m]
-            detections = [(transform_points(frame_T_base @ np.linalg.inv(world_T_base), near), now)] if len(near) \
-                else []
+            points = self.truth.points()
+            detections = [(points, now)] if points is not None and len(points) else []
             sigma = self.harvester.fusion.config.min_sigma_m
         else:
             sigma = None
@@ -399,7 +362,7 @@ class HarvestNode:
                 tf = self.tf_buffer.lookup_transform(self.frame, goal.point.header.frame_id or self.frame,
                                                      rospy.Time(0))
                 p = goal.point.point
-                commands = h.start_pick(q, now, point_frame_m=transform_points(_matrix(tf), [[p.x, p.y, p.z]])[0])
+                commands = h.start_pick(q, now, point_frame_m=transform_points(transform_matrix(tf), [[p.x, p.y, p.z]])[0])
         except (ValueError, RuntimeError, tf2_ros.LookupException, tf2_ros.ConnectivityException,
                 tf2_ros.ExtrapolationException) as exc:
             request["result"] = PickBollResult(False, "rejected", str(exc), 0.0)

@@ -1,0 +1,72 @@
+"""Ground-truth boll detections for the harvest node (``~target_source: ground_truth``, a study option).
+
+The simulator's open bolls (/sim/bolls, world frame) within ``range_m`` of the robot's true position
+(/ground_truth/odom) are given to the harvester as if detected, in the targets' fixed frame. The true
+pose is paired with TF by stamp: the newest TF ``frame <- robot_frame`` and the true pose of the same
+moment (at most ``TRUTH_POSE_MAX_SKEW_S`` apart); with the newest of each, a driving robot's targets
+were off by its speed times the two messages' age difference.
+"""
+from __future__ import annotations
+
+import collections
+import threading
+from typing import Optional
+
+import numpy as np
+import rospy
+import tf2_ros
+from cottonsim_msgs.msg import Boll, BollArray
+from nav_msgs.msg import Odometry
+
+from cottonsim_common.transforms import pose_matrix
+from cottonsim_manipulation.harvest.harvester import transform_points
+
+TRUTH_POSE_MAX_SKEW_S = 0.05        # true pose and TF at most this far apart [s]
+
+
+def transform_matrix(transform) -> np.ndarray:
+    """4x4 matrix of a geometry_msgs/TransformStamped."""
+    t, r = transform.transform.translation, transform.transform.rotation
+    return pose_matrix((t.x, t.y, t.z), (r.x, r.y, r.z, r.w))
+
+
+class TruthTargets:
+    """Subscribes to the simulator's truth; :meth:`points` gives the open bolls near the robot."""
+
+    def __init__(self, tf_buffer: tf2_ros.Buffer, frame: str, robot_frame: str, range_m: float):
+        self.tf_buffer, self.frame, self.robot_frame, self.range_m = tf_buffer, frame, robot_frame, range_m
+        self._lock = threading.Lock()
+        self._open_bolls: Optional[np.ndarray] = None                  # (N, 3) world [m]
+        self._true_poses = collections.deque(maxlen=200)               # (stamp [s], 4x4 world_T_base)
+        rospy.Subscriber("/sim/bolls", BollArray, self._on_bolls, queue_size=2)
+        rospy.Subscriber("/ground_truth/odom", Odometry, self._on_pose, queue_size=5)
+
+    def _on_bolls(self, msg: BollArray) -> None:
+        bolls = np.array([(b.position.x, b.position.y, b.position.z) for b in msg.bolls
+                          if b.state == Boll.ON_PLANT], dtype=float).reshape(-1, 3)
+        with self._lock:
+            self._open_bolls = bolls
+
+    def _on_pose(self, msg: Odometry) -> None:
+        p, r = msg.pose.pose.position, msg.pose.pose.orientation
+        world_T_base = pose_matrix((p.x, p.y, p.z), (r.x, r.y, r.z, r.w))
+        with self._lock:
+            self._true_poses.append((msg.header.stamp.to_sec(), world_T_base))
+
+    def points(self) -> Optional[np.ndarray]:
+        """The open bolls within range_m of the robot, (N, 3) in ``frame``; None while the truth, the true
+        pose or TF is missing, or no true pose is within TRUTH_POSE_MAX_SKEW_S of the newest TF."""
+        with self._lock:
+            bolls, poses = self._open_bolls, list(self._true_poses)
+        if bolls is None or not poses:
+            return None
+        try:
+            tf_msg = self.tf_buffer.lookup_transform(self.frame, self.robot_frame, rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+            return None
+        tf_stamp_s = tf_msg.header.stamp.to_sec()
+        pose_stamp_s, world_T_base = min(poses, key=lambda sp: abs(sp[0] - tf_stamp_s))
+        if abs(pose_stamp_s - tf_stamp_s) > TRUTH_POSE_MAX_SKEW_S:
+            return None
+        near = bolls[np.linalg.norm(bolls[:, :2] - world_T_base[:2, 3], axis=1) <= self.range_m]
+        return transform_points(transform_matrix(tf_msg) @ np.linalg.inv(world_T_base), near)
