@@ -116,6 +116,8 @@ def test_the_command_refuses_bad_requests_with_one_line(tmp_path, capsys, monkey
 
     assert main(["harvest", "--results", str(tmp_path), "--vision", "both"]) == 2
     assert "harvest takes --vision on or off" in capsys.readouterr().err
+    assert main(["harvest", "--results", str(tmp_path), "--waypoints", str(tmp_path / "route.txt")]) == 2
+    assert "--waypoints is for gps-route" in capsys.readouterr().err
     monkeypatch.setitem(sys.modules, "cottonsim_experiments.harvest.metrics", None)
     assert main(["harvest", "--results", str(tmp_path), "--seeds", "0"]) == 2
     assert "cottonsim_experiments.harvest.metrics" in capsys.readouterr().err

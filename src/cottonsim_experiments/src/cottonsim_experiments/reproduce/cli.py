@@ -115,6 +115,9 @@ def main(argv=None) -> int:
         if a.experiment == "harvest":
             if a.vision == "both":
                 raise ValueError("harvest takes --vision on or off")
+            if a.waypoints:
+                raise ValueError("harvest builds its route from --lanes and --row; --waypoints is for gps-route "
+                                 "and map-route")
             run_harvest(ws, a.seeds or [0, 1, 2], lanes=a.lanes, row=a.row, targets=a.targets,
                         vision=None if a.vision is None else a.vision == "on", real_time_factor=a.real_time_factor,
                         record_bag=not a.no_bag, engine=engine)
