@@ -20,7 +20,7 @@ from sensor_msgs.msg import (CameraInfo, Image, Imu, JointState, LaserScan, NavS
                              PointCloud2, PointField)
 from std_msgs.msg import Header
 
-from cottonsim_common.transforms import quaternion_to_yaw, yaw_to_quaternion
+from cottonsim_common.transforms import pose_matrix, quaternion_to_yaw, yaw_to_quaternion
 
 # PointField datatypes (sensor_msgs/PointField constants) keyed by numpy dtype.
 _POINTFIELD_OF_DTYPE = {
@@ -233,6 +233,12 @@ def transform_msg(parent: str, child: str, translation, rotation_xyzw, stamp: ro
         float, translation)
     msg.transform.rotation = quaternion_msg(rotation_xyzw)
     return msg
+
+
+def transform_matrix(msg: TransformStamped) -> np.ndarray:
+    """The 4x4 matrix of a geometry_msgs/TransformStamped (child frame -> parent frame)."""
+    t, r = msg.transform.translation, msg.transform.rotation
+    return pose_matrix((t.x, t.y, t.z), (r.x, r.y, r.z, r.w))
 
 
 def joint_state_msg(names: Sequence[str], positions, velocities, stamp: rospy.Time) -> JointState:

@@ -27,6 +27,7 @@ from cottonsim_msgs.msg import BollArray, BollTargetArray
 from nav_msgs.msg import Odometry
 from std_msgs.msg import String
 
+from cottonsim_common.ros.conversions import transform_matrix
 from cottonsim_common.transforms import invert, pose_matrix
 from cottonsim_experiments.harvest_run.record import HarvestRecord, write_json_atomic
 
@@ -76,8 +77,7 @@ class HarvestRecorderNode:
             tf = self.tf_buffer.lookup_transform(frame, self.robot_frame, stamp, rospy.Duration(0.2))
         except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
             return None
-        t, r = tf.transform.translation, tf.transform.rotation
-        return world_T_base @ invert(pose_matrix((t.x, t.y, t.z), (r.x, r.y, r.z, r.w)))
+        return world_T_base @ invert(transform_matrix(tf))
 
     def _on_status(self, msg: String) -> None:
         try:

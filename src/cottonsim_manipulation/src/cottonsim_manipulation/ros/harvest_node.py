@@ -62,6 +62,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from cottonsim_common.kinematics.ur5e import JOINT_NAMES
+from cottonsim_common.ros.conversions import transform_matrix
 from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester, transform_points
 from cottonsim_manipulation.harvest.pick_cycle import (CancelTrajectory, CaptureConfirmed, HaltRoute, PickCycleConfig,
@@ -74,7 +75,7 @@ from cottonsim_common.kinematics.arm_capsules import ArmCollisionConfig
 from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf
 from cottonsim_manipulation.planning.trajectory import plan_trajectory
-from cottonsim_manipulation.ros.truth_targets import TruthTargets, transform_matrix
+from cottonsim_manipulation.ros.truth_targets import TruthTargets
 
 TARGET_SOURCES = ("detections", "ground_truth")
 _TARGET_STATES = {"tentative": BollTarget.TENTATIVE, "confirmed": BollTarget.CONFIRMED,

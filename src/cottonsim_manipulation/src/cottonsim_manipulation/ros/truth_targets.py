@@ -18,16 +18,11 @@ import tf2_ros
 from cottonsim_msgs.msg import Boll, BollArray
 from nav_msgs.msg import Odometry
 
+from cottonsim_common.ros.conversions import transform_matrix
 from cottonsim_common.transforms import pose_matrix
 from cottonsim_manipulation.harvest.harvester import transform_points
 
 TRUTH_POSE_MAX_SKEW_S = 0.05        # true pose and TF at most this far apart [s]
-
-
-def transform_matrix(transform) -> np.ndarray:
-    """4x4 matrix of a geometry_msgs/TransformStamped."""
-    t, r = transform.transform.translation, transform.transform.rotation
-    return pose_matrix((t.x, t.y, t.z), (r.x, r.y, r.z, r.w))
 
 
 class TruthTargets:
