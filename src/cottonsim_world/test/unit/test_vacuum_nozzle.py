@@ -75,6 +75,22 @@ def test_capture_rule_on_the_nozzle(offset, axis, captured):
     assert store.state(0) == (HELD if captured else OPEN)
 
 
+def test_switching_off_without_a_capture_says_how_close_the_tip_came_and_why_it_missed():
+    store = field_store(plant(1.0, 2.0, [[0.2, 0.0, 0.5]]))
+    nozzle = VacuumNozzle(store, VacuumConfig())
+    nozzle.switch(True, pose([1.3, 2.0, 0.5], [-1, 0, 0]), np.eye(4))
+    for x in (1.3, 1.25, 1.21):                      # along the approach, 52 deg off the inward direction
+        assert nozzle.step(pose([x, 2.0, 0.5], (-math.cos(0.9), math.sin(0.9), 0))) is None
+    text = nozzle.switch(False, pose([1.3, 2.0, 0.5], [-1, 0, 0]), np.eye(4))
+    assert "within 10.0 mm of boll 0, 52 deg off" in text and "misaligned" in text, text
+    nozzle.switch(True, pose([1.3, 2.0, 0.5], [-1, 0, 0]), np.eye(4))
+    nozzle.step(pose([1.25, 2.0, 0.5], [-1, 0, 0]))
+    text = nozzle.switch(False, pose([1.3, 2.0, 0.5], [-1, 0, 0]), np.eye(4))
+    assert "within 50.0 mm of boll 0" in text and "too far" in text, text
+    nozzle.switch(True, pose([1.3, 2.0, 0.5], [-1, 0, 0]), np.eye(4))
+    assert nozzle.switch(False, pose([1.3, 2.0, 0.5], [-1, 0, 0]), np.eye(4)) == "vacuum off"   # never stepped
+
+
 def test_a_held_boll_travels_with_the_tool_and_is_released_into_the_bin_or_dropped():
     store = field_store(plant(1.0, 2.0, [[0.2, 0.0, 0.5], [0.2, 0.2, 0.5]]))
     cfg = VacuumConfig(bin_centre_m=(0.0, 0.0, 0.6), bin_half_size_m=(0.1, 0.1, 0.1))

@@ -9,7 +9,9 @@ plant (``BollStore.attach``) and from then on travels with the tool (its
 offset from the tip, in the tip frame, stays what it was at the capture).
 Switching the vacuum off releases the held boll: into the bin when the tip
 is inside the bin's opening (a box in base_link, ``bin_centre_m`` +-
-``bin_half_size_m``), else it is dropped where it is. The tip frame is the
+``bin_half_size_m``), else it is dropped where it is. Switching it off with
+nothing held says why nothing was captured: the closest the tip came to an
+open boll while the vacuum was on, with its distance and angle. The tip frame is the
 URDF's ur5e_nozzle_tip (z along the nozzle, out of it).
 """
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from cottonsim_common.vacuum_capture import CaptureConfig, check_capture
+from cottonsim_common.vacuum_capture import CaptureCheck, CaptureConfig, check_capture
 from cottonsim_world.robot.boll_store import BollStore
 
 
@@ -71,14 +73,16 @@ class VacuumNozzle:
         self.on = False
         self.held_id: Optional[int] = None
         self._tip_T_boll: Optional[np.ndarray] = None
+        self._closest: Optional[Tuple[int, CaptureCheck]] = None   # (boll id, check) of this vacuum-on, no capture
 
     def switch(self, on: bool, world_T_tip: np.ndarray, world_T_base: np.ndarray) -> str:
         """Turn the vacuum on or off (off releases a held boll); returns what happened, in words."""
         self.on = bool(on)
         if self.on:
+            self._closest = None
             return "vacuum on" + (f", holding boll {self.held_id}" if self.held_id is not None else "")
         if self.held_id is None:
-            return "vacuum off"
+            return "vacuum off" + self._miss_summary()
         boll, self.held_id = self.held_id, None
         tip_in_base = np.linalg.solve(world_T_base, world_T_tip)[:3, 3]
         offset = np.abs(tip_in_base - np.asarray(self.config.bin_centre_m))
@@ -98,7 +102,12 @@ class VacuumNozzle:
             return None
         tip, axis = world_T_tip[:3, 3], world_T_tip[:3, 2]
         boll = self.store.nearest_open(tip)
-        if boll is None or not check_capture(tip, axis, boll.centre_m, boll.outward, self._rule).captured:
+        if boll is None:
+            return None
+        check = check_capture(tip, axis, boll.centre_m, boll.outward, self._rule)
+        if not check.captured:
+            if self._closest is None or check.distance_m < self._closest[1].distance_m:
+                self._closest = (boll.boll_id, check)
             return None
         self.store.attach(boll.boll_id)
         self.held_id = boll.boll_id
@@ -106,3 +115,14 @@ class VacuumNozzle:
         boll_pose[:3, 3] = boll.centre_m
         self._tip_T_boll = np.linalg.solve(world_T_tip, boll_pose)
         return boll.boll_id
+
+    def _miss_summary(self) -> str:
+        """Why the vacuum-on that ends now captured nothing: its closest approach to an open boll."""
+        if self._closest is None:
+            return ""
+        boll_id, check = self._closest
+        self._closest = None
+        return (f": nothing captured; the tip came within {check.distance_m * 1e3:.1f} mm of boll {boll_id}, "
+                f"{math.degrees(check.angle_rad):.0f} deg off its inward direction ({check.reason.replace('_', ' ')}: "
+                f"capture radius {self._rule.capture_radius_m * 1e3:.0f} mm, cone "
+                f"{math.degrees(self._rule.cone_half_angle_rad):.0f} deg)")
