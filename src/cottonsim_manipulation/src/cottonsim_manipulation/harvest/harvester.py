@@ -69,6 +69,7 @@ from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_pic
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
 from cottonsim_manipulation.planning.approach import ApproachConfig
 from cottonsim_manipulation.planning.stems import stem_obstacles
+from cottonsim_manipulation.planning.trajectory import TrajectoryConfig
 
 OUTWARD_MODELS = ("plant", "lateral", "radial")
 PLANNING_FAILURES = ("unreachable", "ik_failed", "collision")   # results the planner decided
@@ -206,12 +207,13 @@ class Harvester:
     def __init__(self, plan: Planner, config: HarvestConfig = HarvestConfig(), fusion: Optional[TargetFusion] = None,
                  cycle_config: PickCycleConfig = PickCycleConfig(), order_config: PickOrderConfig = PickOrderConfig(),
                  kinematics: Optional[Ur5eKinematics] = None, approach_config: ApproachConfig = ApproachConfig(),
-                 clock: Optional[Callable[[], float]] = None):
+                 trajectory_config: TrajectoryConfig = TrajectoryConfig(), clock: Optional[Callable[[], float]] = None):
         self.config = config
         self.clock = clock                          # the time now [s], for the pick cycles (harvest.pick_cycle)
         self.approach_config = approach_config      # the stems' radius, height and merge distance
         self.fusion = fusion or TargetFusion()
         self.cycle_config = cycle_config
+        self.trajectory_config = trajectory_config   # the limits of the cycle's own moves (to the bin)
         self.order_config = order_config
         self.figures = HarvestFigures()
         self.cycle: Optional[PickCycle] = None
@@ -373,7 +375,8 @@ class Harvester:
 
     def _start(self, targets, q_rad, now_s: float) -> list:
         self._stop_plans = {}
-        self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config, clock=self.clock)
+        self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config, self.trajectory_config,
+                               clock=self.clock)
         self._seen = 0
         return self._collect(self.cycle.start(now_s))
 

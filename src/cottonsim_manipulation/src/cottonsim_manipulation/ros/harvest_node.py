@@ -74,7 +74,7 @@ from cottonsim_manipulation.planning.approach import ApproachConfig, plan_approa
 from cottonsim_common.kinematics.arm_capsules import ArmCollisionConfig
 from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf
-from cottonsim_manipulation.planning.trajectory import plan_trajectory
+from cottonsim_manipulation.planning.trajectory import TrajectoryConfig, plan_trajectory
 from cottonsim_manipulation.ros.truth_targets import TruthTargets
 
 TARGET_SOURCES = ("detections", "ground_truth")
@@ -107,14 +107,16 @@ class HarvestNode:
         fusion = TargetFusion(config_from_params(TargetFusionConfig, "~fusion/"))
         cycle = config_from_params(PickCycleConfig, "~cycle/")
         approach = config_from_params(ApproachConfig, "~approach/")
+        self.trajectory_config = config_from_params(TrajectoryConfig, "~trajectory/")
         urdf = rospy.get_param("/robot_description", "")
         if not urdf:
             raise ValueError("no /robot_description: the arm's collision model needs the robot's body")
         model = ArmCollisionModel(config_from_params(ArmCollisionConfig, "~collision/"),
                                   body=body_boxes_from_urdf(urdf, arm_base_frame=self.arm_base_frame))
-        self.harvester = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems, approach),
-                                   self.config, fusion, cycle, config_from_params(PickOrderConfig, "~order/"),
-                                   approach_config=approach, clock=rospy.get_time)
+        self.harvester = Harvester(
+            lambda p, n, q, stems: plan_approach(p, n, q, model, stems, approach, self.trajectory_config),
+            self.config, fusion, cycle, config_from_params(PickOrderConfig, "~order/"), approach_config=approach,
+            trajectory_config=self.trajectory_config, clock=rospy.get_time)
         self.ready_rad = np.asarray(cycle.bin_joints_rad, dtype=float)
 
         self._lock = threading.Lock()
@@ -346,7 +348,7 @@ class HarvestNode:
                     self._requests.appendleft(request)
             self._route_held = request is None
             self._parking = True
-            park = plan_trajectory(np.stack([q, self.ready_rad]))
+            park = plan_trajectory(np.stack([q, self.ready_rad]), self.trajectory_config)
             self._park_deadline_s = now + park.duration_s + h.cycle_config.motion_margin_s
             self._send(park)
             return
@@ -420,7 +422,7 @@ class HarvestNode:
             return
         self._waiting = None
         if np.abs(q - trajectory.waypoints_rad[0]).max() > START_TOLERANCE_RAD:
-            trajectory = plan_trajectory(np.vstack([q, trajectory.waypoints_rad]))
+            trajectory = plan_trajectory(np.vstack([q, trajectory.waypoints_rad]), self.trajectory_config)
         times, q, qd, qdd = trajectory.sampled()
         goal = FollowJointTrajectoryGoal()
         goal.trajectory.joint_names = list(self.joint_names)
