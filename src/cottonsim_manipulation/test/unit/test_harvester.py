@@ -298,7 +298,7 @@ def test_targets_not_seen_lately_neither_stop_the_robot_nor_are_picked(model):
         HarvestConfig(max_target_age_s=0.0)
 
 
-def test_a_target_the_planner_failed_for_stops_the_robot_again_only_from_elsewhere(model):
+def test_a_target_the_planner_failed_for_is_tried_again_from_elsewhere_without_counting_an_attempt(model):
     h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(outward="lateral",
                                                                                  retry_distance_m=0.2))
     h.update_pose(np.eye(4), ARM_T_BASE)
@@ -307,6 +307,8 @@ def test_a_target_the_planner_failed_for_stops_the_robot_again_only_from_elsewhe
     assert h.want_stop(robot_stopped=True)
     drive(h, h.start_stop(STOW_RAD, 0.0))
     assert sum(h.figures.results[r] for r in PLANNING_FAILURES) == 1 and h.figures.results["ok"] == 0
+    target = h.fusion.open_targets()[0]
+    assert target.attempts == 0 and target.state == CONFIRMED      # the arm never moved for it
     assert not h.want_stop(robot_stopped=True)     # from the same place it would fail again
     moved = np.eye(4)
     moved[1, 3] = 0.1                              # 0.1 m on: still too close to where it failed
@@ -314,7 +316,14 @@ def test_a_target_the_planner_failed_for_stops_the_robot_again_only_from_elsewhe
     assert not h.want_stop(robot_stopped=True)
     moved[1, 3] = -0.25                            # 0.25 m back
     h.update_pose(moved, ARM_T_BASE)
-    assert h.want_stop(robot_stopped=True)
+    assert not h.want_stop(robot_stopped=False)    # it does not stop a driving robot again ...
+    assert h.want_stop(robot_stopped=True)         # ... but a stop there tries it again
+    for _ in range(3):                             # failing again and again, it is never abandoned
+        drive(h, h.start_stop(STOW_RAD, 1.0))
+        moved[1, 3] = -0.25 - moved[1, 3]          # back and forth, 0.25 m each time
+        h.update_pose(moved, ARM_T_BASE)
+    assert sum(h.figures.results[r] for r in PLANNING_FAILURES) == 4
+    assert h.fusion.target(target.target_id).state == CONFIRMED
 
 
 def test_the_estimated_stems_are_obstacles_of_the_plan(model):

@@ -13,10 +13,13 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   bolls; the bolls' new detections start new targets, and the stale ones are
   never seen again, so they neither stop the robot nor are picked.
 * A target the planner failed for ('unreachable', 'ik_failed', 'collision')
-  counts again for stops and picks once the shoulder has moved
-  ``retry_distance_m`` from where it failed: from the same place the plan
-  fails the same way, and a robot that stopped for it again would stop
-  again and again as it drives off.
+  is picked again once the shoulder has moved ``retry_distance_m`` from where
+  it failed: from the same place the plan fails the same way. Such a failure
+  does not count as an attempt (the arm did not move: a boll tried too far
+  ahead of the shoulder is often reachable from the next stop), and such a
+  target does not stop a driving robot again (a boll that no stop can reach
+  would stop it every ``retry_distance_m``): it is tried again at the stops
+  other targets make.
 * A stop starts (:meth:`Harvester.want_stop`) when a target in reach lies no
   more than ``stop_ahead_m`` ahead of the shoulder along the robot's heading
   (base_link x: the robot has come abeam of it), or when the robot stands
@@ -45,8 +48,9 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   and the robot has not moved (every pick ends at the bin pose, where the next
   one starts); otherwise a target is planned again when its turn comes.
 * Results: an 'ok' marks the target picked (harvest.targets never adds it
-  again), any other reason counts a failed attempt (abandoned after
-  TargetFusionConfig.max_attempts). Pick goals for a point (no target) get
+  again); a failure of the arm ('aborted', 'capture_missed', 'lost',
+  'timeout') counts a failed attempt (abandoned after
+  TargetFusionConfig.max_attempts), a planning failure does not (above). Pick goals for a point (no target) get
   negative ids and only count in the figures.
 
 Frames: ``frame`` is the fixed frame of the targets; poses are 4x4 matrices:
@@ -94,7 +98,7 @@ class HarvestConfig:
     stopped_speed_m_s: the robot stands when its odometry speed is at most this [m/s].
     stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s].
     max_target_age_s: a target counts for stops and picks while its last detection is at most this old [s].
-    retry_distance_m: a target the planner failed for counts again once the shoulder moved this far [m].
+    retry_distance_m: a target the planner failed for is planned again once the shoulder moved this far [m].
     stem_obstacles: the estimated stems of the targets near the boll are obstacles of its plan.
     ground_z_m: the ground's height in base_link [m], where the stems stand (the Husky: base_link 0.13228 m up)."""
 
@@ -282,6 +286,9 @@ class Harvester:
             return False
         if robot_stopped:
             return True
+        reach = [t for t in reach if t.target_id not in self._plan_failed_at]
+        if not reach:
+            return False
         base = transform_points(np.linalg.inv(self._arm_T_base) @ self._arm_T_frame, [t.position_m for t in reach])
         shoulder_x = (np.linalg.inv(self._arm_T_base) @ np.append(self._shoulder_m, 1.0))[0]
         return bool(np.any(base[:, 0] - shoulder_x <= self.config.stop_ahead_m))
@@ -389,7 +396,7 @@ class Harvester:
             if result.target_id >= 0:
                 if result.ok:
                     self.fusion.mark_picked(result.target_id)
-                elif result.reason != "cancelled":
+                elif result.reason not in PLANNING_FAILURES and result.reason != "cancelled":
                     self.fusion.mark_failed(result.target_id)
                 if result.reason in PLANNING_FAILURES and self._arm_T_frame is not None:
                     self._plan_failed_at[result.target_id] = self._shoulder_in_frame()

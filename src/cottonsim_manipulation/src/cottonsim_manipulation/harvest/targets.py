@@ -49,7 +49,7 @@ class TargetFusionConfig:
     min_sigma_m: floor on a detection's 1-sigma uncertainty [m].
     confirm_observations: detections after which a target is confirmed.
     picked_radius_m: detections this close to a picked boll are ignored [m].
-    max_attempts: failed picks after which a target is abandoned.
+    max_attempts: failed picks after which a target is abandoned (the harvester counts the arm's failures only).
     track_observations: 0: the mean keeps every detection; N > 0: it follows about the last N (module docstring)."""
 
     gate_sigma: float = 5.0
