@@ -31,16 +31,21 @@ class SimBollsTest(unittest.TestCase):
     def setUp(self):
         self.lock = threading.RLock()            # wait_for holds it while its condition takes it again
         self.arrays = []                     # BollArray messages
+        self.held = []                       # /sim/bolls/held messages
         self.masks = []                      # (stamp, boll pixels) of every camera's semantic image
         self.returns = []                    # (stamp, LiDAR returns on bolls)
         rospy.Subscriber("/sim/bolls", BollArray, self._on_bolls, queue_size=100)
+        rospy.Subscriber("/sim/bolls/held", BollArray, lambda m: self._keep(self.held, m), queue_size=100)
         for cam in CAMERAS:
             rospy.Subscriber(f"/{cam}/ground_truth/semantic", Image, self._on_mask, queue_size=50)
         rospy.Subscriber("/points", PointCloud2, self._on_points, queue_size=50)
 
     def _on_bolls(self, msg):
+        self._keep(self.arrays, msg)
+
+    def _keep(self, messages, msg):
         with self.lock:
-            self.arrays.append(msg)
+            messages.append(msg)
 
     def _on_mask(self, msg):
         count = int(np.count_nonzero(np.frombuffer(msg.data, np.uint8) == SemanticClass.BOLL))
@@ -115,6 +120,8 @@ class SimBollsTest(unittest.TestCase):
         held = self.last_array().bolls[0]
         self.assertEqual((held.holder, held.position.x, held.position.y, held.position.z), ("nozzle", 1.0, 2.0, 0.9))
         self.assertGreaterEqual(self.last_array().revision, 1)
+        self.wait_for("/sim/bolls/held with boll 0", lambda: self.held and [b.id for b in self.held[-1].bolls] == [0])
+        self.assertEqual(self.held[-1].bolls[0].position, held.position)
         res = set_state(1, Boll.HELD, "nozzle", False, Point())
         self.assertFalse(res.success)
         self.assertIn("already holds 1 boll", res.message)
@@ -128,6 +135,7 @@ class SimBollsTest(unittest.TestCase):
         self.wait_for("/sim/bolls with every boll in the bin",
                       lambda: all(b.state == Boll.IN_BIN for b in self.arrays[-1].bolls))
         final = self.last_array()
+        self.wait_for("/sim/bolls/held empty", lambda: self.held and not self.held[-1].bolls)
         self.assertEqual(final.bolls[0].position.x, 1.0)           # where the nozzle released it
         self.assertEqual(final.bolls[5].position, first.bolls[5].position)
         t_binned = rospy.get_time() + 0.2

@@ -29,7 +29,8 @@ Publications
   /sim/faults/active                       cottonsim_msgs/SensorFaults  latched: the sensor faults active now
                                                                     (ros/fault_topics.py)
   /sim/bolls                               cottonsim_msgs/BollArray latched: every boll's id, plant, position,
-                                                                    state (ros/boll_topics.py)
+                                                                    state, on each state change (ros/boll_topics.py)
+  /sim/bolls/held                          cottonsim_msgs/BollArray latched: the held bolls, as they move
 Subscriptions
   /sim/frames_done                         std_msgs/Header          a consumer is done with the camera frame
                                            (frame_id) stamped so: cameras with consumer_wait_s > 0 wait for it
@@ -65,7 +66,7 @@ Parameters (private)
                       NavSatFix conventions: status NO_FIX (-1) with NaN position and covariance type
                       UNKNOWN, degraded fixes the fix type's status and their true variance (DIAGONAL_KNOWN)
   ~seed (int, 0): seed of every random process
-  ~bolls_min_period_s (float, 0.1): /sim/bolls pacing while only held bolls move [s] (ros/boll_topics.py)
+  ~bolls_min_period_s (float, 0.1): /sim/bolls/held pacing while held bolls move [s] (ros/boll_topics.py)
   ~sim/sensor_workers (int, 0): threads that render the cameras and scan the LiDAR beside the physics
                                (SimulatorConfig.sensor_workers, 0 = serial); the readings and their
                                stamps stay the same, /clock then follows the last complete stamp
