@@ -11,7 +11,11 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   caller gives the time): odometry jumps (a skid-steer robot turning into a
   lane slips by centimetres) leave targets seen before them behind their
   bolls; the bolls' new detections start new targets, and the stale ones are
-  never seen again, so they neither stop the robot nor are picked.
+  never seen again, so they neither stop the robot nor are picked. A stop's
+  target is checked again when its turn comes: one not seen for
+  ``max_target_age_s`` then is 'lost' (a jump shortly before the stop left
+  two targets for one boll, both fresh when the stop chose them; the pick of
+  one took the boll, and the arm went for the other into empty air).
 * A target the planner failed for ('unreachable', 'ik_failed', 'collision')
   is picked again once the shoulder has moved ``retry_distance_m`` from where
   it failed: from the same place the plan fails the same way. Such a failure
@@ -71,7 +75,7 @@ from cottonsim_common.validation import require_fields, require_int, require_num
 from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
-from cottonsim_manipulation.planning.approach import ApproachConfig
+from cottonsim_manipulation.planning.approach import ApproachConfig, ApproachResult
 from cottonsim_manipulation.planning.stems import stem_obstacles
 from cottonsim_manipulation.planning.trajectory import TrajectoryConfig
 
@@ -228,6 +232,8 @@ class Harvester:
         self._arm_T_frame: Optional[np.ndarray] = None
         self._arm_T_base: Optional[np.ndarray] = None
         self._next_point_id = -1
+        self._now_s = -math.inf                   # the latest time a caller gave [s]
+        self._stop_targets_fresh = False          # a stop's targets must have been seen lately at their turn
         self._seen = 0
         self._stop_plans: Dict[int, tuple] = {}   # target id -> (joints, arm_T_frame, result) of this stop's order
         self._plan_failed_at: Dict[int, np.ndarray] = {}  # target id -> the shoulder (fixed frame) at its plan's failure
@@ -299,6 +305,7 @@ class Harvester:
         if self.busy:
             raise RuntimeError("a pick cycle is running")
         self.figures.stops += 1
+        self._stop_targets_fresh = True
         return self._start(self._select_stop_targets, q_current_rad, now_s)
 
     def _select_stop_targets(self, q_rad: np.ndarray, now_s: float) -> List[PickTarget]:
@@ -324,13 +331,16 @@ class Harvester:
                 raise ValueError(f"the point must be 3 finite numbers [m], got {point_frame_m!r}")
             pick = PickTarget(self._next_point_id, tuple(p), (0.0, 0.0, 0.0))
             self._next_point_id -= 1
+        self._stop_targets_fresh = False
         return self._start([pick], q_current_rad, now_s)
 
     # ------------------------------------------------------------------ the running cycle
     def on_event(self, event, now_s: float) -> list:
+        self._now_s = max(self._now_s, now_s)
         return self._collect(self.cycle.on_event(event, now_s)) if self.busy else []
 
     def tick(self, now_s: float) -> list:
+        self._now_s = max(self._now_s, now_s)
         return self._collect(self.cycle.tick(now_s)) if self.busy else []
 
     def cancel(self, now_s: float, detail: str = "cancelled") -> list:
@@ -345,6 +355,10 @@ class Harvester:
         """plan_pick of the PickCycle: the target from its fixed-frame position and the arm's pose now (the
         plan made for the stop's order when nothing moved since)."""
         self._require_pose()
+        stale = self._stale(target.target_id)
+        if stale:
+            self._stop_plans.pop(target.target_id, None)
+            return ApproachResult("lost", stale)
         cached = self._stop_plans.pop(target.target_id, None)
         if cached is not None:
             q_planned, arm_T_frame, result = cached
@@ -359,6 +373,16 @@ class Harvester:
         outward = estimate_outward(boll, others, transform_points(base_T_arm, [self._shoulder_m])[0], self.config)
         return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad,
                           self._stems(boll, others))
+
+    def _stale(self, target_id: int) -> str:
+        """Why a stop's target is not picked at its turn ('' when it is): not seen for max_target_age_s."""
+        if not self._stop_targets_fresh or target_id < 0:
+            return ""
+        now_s = self._now_s if self.clock is None else max(self._now_s, float(self.clock()))
+        age_s = now_s - self.fusion.target(target_id).last_seen_s
+        if age_s <= self.config.max_target_age_s:
+            return ""
+        return f"not detected for {age_s:.1f} s when its turn came (max_target_age_s {self.config.max_target_age_s})"
 
     def _stems(self, boll_base_m: np.ndarray, targets_base_m: np.ndarray) -> Optional[CapsuleSet]:
         """The estimated stems of the targets within the arm's reach of the boll, in the arm's base frame."""
@@ -381,6 +405,7 @@ class Harvester:
         return [by_id[i] for i in order] + [t for t, r in plans if not r.ok]
 
     def _start(self, targets, q_rad, now_s: float) -> list:
+        self._now_s = max(self._now_s, now_s)
         self._stop_plans = {}
         self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config, self.trajectory_config,
                                clock=self.clock)
