@@ -12,10 +12,14 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   lane slips by centimetres) leave targets seen before them behind their
   bolls; the bolls' new detections start new targets, and the stale ones are
   never seen again, so they neither stop the robot nor are picked. A stop's
-  target is checked again when its turn comes: one not seen for
-  ``max_target_age_s`` then is 'lost' (a jump shortly before the stop left
-  two targets for one boll, both fresh when the stop chose them; the pick of
-  one took the boll, and the arm went for the other into empty air).
+  target is checked again when its turn comes: one last seen more than
+  ``max_target_age_s`` before the newest detection is 'lost' (a jump shortly
+  before the stop left two targets for one boll, both fresh when the stop
+  chose them; the pick of one took the boll, and the arm went for the other
+  into empty air). Measured against the newest detection, not the clock: the
+  caller's loop may stand still while a stop plans its picks. 'lost' is no
+  failed attempt (the arm did not move; a boll hidden by the arm for a while
+  is chosen again by a later stop).
 * A target the planner failed for ('unreachable', 'ik_failed', 'collision')
   is picked again once the shoulder has moved ``retry_distance_m`` from where
   it failed: from the same place the plan fails the same way. Such a failure
@@ -52,9 +56,9 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   and the robot has not moved (every pick ends at the bin pose, where the next
   one starts); otherwise a target is planned again when its turn comes.
 * Results: an 'ok' marks the target picked (harvest.targets never adds it
-  again); a failure of the arm ('aborted', 'capture_missed', 'lost',
-  'timeout') counts a failed attempt (abandoned after
-  TargetFusionConfig.max_attempts), a planning failure does not (above). Pick goals for a point (no target) get
+  again); a failure of the arm ('aborted', 'capture_missed', 'timeout')
+  counts a failed attempt (abandoned after TargetFusionConfig.max_attempts);
+  a planning failure, 'lost' and 'cancelled' do not (above). Pick goals for a point (no target) get
   negative ids and only count in the figures.
 
 Frames: ``frame`` is the fixed frame of the targets; poses are 4x4 matrices:
@@ -81,6 +85,8 @@ from cottonsim_manipulation.planning.trajectory import TrajectoryConfig
 
 OUTWARD_MODELS = ("plant", "lateral", "radial")
 PLANNING_FAILURES = ("unreachable", "ik_failed", "collision")   # results the planner decided
+NOT_ATTEMPTS = PLANNING_FAILURES + ("lost", "cancelled")        # failures that are no failed attempt: the arm
+                                                                # did not go for the boll, or was stopped
 PLAN_REUSE_MAX_JOINT_RAD = 0.01       # a stop's plan is used while the arm starts this close to its start ...
 PLAN_REUSE_MAX_SHIFT_M = 0.002        # ... and no point near the arm moved more than this (robot and arm pose)
 
@@ -232,7 +238,7 @@ class Harvester:
         self._arm_T_frame: Optional[np.ndarray] = None
         self._arm_T_base: Optional[np.ndarray] = None
         self._next_point_id = -1
-        self._now_s = -math.inf                   # the latest time a caller gave [s]
+        self._newest_detection_s = -math.inf      # the stamp of the newest detections [s]
         self._stop_targets_fresh = False          # a stop's targets must have been seen lately at their turn
         self._seen = 0
         self._stop_plans: Dict[int, tuple] = {}   # target id -> (joints, arm_T_frame, result) of this stop's order
@@ -252,6 +258,8 @@ class Harvester:
         """One frame's boll centres (N, 3) in the fixed frame; returns the target id of each (-1: ignored)."""
         points = np.asarray(points_frame_m, dtype=float).reshape(-1, 3)
         sigma = self.config.detection_sigma_m if sigma_m is None else sigma_m
+        if len(points):
+            self._newest_detection_s = max(self._newest_detection_s, float(stamp_s))
         return self.fusion.update([BollDetection3D(p, sigma) for p in points], stamp_s)
 
     # ------------------------------------------------------------------ decisions
@@ -336,11 +344,9 @@ class Harvester:
 
     # ------------------------------------------------------------------ the running cycle
     def on_event(self, event, now_s: float) -> list:
-        self._now_s = max(self._now_s, now_s)
         return self._collect(self.cycle.on_event(event, now_s)) if self.busy else []
 
     def tick(self, now_s: float) -> list:
-        self._now_s = max(self._now_s, now_s)
         return self._collect(self.cycle.tick(now_s)) if self.busy else []
 
     def cancel(self, now_s: float, detail: str = "cancelled") -> list:
@@ -375,14 +381,15 @@ class Harvester:
                           self._stems(boll, others))
 
     def _stale(self, target_id: int) -> str:
-        """Why a stop's target is not picked at its turn ('' when it is): not seen for max_target_age_s."""
+        """Why a stop's target is not picked at its turn ('' when it is): last seen more than max_target_age_s
+        before the newest detection."""
         if not self._stop_targets_fresh or target_id < 0:
             return ""
-        now_s = self._now_s if self.clock is None else max(self._now_s, float(self.clock()))
-        age_s = now_s - self.fusion.target(target_id).last_seen_s
+        age_s = self._newest_detection_s - self.fusion.target(target_id).last_seen_s
         if age_s <= self.config.max_target_age_s:
             return ""
-        return f"not detected for {age_s:.1f} s when its turn came (max_target_age_s {self.config.max_target_age_s})"
+        return (f"not detected in the last {age_s:.1f} s of detections when its turn came (max_target_age_s "
+                f"{self.config.max_target_age_s})")
 
     def _stems(self, boll_base_m: np.ndarray, targets_base_m: np.ndarray) -> Optional[CapsuleSet]:
         """The estimated stems of the targets within the arm's reach of the boll, in the arm's base frame."""
@@ -405,7 +412,6 @@ class Harvester:
         return [by_id[i] for i in order] + [t for t, r in plans if not r.ok]
 
     def _start(self, targets, q_rad, now_s: float) -> list:
-        self._now_s = max(self._now_s, now_s)
         self._stop_plans = {}
         self.cycle = PickCycle(targets, q_rad, self._plan_target, self.cycle_config, self.trajectory_config,
                                clock=self.clock)
@@ -421,7 +427,7 @@ class Harvester:
             if result.target_id >= 0:
                 if result.ok:
                     self.fusion.mark_picked(result.target_id)
-                elif result.reason not in PLANNING_FAILURES and result.reason != "cancelled":
+                elif result.reason not in NOT_ATTEMPTS:
                     self.fusion.mark_failed(result.target_id)
                 if result.reason in PLANNING_FAILURES and self._arm_T_frame is not None:
                     self._plan_failed_at[result.target_id] = self._shoulder_in_frame()
