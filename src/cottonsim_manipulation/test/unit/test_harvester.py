@@ -9,7 +9,7 @@ from hand_built_scene import GROUND_Z_M, STOW_RAD, plant_row
 from cottonsim_common.kinematics.ur5e import forward_kinematics
 from cottonsim_common.vacuum_capture import check_capture, nozzle_tip
 from cottonsim_manipulation.harvest.harvester import (PLANNING_FAILURES, HarvestConfig, Harvester, estimate_outward,
-                                                      transform_points)
+                                                      estimate_stem, transform_points)
 from cottonsim_manipulation.harvest.pick_cycle import (
     PickCycleConfig,
     CancelTrajectory,
@@ -282,6 +282,26 @@ def test_the_outward_estimates():
     np.testing.assert_allclose(out, expected, atol=1e-9)
     # alone: the stem straight across on the row line
     np.testing.assert_allclose(estimate_outward((1.2, 0.6, 0.5), [], shoulder, plant), [0.0, -1.0, 0.0])
+
+
+def test_the_row_grid_estimate_puts_lopsided_plants_stems_on_the_regular_grid():
+    """Five plants 0.7 m apart (stems at x = 0.25 + 0.7 k, 0.9 m left) whose bolls lean 8-10 cm to one side
+    or the other along the row: the mean shift ('plant') follows the lean, the grid ('row_grid') finds the
+    stem; alone, a boll's stem is straight across."""
+    rng = np.random.default_rng(3)
+    stems = 0.25 + 0.7 * np.arange(5)
+    leans = np.array([0.1, -0.08, 0.06, -0.1, 0.02])        # no lean on the whole
+    targets = np.array([(x + lean + rng.uniform(-0.12, 0.12), 0.9 + rng.uniform(-0.25, 0.05), 0.5)
+                        for x, lean in zip(stems, leans) for _ in range(12)])
+    grid = HarvestConfig(outward="row_grid", row_offset_m=0.9, plant_half_spacing_m=0.35, grid_window_m=3.0)
+    plant = HarvestConfig(outward="plant", row_offset_m=0.9, plant_half_spacing_m=0.35)
+    boll = np.array([stems[2] + 0.15, 0.8, 0.5])
+    np.testing.assert_allclose(estimate_stem(boll, targets, grid), [stems[2], 0.9], atol=0.015)
+    assert abs(estimate_stem(boll, targets, plant)[0] - stems[2]) > 0.05
+    np.testing.assert_allclose(estimate_stem(boll, [], grid), [boll[0], 0.9])
+    assert HarvestConfig().outward == "row_grid"
+    with pytest.raises(ValueError, match="grid_window_m"):
+        HarvestConfig(grid_window_m=0.0)
 
 
 def test_transform_points_and_pose_checks():
