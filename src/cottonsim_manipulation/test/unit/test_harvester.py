@@ -345,6 +345,7 @@ def test_targets_not_seen_lately_neither_stop_the_robot_nor_are_picked(model):
 
 
 def test_a_target_the_planner_failed_for_is_tried_again_from_elsewhere_without_counting_an_attempt(model):
+    """Planned again at stops 0.2 m on; it stops a driving robot again only from the next lane."""
     h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(outward="lateral",
                                                                                  retry_distance_m=0.2))
     h.update_pose(np.eye(4), ARM_T_BASE)
@@ -370,6 +371,9 @@ def test_a_target_the_planner_failed_for_is_tried_again_from_elsewhere_without_c
         h.update_pose(moved, ARM_T_BASE)
     assert sum(h.figures.results[r] for r in PLANNING_FAILURES) == 4
     assert h.fusion.target(target.target_id).state == CONFIRMED
+    moved[:3, 3] = (-1.0, 0.0, 0.3)                # from the next lane: over reach_m (1 m) from the failures
+    h.update_pose(moved, ARM_T_BASE)
+    assert h.pickable() and h.want_stop(robot_stopped=False)
 
 
 def test_the_estimated_stems_are_obstacles_of_the_plan(model):

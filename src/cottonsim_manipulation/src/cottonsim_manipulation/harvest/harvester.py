@@ -25,9 +25,10 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   it failed: from the same place the plan fails the same way. Such a failure
   does not count as an attempt (the arm did not move: a boll tried too far
   ahead of the shoulder is often reachable from the next stop), and such a
-  target does not stop a driving robot again (a boll that no stop can reach
-  would stop it every ``retry_distance_m``): it is tried again at the stops
-  other targets make.
+  target stops a driving robot again only once the shoulder is ``reach_m``
+  from where it failed (the next lane): a boll that no stop of this lane can
+  reach would stop it every ``retry_distance_m``; until then it is tried again
+  at the stops other targets make.
 * A stop starts (:meth:`Harvester.want_stop`) when a target in reach lies no
   more than ``stop_ahead_m`` ahead of the shoulder along the robot's heading
   (base_link x: the robot has come abeam of it), or when the robot stands
@@ -328,7 +329,9 @@ class Harvester:
             return False
         if robot_stopped:
             return True
-        reach = [t for t in reach if t.target_id not in self._plan_failed_at]
+        shoulder = self._shoulder_in_frame()
+        reach = [t for t in reach if t.target_id not in self._plan_failed_at or
+                 np.linalg.norm(shoulder - self._plan_failed_at[t.target_id]) >= self.config.reach_m]
         if not reach:
             return False
         base = transform_points(np.linalg.inv(self._arm_T_base) @ self._arm_T_frame, [t.position_m for t in reach])
