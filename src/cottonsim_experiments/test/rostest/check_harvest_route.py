@@ -38,6 +38,10 @@ class HarvestRouteTest(NavigatorWatch):
         report = self.wait_for_report(report_file)
         self.assertTrue(report["complete"], report.get("incomplete_reason"))
         self.assertEqual(report["plant_contacts"], 0)
+        # the arm-stem contact events, split by plant part and by arm link, add up to their count
+        self.assertEqual(sum(report["arm_stem_contacts_by_part"].values()), report["arm_stem_contacts"])
+        self.assertEqual(sum(report["arm_stem_contacts_by_link"].values()), report["arm_stem_contacts"])
+        self.assertLessEqual(set(report["arm_stem_contacts_by_part"]), {"stem", "branch"})
         # the truth: what the harvest node picked is in the bin; nothing dropped or left in the nozzle
         self.wait_for(lambda: self.bolls is not None and self.status is not None, 10.0, "/sim/bolls and status")
         states = [b.state for b in self.bolls.bolls]

@@ -8,6 +8,7 @@ offline evaluator (ros/bag_evaluation.py, `rosrun cottonsim_experiments evaluate
 """
 from __future__ import annotations
 
+import collections
 import datetime
 import json
 import math
@@ -48,7 +49,8 @@ class ExperimentRecorderNode:
       /ground_truth/plant_contacts (cottonsim_msgs/PlantContacts): total_contact_events (counted from
         the first message received)
       /ground_truth/arm_contacts (cottonsim_msgs/ArmContacts): the arm's stem and leaf contact events, counted
-        the same way (report: arm_stem_contacts, arm_leaf_contacts; 0 when the simulator publishes none)
+        the same way (report: arm_stem_contacts, arm_leaf_contacts; 0 when the simulator publishes none), and
+        the arm-stem events by plant part (stem, branch) and arm link (arm_stem_contacts_by_part, _by_link)
       ~state_topic (std_msgs/String, default /gps_waypoint_navigator/state): the navigator's JSON state;
         the run's durations go from its first "navigating" to "finished", which triggers the report
       ~localization_topic (geometry_msgs/PoseWithCovarianceStamped, default '' = none; map runs: /amcl_pose):
@@ -130,6 +132,8 @@ class ExperimentRecorderNode:
         self._contacts_last = None
         self._arm_contacts_first = None     # (stem, leaf) totals of the first / last ArmContacts
         self._arm_contacts_last = None
+        self._arm_stem_parts = collections.Counter()   # the arm-stem contact events by plant part and arm link
+        self._arm_stem_links = collections.Counter()
         self._start = None            # (sim s, wall s) of the route start
         self._end = None
         self._first_seen = None       # (sim s, wall s) of the first ground truth, fallback start
@@ -230,6 +234,10 @@ class ExperimentRecorderNode:
             if self._arm_contacts_first is None:
                 self._arm_contacts_first = totals
             self._arm_contacts_last = totals
+            for contact in msg.contacts:
+                if contact.kind == "stem":
+                    self._arm_stem_parts[contact.part] += 1
+                    self._arm_stem_links[contact.arm_link] += 1
 
     def _on_state(self, msg: String):
         try:
@@ -259,6 +267,7 @@ class ExperimentRecorderNode:
             end = self._end or (traj[-1, 0] if len(traj) else start[0], time.monotonic())
             contacts = 0 if self._contacts_first is None else self._contacts_last - self._contacts_first
             arm_first, arm_last = self._arm_contacts_first or (0, 0), self._arm_contacts_last or (0, 0)
+            stem_parts, stem_links = dict(self._arm_stem_parts), dict(self._arm_stem_links)
             navigator = dict(self._navigator)
             estimates = list(self._estimates)
             states, fixes = list(self._states), list(self._fix_stamps)
@@ -266,7 +275,8 @@ class ExperimentRecorderNode:
             counts = VisionCounts(**vars(self._vision_counts))
         extra = {"vision": self.vision, "halts": navigator.get("halts", 0),
                  "halt_time_s": navigator.get("halt_time_s", 0.0),
-                 "arm_stem_contacts": arm_last[0] - arm_first[0], "arm_leaf_contacts": arm_last[1] - arm_first[1]}
+                 "arm_stem_contacts": arm_last[0] - arm_first[0], "arm_leaf_contacts": arm_last[1] - arm_first[1],
+                 "arm_stem_contacts_by_part": stem_parts, "arm_stem_contacts_by_link": stem_links}
         if self.vision:
             extra.update(vision_report(counts, max(0.0, end[0] - start[0])))
         if self.localization_topic:
