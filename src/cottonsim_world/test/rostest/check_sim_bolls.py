@@ -73,6 +73,12 @@ class SimBollsTest(unittest.TestCase):
             return (sum(n for t, n in self.masks if t > t_s), sum(n for t, n in self.returns if t > t_s),
                     len([t for t, _ in self.masks if t > t_s]), len([t for t, _ in self.returns if t > t_s]))
 
+    def sensed_bolls(self, what):
+        """(boll pixels, boll returns) of the next 6+ camera masks and 3+ scans, those stamped 0.2 s after now."""
+        t_s = rospy.get_time() + 0.2
+        self.wait_for(what, lambda: self.seen_since(t_s)[2] >= 6 and self.seen_since(t_s)[3] >= 3)
+        return self.seen_since(t_s)[:2]
+
     def test_truth_follows_the_service_and_the_sensors_follow_the_truth(self):
         self.wait_for("/sim/bolls", lambda: self.arrays)
         first = self.last_array()
@@ -91,10 +97,7 @@ class SimBollsTest(unittest.TestCase):
         res = rospy.ServiceProxy("/sim/set_robot_pose", SetRobotPose)(
             lane.x_m, 0.5 * (lane.y_start_m + lane.y_end_m), 1.5708)
         self.assertTrue(res.success, res.message)
-        t_lane = rospy.get_time() + 0.2
-        self.wait_for("camera masks and scans in the lane", lambda: self.seen_since(t_lane)[2] >= 6
-                      and self.seen_since(t_lane)[3] >= 3)
-        pixels, returns, _, _ = self.seen_since(t_lane)
+        pixels, returns = self.sensed_bolls("camera masks and scans in the lane")
         self.assertGreater(pixels, 0, "the cameras see no boll in the lane")
         self.assertGreater(returns, 0, "the LiDAR hits no boll in the lane")
 
@@ -130,10 +133,7 @@ class SimBollsTest(unittest.TestCase):
         final = self.last_array()
         self.assertEqual(final.bolls[0].position.x, 1.0)           # where the nozzle released it
         self.assertEqual(final.bolls[5].position, first.bolls[5].position)
-        t_binned = rospy.get_time() + 0.2
-        self.wait_for("camera masks and scans after the harvest", lambda: self.seen_since(t_binned)[2] >= 6
-                      and self.seen_since(t_binned)[3] >= 3)
-        pixels, returns, _, _ = self.seen_since(t_binned)
+        pixels, returns = self.sensed_bolls("camera masks and scans after the harvest")
         self.assertEqual(pixels, 0, "boll pixels in the masks after every boll went to the bin")
         self.assertEqual(returns, 0, "LiDAR returns on bolls after every boll went to the bin")
 

@@ -12,12 +12,10 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
+
 ARM_JOINTS = ["ur5e_shoulder_pan_joint", "ur5e_shoulder_lift_joint", "ur5e_elbow_joint",
               "ur5e_wrist_1_joint", "ur5e_wrist_2_joint", "ur5e_wrist_3_joint"]
-
-
-def yaw(q):
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
 class SimDriveTest(unittest.TestCase):
@@ -72,7 +70,7 @@ class SimDriveTest(unittest.TestCase):
     @staticmethod
     def pose(odom):
         p = odom.pose.pose
-        return p.position.x, p.position.y, yaw(p.orientation)
+        return p.position.x, p.position.y, yaw_from_quaternion_msg(p.orientation)
 
     def test_straight_then_into_a_row(self):
         x0, y0, th0 = self.pose(self.truth)
