@@ -32,11 +32,11 @@ from cottonsim_msgs.srv import SetRobotPose
 from cottonsim_common.angles import wrap_angle_scalar
 from cottonsim_common.pose import world_to_frame
 from cottonsim_common.ros.conversions import occupancy_grid_msg, yaw_from_quaternion_msg
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
 from truth_drive import drive_until
-from wall_wait import wait_until
 
 # the spawn of amcl_sim.yaml: in front of lane 2, 4.6 m before the row ends
 FARM = generate_farm(FarmConfig(spawn_x_m=-5.03, spawn_y_m=4.0, spawn_yaw_rad=math.pi / 2))

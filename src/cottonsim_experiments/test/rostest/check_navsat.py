@@ -12,10 +12,10 @@ from sensor_msgs.msg import NavSatFix
 
 from cottonsim_common.angles import wrap_angle_scalar
 from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.geodesy import HectorGeodesy
 from truth_drive import drive_until
-from wall_wait import wait_until
 
 
 class NavsatTest(unittest.TestCase):
@@ -54,8 +54,8 @@ class NavsatTest(unittest.TestCase):
     def test_datum_gps_odometry_and_map_pose(self):
         datum = rospy.wait_for_message("/navsat_transform/datum", NavSatFix, timeout=120.0)
         self.assertGreaterEqual(datum.header.stamp.to_sec(), 3.0, "datum taken before the 3 s delay")
-        while (self.truth is None or self.gps is None) and not rospy.is_shutdown():
-            rospy.rostime.wallsleep(0.05)
+        self.assertTrue(wait_until(lambda: self.truth is not None and self.gps is not None, 60.0),
+                        "no /ground_truth/odom or /odometry/gps within 60 s (wall)")
         rospy.sleep(0.5)
         # the datum is the spawn (Home: world (-6, 1)), heading west = pi in ENU
         # the simulator's own GPS reference (its settings, its default when they set none)

@@ -26,11 +26,11 @@ from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 from nav_msgs.srv import GetMap
 from std_msgs.msg import Float64
 
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
 from map_checks import assert_map_matches_truth
 from truth_drive import drive_until
-from wall_wait import wait_until
 
 # the spawn of amcl_sim.yaml: in front of lane 2, 4.6 m before the row ends
 FARM = generate_farm(FarmConfig(spawn_x_m=-5.03, spawn_y_m=4.0, spawn_yaw_rad=math.pi / 2))

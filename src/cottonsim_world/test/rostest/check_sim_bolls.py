@@ -6,7 +6,6 @@ see bolls; one boll is taken by a "nozzle" and carried, then every boll goes to 
 service, and the ground-truth masks and the LiDAR returns stamped afterwards hold no boll.
 """
 import threading
-import time
 import unittest
 
 import numpy as np
@@ -18,6 +17,7 @@ from geometry_msgs.msg import Point
 from sensor_msgs.msg import Image, PointCloud2
 from sensor_msgs import point_cloud2
 
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import SemanticClass
@@ -54,14 +54,10 @@ class SimBollsTest(unittest.TestCase):
                 np.isclose(intensity, BOLL_INTENSITY)))))
 
     def wait_for(self, what, condition, wall_timeout_s=120.0):
-        end = time.monotonic() + wall_timeout_s
-        while True:
+        def holds():
             with self.lock:
-                if condition():
-                    return
-            self.assertFalse(rospy.is_shutdown())
-            self.assertLess(time.monotonic(), end, f"timed out waiting for {what}")
-            rospy.rostime.wallsleep(0.05)
+                return condition()
+        self.assertTrue(wait_until(holds, wall_timeout_s), f"timed out waiting for {what}")
 
     def last_array(self):
         with self.lock:
