@@ -58,6 +58,16 @@ def pose_matrix(position: Sequence[float], q_xyzw: Sequence[float]) -> np.ndarra
     return t
 
 
+def transform_points(transform: np.ndarray, points_m) -> np.ndarray:
+    """Points (N, 3) [m] of frame b expressed in frame a by the 4x4 ``a_T_b``: p_a = R p_b + t.
+
+    NaN rows stay NaN; a transform that is not a finite 4x4 matrix raises ValueError.
+    """
+    t = np.asarray(transform, dtype=float)
+    if t.shape != (4, 4) or not np.all(np.isfinite(t)):
+        raise ValueError(f"the transform must be a finite 4x4 matrix, got shape {t.shape}")
+    p = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    return p @ t[:3, :3].T + t[:3, 3]
 
 
 def invert(transform: np.ndarray) -> np.ndarray:

@@ -133,6 +133,7 @@ def require_unit_vector(name: str, value, size: int, zero_name: str = "zero") ->
 
 _FIELD_CHECKS: Dict[str, Callable] = {
     "flags": require_bool,
+    "finite": require_finite,
     "positive": require_positive,
     "non_negative": lambda name, value: require_positive(name, value, allow_zero=True),
     "fractions": lambda name, value: require_number(name, value, 0.0, 1.0),
@@ -143,7 +144,7 @@ _FIELD_CHECKS: Dict[str, Callable] = {
 def require_fields(config, prefix: str = "", **fields: Sequence[str]) -> None:
     """Check several fields of ``config`` in one call, one rule per keyword, in the order given:
 
-    flags: True or False; positive: finite numbers > 0; non_negative: finite numbers >= 0;
+    flags: True or False; finite: finite numbers; positive: finite numbers > 0; non_negative: finite numbers >= 0;
     fractions: numbers in [0, 1]; counts: integers >= 1.
     E.g. ``require_fields(self, flags=("enabled",), positive=("rate_hz", "range_m"))``. The first bad
     field raises that check's ValueError naming ``prefix + field`` (prefix e.g. ``"CameraConfig."``).

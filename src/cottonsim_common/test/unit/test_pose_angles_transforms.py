@@ -8,6 +8,7 @@ from cottonsim_common.angles import shortest_angular_distance, wrap_angle, wrap_
 from cottonsim_common.pose import Pose2D, as_pose, compose, frame_to_world, inverse, transform_points, world_to_frame
 from cottonsim_common.transforms import (invert, matrix_to_quaternion, pose_matrix, quaternion_to_matrix,
                                          quaternion_to_yaw, yaw_of, yaw_to_quaternion)
+from cottonsim_common.transforms import transform_points as transform_points_3d
 
 
 def test_wrap_angle_range_scalars_and_arrays():
@@ -63,3 +64,15 @@ def test_quaternions_xyzw_and_matrices():
     t = pose_matrix((1.0, 2.0, 3.0), q)
     assert np.allclose(invert(t) @ t, np.eye(4))
     assert yaw_of(t) == pytest.approx(1.0)
+
+
+def test_transform_points_by_a_matrix():
+    # frame b rotated +90 deg about z and shifted by (1, 0, 0) in frame a: b's x is a's y
+    a_T_b = pose_matrix((1.0, 0.0, 0.0), yaw_to_quaternion(math.pi / 2))
+    p = transform_points_3d(a_T_b, np.array([[1.0, 0.0, 0.0], [np.nan] * 3]))
+    assert p[0] == pytest.approx([1.0, 1.0, 0.0])
+    assert np.isnan(p[1]).all()
+    assert transform_points_3d(a_T_b, [0.0, 0.0, 2.0]).tolist() == [[1.0, 0.0, 2.0]]
+    for bad in (np.eye(3), np.full((4, 4), np.nan)):
+        with pytest.raises(ValueError, match="finite 4x4"):
+            transform_points_3d(bad, [[0.0, 0.0, 0.0]])

@@ -103,12 +103,12 @@ def test_flags_are_true_or_false_only():
 
 def test_require_fields_checks_each_named_field_by_its_rule():
     class Config:
-        enabled, rate_hz, margin_m, share, workers = True, 10.0, 0.0, 0.5, 2
+        enabled, rate_hz, margin_m, share, workers, offset_m = True, 10.0, 0.0, 0.5, 2, -1.5
 
     good = Config()
     require_fields(good, flags=("enabled",), positive=("rate_hz",), non_negative=("margin_m",), fractions=("share",),
-                   counts=("workers",))
-    cases = [("enabled", 1, "must be true or false", "flags"),
+                   counts=("workers",), finite=("offset_m",))
+    cases = [("enabled", 1, "must be true or false", "flags"), ("offset_m", math.inf, "must be finite", "finite"),
              ("rate_hz", 0.0, "must be a finite number > 0", "positive"),
              ("margin_m", -1.0, "must be a finite number >= 0", "non_negative"),
              ("share", 1.5, r"must be in \[0, 1\]", "fractions"), ("workers", 0, "must be an integer >= 1", "counts")]
@@ -118,6 +118,6 @@ def test_require_fields_checks_each_named_field_by_its_rule():
         with pytest.raises(ValueError, match=f"Config.{field} {message}"):
             require_fields(config, "Config.", **{rule: (field,)})
     with pytest.raises(TypeError, match="unknown rule"):
-        require_fields(good, finite=("rate_hz",))
+        require_fields(good, finites=("rate_hz",))
     with pytest.raises(TypeError, match="not the string"):
         require_fields(good, positive="rate_hz")

@@ -18,7 +18,6 @@ spawn pose) on /map, latched. Errors are AMCL's map -> base_link (TF) against
 /ground_truth/odom converted into the Home frame, taken while the robot stands.
 """
 import math
-import time
 import unittest
 
 import rospy
@@ -30,24 +29,18 @@ from std_msgs.msg import Bool
 
 from cottonsim_msgs.srv import SetRobotPose
 
+from cottonsim_common.angles import wrap_angle_scalar
 from cottonsim_common.pose import world_to_frame
-from cottonsim_common.ros.conversions import occupancy_grid_msg
+from cottonsim_common.ros.conversions import occupancy_grid_msg, yaw_from_quaternion_msg
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
-from wall_wait import wait_until
+from truth_drive import drive_until
 
 # the spawn of amcl_sim.yaml: in front of lane 2, 4.6 m before the row ends
 FARM = generate_farm(FarmConfig(spawn_x_m=-5.03, spawn_y_m=4.0, spawn_yaw_rad=math.pi / 2))
 HOME = FARM.spawn
-
-
-def yaw_of(q):
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-
-
-def wrap(a):
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 
@@ -79,7 +72,7 @@ class AmclTest(unittest.TestCase):
     def _on_amcl_pose(cls, msg):
         if cls.recording and cls.truth is not None:
             p = cls.truth.pose.pose
-            tx, ty, _ = world_to_frame(HOME, p.position.x, p.position.y, yaw_of(p.orientation))
+            tx, ty, _ = world_to_frame(HOME, p.position.x, p.position.y, yaw_from_quaternion_msg(p.orientation))
             cls.amcl_poses.append((msg, float(tx), float(ty), cls.localized))
 
     @classmethod
@@ -89,7 +82,7 @@ class AmclTest(unittest.TestCase):
 
     def truth_home(self):
         p = self.truth.pose.pose
-        x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_of(p.orientation))
+        x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_from_quaternion_msg(p.orientation))
         return float(x), float(y), float(yaw)
 
     def amcl_pose(self, stamp):
@@ -97,7 +90,7 @@ class AmclTest(unittest.TestCase):
         is post-dated by transform_tolerance 1 s); on a busy machine the node may lag the simulation."""
         t = self.tf_buffer.lookup_transform("map", "base_link", stamp, rospy.Duration(30.0))
         tr = t.transform
-        return tr.translation.x, tr.translation.y, yaw_of(tr.rotation)
+        return tr.translation.x, tr.translation.y, yaw_from_quaternion_msg(tr.rotation)
 
     def error(self):
         """(position error [m], heading error [rad]) of AMCL against the truth, robot standing."""
@@ -105,28 +98,11 @@ class AmclTest(unittest.TestCase):
         # at now, the map -> odom in use comes from a scan taken >= 0.5 s after the robot stopped
         a, t = self.amcl_pose(rospy.Time.now()), self.truth_home()
         rospy.loginfo("amcl test: AMCL (%.3f, %.3f, %.3f), truth (%.3f, %.3f, %.3f)", *a, *t)
-        return math.hypot(a[0] - t[0], a[1] - t[1]), abs(wrap(a[2] - t[2]))
+        return math.hypot(a[0] - t[0], a[1] - t[1]), abs(wrap_angle_scalar(a[2] - t[2]))
 
-    def drive(self, v, w, distance_m=None, angle_rad=None, timeout_s=120.0):
+    def drive(self, v, w, distance_m=None, angle_rad=None):
         """Command (v, w) until the truth moved distance_m or turned angle_rad; then stop."""
-        p0 = self.truth.pose.pose
-        yaw_prev, turned = yaw_of(p0.orientation), 0.0
-        msg = Twist()
-        msg.linear.x, msg.angular.z = v, w
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end and not rospy.is_shutdown():
-            p = self.truth.pose.pose
-            yaw = yaw_of(p.orientation)
-            turned += abs(wrap(yaw - yaw_prev))
-            yaw_prev = yaw
-            if distance_m is not None and math.hypot(p.position.x - p0.position.x,
-                                                     p.position.y - p0.position.y) >= distance_m:
-                break
-            if angle_rad is not None and turned >= angle_rad:
-                break
-            self.cmd.publish(msg)
-            rospy.sleep(0.05)
-        self.cmd.publish(Twist())
+        drive_until(self.cmd, lambda: self.truth, v, w, distance_m, angle_rad)
 
     def test_converges_and_recovers_from_a_kidnap(self):
         # started at (-0.3, 0.4, 0.05) with the default 0.5 m spread while the robot stands at (0, 0, 0)
@@ -156,7 +132,7 @@ class AmclTest(unittest.TestCase):
         # the kidnap: the standing robot is carried 3 m forward, 1.95 m before the rows; odometry does not see it
         rospy.wait_for_service("/sim/set_robot_pose", 30.0)
         p = self.truth.pose.pose
-        wyaw = yaw_of(p.orientation)
+        wyaw = yaw_from_quaternion_msg(p.orientation)
         n_before = len(self.localized_history)
         self.__class__.recording = True
         resp = rospy.ServiceProxy("/sim/set_robot_pose", SetRobotPose)(

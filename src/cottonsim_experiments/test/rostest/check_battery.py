@@ -7,6 +7,8 @@ import rostest
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import BatteryState
 
+from cottonsim_common.ros.testing import wait_until
+
 IDLE_W, MOTION_W_PER_MPS, SCALE = 60.0, 120.0, 50.0       # config/battery.yaml + the test's drain_scale
 V_FULL, V_EMPTY, CAPACITY_AH = 25.46, 23.16, 20.0
 
@@ -47,8 +49,7 @@ class BatteryTest(unittest.TestCase):
         return (a.percentage - b.percentage) / dt, window
 
     def test_drain(self):
-        while len(self.states) < 2 and not rospy.is_shutdown():
-            rospy.rostime.wallsleep(0.05)
+        self.assertTrue(wait_until(lambda: len(self.states) >= 2, 60.0), "fewer than 2 battery states in 60 s (wall)")
         first = self.states[0]
         self.assertAlmostEqual(first.percentage, 0.41, delta=0.01)
         rest, w1 = self.drain_per_s(0.0, 6.0)

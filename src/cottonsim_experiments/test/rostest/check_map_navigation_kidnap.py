@@ -22,7 +22,9 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool
 
+from cottonsim_common.angles import wrap_angle_scalar
 from cottonsim_common.pose import world_to_frame
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
 from cottonsim_msgs.srv import SetRobotPose
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
@@ -38,10 +40,6 @@ KIDNAP_DISTANCE_M = 3.0                      # carried sideways to the east (+x)
 OPERATOR_AFTER_S = 20.0                      # sim time lost before the "operator" gives /initialpose
 RELOCALIZED_WITHIN_M = 0.5                   # AMCL's pose when it says "localised" again, from the truth
 RESUME_RACE_WALL_S = 0.5                     # /cmd_vel this close (wall) before the resume is not counted as paused
-
-
-def yaw_of(q):
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
 class MapNavigationKidnapTest(NavigatorWatch):
@@ -90,7 +88,7 @@ class MapNavigationKidnapTest(NavigatorWatch):
     def _on_truth(self, msg):
         self.truth = msg
         p = msg.pose.pose
-        x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_of(p.orientation))
+        x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_from_quaternion_msg(p.orientation))
         self.truth_history.append((msg.header.stamp.to_sec(), float(x), float(y), float(yaw)))
         t = self._paused_for()
         if t is not None and t >= 2.0:
@@ -114,7 +112,7 @@ class MapNavigationKidnapTest(NavigatorWatch):
         dx, dy = a.position.x - tx, a.position.y - ty
         along = dx * math.cos(tyaw) + dy * math.sin(tyaw)
         across = -dx * math.sin(tyaw) + dy * math.cos(tyaw)
-        dyaw = math.atan2(math.sin(yaw_of(a.orientation) - tyaw), math.cos(yaw_of(a.orientation) - tyaw))
+        dyaw = wrap_angle_scalar(yaw_from_quaternion_msg(a.orientation) - tyaw)
         return along, across, dyaw, "AMCL %+.2f m along, %+.2f m across the heading, %+.3f rad off the truth " \
                                     "(t %.1f s)" % (along, across, dyaw, t)
 
@@ -145,7 +143,7 @@ class MapNavigationKidnapTest(NavigatorWatch):
         p = self.truth.pose.pose
         dx, dy = (KIDNAP_DISTANCE_M, 0.0) if sideways else (0.0, KIDNAP_DISTANCE_M)
         resp = rospy.ServiceProxy("/sim/set_robot_pose", SetRobotPose)(
-            p.position.x + dx, p.position.y + dy, yaw_of(p.orientation))
+            p.position.x + dx, p.position.y + dy, yaw_from_quaternion_msg(p.orientation))
         self.assertTrue(resp.success, resp.message)
         t_kidnap = rospy.Time.now()
         rospy.loginfo("kidnap test: robot carried %.1f m %s from (%.2f, %.2f)", KIDNAP_DISTANCE_M,
@@ -163,7 +161,7 @@ class MapNavigationKidnapTest(NavigatorWatch):
         if not self.localized:
             self.assertTrue(sideways, "AMCL did not re-localise by itself within %.0f s" % OPERATOR_AFTER_S)
             p = self.truth.pose.pose
-            x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_of(p.orientation))
+            x, y, yaw = world_to_frame(HOME, p.position.x, p.position.y, yaw_from_quaternion_msg(p.orientation))
             msg = PoseWithCovarianceStamped()
             msg.header.frame_id = "map"
             msg.header.stamp = rospy.Time.now()

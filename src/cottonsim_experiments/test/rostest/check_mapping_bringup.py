@@ -18,10 +18,10 @@ from cottonsim_msgs.msg import PlantContacts
 from std_msgs.msg import Bool, String
 
 from cottonsim_common.map_files import load_map_yaml
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
 from map_checks import assert_map_matches_truth
-from wall_wait import wait_until
 
 FARM = generate_farm(FarmConfig())       # mapping.launch's default simulator settings: the paper's farm
 

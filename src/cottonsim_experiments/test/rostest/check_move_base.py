@@ -22,10 +22,10 @@ from nav_msgs.srv import GetPlan, GetPlanRequest
 
 from cottonsim_common.pose import world_to_frame
 from cottonsim_common.ros.conversions import occupancy_grid_msg
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.export import OccupancyMapConfig, rasterize_occupancy
 from cottonsim_world.farm.generator import generate_farm
-from wall_wait import wait_until
 
 FARM = generate_farm(FarmConfig())
 HOME = FARM.spawn

@@ -10,17 +10,12 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import NavSatFix
 
+from cottonsim_common.angles import wrap_angle_scalar
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.config_io import simulator_config_from_dict
 from cottonsim_world.geodesy import HectorGeodesy
-from wall_wait import wait_until
-
-
-def yaw(q):
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-
-
-def wrap(a):
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+from truth_drive import drive_until
 
 
 class NavsatTest(unittest.TestCase):
@@ -37,7 +32,7 @@ class NavsatTest(unittest.TestCase):
         """Ground truth (world: x north, y west) -> ENU at the datum: (east, north, yaw 0 = east)."""
         p = self.truth.pose.pose
         return (-(p.position.y - self.datum_world[1]), p.position.x - self.datum_world[0],
-                wrap(yaw(p.orientation) + math.pi / 2))
+                wrap_angle_scalar(yaw_from_quaternion_msg(p.orientation) + math.pi / 2))
 
     def map_base_link(self, wall_timeout_s=60.0):
         """map -> base_link (x, y, yaw), waiting up to wall_timeout_s of *wall* time for it.
@@ -49,28 +44,18 @@ class NavsatTest(unittest.TestCase):
                                    wall_timeout_s), f"no TF map -> base_link within {wall_timeout_s} s (wall)")
         t = self.tf_buffer.lookup_transform("map", "base_link", rospy.Time(0))
         tr = t.transform
-        return tr.translation.x, tr.translation.y, yaw(tr.rotation)
+        return tr.translation.x, tr.translation.y, yaw_from_quaternion_msg(tr.rotation)
 
-    def drive(self, v, w, travelled_m, timeout_s=60.0):
+    def drive(self, v, w, travelled_m):
         """Command (v, w) until the truth has moved travelled_m from where it is now; then stop and settle."""
-        p0 = self.truth.pose.pose.position
-        end = rospy.Time.now() + rospy.Duration(timeout_s)
-        msg = Twist()
-        msg.linear.x, msg.angular.z = v, w
-        while rospy.Time.now() < end and not rospy.is_shutdown():
-            p = self.truth.pose.pose.position
-            if math.hypot(p.x - p0.x, p.y - p0.y) >= travelled_m:
-                break
-            self.cmd.publish(msg)
-            rospy.sleep(0.02)
-        self.cmd.publish(Twist())
+        drive_until(self.cmd, lambda: self.truth, v, w, distance_m=travelled_m, period_s=0.02)
         rospy.sleep(1.5)
 
     def test_datum_gps_odometry_and_map_pose(self):
         datum = rospy.wait_for_message("/navsat_transform/datum", NavSatFix, timeout=120.0)
         self.assertGreaterEqual(datum.header.stamp.to_sec(), 3.0, "datum taken before the 3 s delay")
-        while (self.truth is None or self.gps is None) and not rospy.is_shutdown():
-            rospy.rostime.wallsleep(0.05)
+        self.assertTrue(wait_until(lambda: self.truth is not None and self.gps is not None, 60.0),
+                        "no /ground_truth/odom or /odometry/gps within 60 s (wall)")
         rospy.sleep(0.5)
         # the datum is the spawn (Home: world (-6, 1)), heading west = pi in ENU
         # the simulator's own GPS reference (its settings, its default when they set none)
@@ -82,14 +67,14 @@ class NavsatTest(unittest.TestCase):
         p = self.truth.pose.pose.position
         self.assertLess(math.hypot(p.x - x, p.y - y), 0.02, "datum is not the robot's position")
         datum_yaw = rospy.get_param("/navsat_transform/datum_yaw")
-        self.assertLess(abs(wrap(datum_yaw - math.pi)), 0.03, f"datum yaw {datum_yaw}")
+        self.assertLess(abs(wrap_angle_scalar(datum_yaw - math.pi)), 0.03, f"datum yaw {datum_yaw}")
         # at rest: /odometry/gps at the origin of the ENU map
         g = self.gps.pose.pose.position
         self.assertEqual(self.gps.header.frame_id, "map")
         self.assertLess(math.hypot(g.x, g.y), 0.02, f"/odometry/gps at rest ({g.x:.3f}, {g.y:.3f})")
         mx, my, myaw = self.map_base_link()
         self.assertLess(math.hypot(mx, my), 0.02)
-        self.assertLess(abs(wrap(myaw - math.pi)), 0.03)
+        self.assertLess(abs(wrap_angle_scalar(myaw - math.pi)), 0.03)
 
         # 3 m straight ahead = west: /odometry/gps moves 3 m towards -x
         self.drive(0.5, 0.0, 3.0)
@@ -108,9 +93,9 @@ class NavsatTest(unittest.TestCase):
         err = math.hypot(mx - e, my - n)
         rospy.loginfo("check_navsat: map pose (%.3f, %.3f, %.3f), truth (%.3f, %.3f, %.3f), error %.3f m",
                       mx, my, myaw, e, n, th, err)
-        self.assertGreater(abs(wrap(th - math.pi)), 0.15, "the robot did not turn")
+        self.assertGreater(abs(wrap_angle_scalar(th - math.pi)), 0.15, "the robot did not turn")
         self.assertLess(err, 0.05, f"map pose ({mx:.3f}, {my:.3f}) vs truth ({e:.3f}, {n:.3f})")
-        self.assertLess(abs(wrap(myaw - th)), 0.05, f"map yaw {myaw:.3f} vs truth {th:.3f}")
+        self.assertLess(abs(wrap_angle_scalar(myaw - th)), 0.05, f"map yaw {myaw:.3f} vs truth {th:.3f}")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,6 @@ precision < 0.5 even with every plant mapped (unit test test_nav_map_quality), s
 from a broken one (they do not check the farm-map targets IoU 0.7 / 0.5 deg).
 """
 import math
-import time
 import unittest
 
 import numpy as np
@@ -27,10 +26,11 @@ from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 from nav_msgs.srv import GetMap
 from std_msgs.msg import Float64
 
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
 from map_checks import assert_map_matches_truth
-from wall_wait import wait_until
+from truth_drive import drive_until
 
 # the spawn of amcl_sim.yaml: in front of lane 2, 4.6 m before the row ends
 FARM = generate_farm(FarmConfig(spawn_x_m=-5.03, spawn_y_m=4.0, spawn_yaw_rad=math.pi / 2))
@@ -54,24 +54,11 @@ class SlamTest(unittest.TestCase):
         if not wait_until(lambda: cls.truth is not None, 90.0):
             raise RuntimeError("no /ground_truth/odom")
 
-    def drive(self, v, distance_m, timeout_s=120.0):
-        p0 = self.truth.pose.pose.position
-        msg = Twist()
-        msg.linear.x = v
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end and not rospy.is_shutdown():
-            p = self.truth.pose.pose.position
-            if math.hypot(p.x - p0.x, p.y - p0.y) >= distance_m:
-                break
-            self.cmd.publish(msg)
-            rospy.sleep(0.05)
-        self.cmd.publish(Twist())
-
     def test_maps_the_lane(self):
         self.assertTrue(wait_until(lambda: len(self.maps) > 0, 60.0), "no /map from the first scan")
         first = self.maps[0]
         self.assertEqual(first.header.frame_id, "map")
-        self.drive(0.5, 10.0)
+        drive_until(self.cmd, lambda: self.truth, 0.5, 0.0, distance_m=10.0)
         rospy.sleep(2.0)
         self.assertTrue(wait_until(lambda: self.meta is not None, 10.0), "no /map_metadata")
         self.assertGreater(len(self.maps), 1, "the map was not republished while driving")

@@ -13,8 +13,8 @@ means) lives here and is unit-tested without a ROS master.
   boll network is trained: one box per connected component of boll pixels.
 * :func:`localize_boxes`: the 3-D position of each box from the camera's
   depth point cloud (median of the cloud points that project into the box).
-* :func:`transform_points`, :func:`points_within_reach`: rigid transforms
-  and the UR5e reach test.
+* :func:`points_within_reach`: the UR5e reach test (points moved into the
+  arm frame with ``cottonsim_common.transforms.transform_points``).
 
 Pixel convention (as in ``types``): pixel-edge coordinates, x right, y
 down; the pixel in column j covers x in [j, j + 1). CameraInfo's principal
@@ -243,28 +243,6 @@ def localize_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[fl
             positions[i] = median
             valid[i] = True
     return positions, valid
-
-
-def quaternion_matrix(q_xyzw: Sequence[float]) -> np.ndarray:
-    """3x3 rotation matrix of a (x, y, z, w) quaternion (normalised here)."""
-    x, y, z, w = (float(v) for v in q_xyzw)
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not math.isfinite(norm) or norm < 1e-9:
-        raise ValueError(f"quaternion {q_xyzw} is not a rotation")
-    x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def transform_points(points: np.ndarray, translation: Sequence[float], rotation_xyzw: Sequence[float]) -> np.ndarray:
-    """Points (N, 3) expressed in a parent frame: p_parent = R p_child + t.
-
-    translation / rotation: the transform parent <- child, as a tf2
-    ``lookup_transform(parent, child)`` returns it. NaN rows stay NaN.
-    """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return pts @ quaternion_matrix(rotation_xyzw).T + np.asarray(translation, dtype=np.float64).reshape(1, 3)
 
 
 def points_within_reach(points_arm: np.ndarray, reach_m: float) -> np.ndarray:

@@ -16,6 +16,8 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64MultiArray
 
+from cottonsim_common.ros.testing import wait_until
+
 
 class RowCentringClosedLoopTest(unittest.TestCase):
     def setUp(self):
@@ -49,8 +51,7 @@ class RowCentringClosedLoopTest(unittest.TestCase):
         self.cmd.publish(cmd)
 
     def test_drive_lane_centred(self):
-        while self.truth is None and not rospy.is_shutdown():
-            rospy.rostime.wallsleep(0.05)
+        self.assertTrue(wait_until(lambda: self.truth is not None, 60.0), "no /ground_truth/odom within 60 s (wall)")
         p0 = self.truth.pose.pose.position
         x0, y0 = p0.x, p0.y
         self.assertAlmostEqual(x0 - self.lane_x, 0.15, delta=0.02, msg="spawned elsewhere than the test asks")

@@ -1,5 +1,4 @@
 """Pure helpers of the Cotton-Eye nodes: labels, oracle boxes, boll 3-D positions, reach."""
-import math
 
 import numpy as np
 import pytest
@@ -7,7 +6,7 @@ import pytest
 from cottonsim_perception.localization import (UNLABELLED, BollLocalizationConfig, boxes_from_semantic,
                                                colorize_labels, label_image_from_detections,
                                                label_image_from_masks, localize_boxes, points_within_reach,
-                                               project_points, transform_points)
+                                               project_points)
 from cottonsim_perception.types import Detections
 
 FX = FY = 100.0
@@ -146,12 +145,7 @@ def test_localize_handles_empty_nan_and_decimated_clouds():
         BollLocalizationConfig(min_depth_m=2.0, max_depth_m=1.0)
 
 
-def test_transform_and_reach():
-    # child frame rotated +90 deg about z and shifted by (1, 0, 0): child x is parent y
-    q = (0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))
-    p = transform_points(np.array([[1.0, 0.0, 0.0], [np.nan] * 3]), (1.0, 0.0, 0.0), q)
-    assert p[0] == pytest.approx([1.0, 1.0, 0.0])
-    assert np.isnan(p[1]).all()
+def test_reach():
     inside = points_within_reach(np.array([[0.5, 0.5, 0.3], [0.6, 0.6, 0.1], [np.nan] * 3]), 0.85)
     assert inside.tolist() == [True, False, False]                   # |(.5,.5,.3)| = 0.768, |(.6,.6,.1)| = 0.854
     with pytest.raises(ValueError, match="reach_m"):

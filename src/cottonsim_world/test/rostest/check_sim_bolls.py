@@ -6,7 +6,6 @@ see bolls; one boll is taken by a "nozzle" and carried, then every boll goes to 
 service, and the ground-truth masks and the LiDAR returns stamped afterwards hold no boll.
 """
 import threading
-import time
 import unittest
 
 import numpy as np
@@ -18,6 +17,7 @@ from geometry_msgs.msg import Point
 from sensor_msgs.msg import Image, PointCloud2
 from sensor_msgs import point_cloud2
 
+from cottonsim_common.ros.testing import wait_until
 from cottonsim_world.farm.config import FarmConfig
 from cottonsim_world.farm.generator import generate_farm
 from cottonsim_world.farm.model import SemanticClass
@@ -59,14 +59,10 @@ class SimBollsTest(unittest.TestCase):
                 np.isclose(intensity, BOLL_INTENSITY)))))
 
     def wait_for(self, what, condition, wall_timeout_s=120.0):
-        end = time.monotonic() + wall_timeout_s
-        while True:
+        def holds():
             with self.lock:
-                if condition():
-                    return
-            self.assertFalse(rospy.is_shutdown())
-            self.assertLess(time.monotonic(), end, f"timed out waiting for {what}")
-            rospy.rostime.wallsleep(0.05)
+                return condition()
+        self.assertTrue(wait_until(holds, wall_timeout_s), f"timed out waiting for {what}")
 
     def last_array(self):
         with self.lock:
@@ -77,6 +73,12 @@ class SimBollsTest(unittest.TestCase):
         with self.lock:
             return (sum(n for t, n in self.masks if t > t_s), sum(n for t, n in self.returns if t > t_s),
                     len([t for t, _ in self.masks if t > t_s]), len([t for t, _ in self.returns if t > t_s]))
+
+    def sensed_bolls(self, what):
+        """(boll pixels, boll returns) of the next 6+ camera masks and 3+ scans, those stamped 0.2 s after now."""
+        t_s = rospy.get_time() + 0.2
+        self.wait_for(what, lambda: self.seen_since(t_s)[2] >= 6 and self.seen_since(t_s)[3] >= 3)
+        return self.seen_since(t_s)[:2]
 
     def test_truth_follows_the_service_and_the_sensors_follow_the_truth(self):
         self.wait_for("/sim/bolls", lambda: self.arrays)
@@ -96,10 +98,7 @@ class SimBollsTest(unittest.TestCase):
         res = rospy.ServiceProxy("/sim/set_robot_pose", SetRobotPose)(
             lane.x_m, 0.5 * (lane.y_start_m + lane.y_end_m), 1.5708)
         self.assertTrue(res.success, res.message)
-        t_lane = rospy.get_time() + 0.2
-        self.wait_for("camera masks and scans in the lane", lambda: self.seen_since(t_lane)[2] >= 6
-                      and self.seen_since(t_lane)[3] >= 3)
-        pixels, returns, _, _ = self.seen_since(t_lane)
+        pixels, returns = self.sensed_bolls("camera masks and scans in the lane")
         self.assertGreater(pixels, 0, "the cameras see no boll in the lane")
         self.assertGreater(returns, 0, "the LiDAR hits no boll in the lane")
 
@@ -138,10 +137,7 @@ class SimBollsTest(unittest.TestCase):
         self.wait_for("/sim/bolls/held empty", lambda: self.held and not self.held[-1].bolls)
         self.assertEqual(final.bolls[0].position.x, 1.0)           # where the nozzle released it
         self.assertEqual(final.bolls[5].position, first.bolls[5].position)
-        t_binned = rospy.get_time() + 0.2
-        self.wait_for("camera masks and scans after the harvest", lambda: self.seen_since(t_binned)[2] >= 6
-                      and self.seen_since(t_binned)[3] >= 3)
-        pixels, returns, _, _ = self.seen_since(t_binned)
+        pixels, returns = self.sensed_bolls("camera masks and scans after the harvest")
         self.assertEqual(pixels, 0, "boll pixels in the masks after every boll went to the bin")
         self.assertEqual(returns, 0, "LiDAR returns on bolls after every boll went to the bin")
 

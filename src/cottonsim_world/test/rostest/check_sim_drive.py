@@ -12,12 +12,11 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from cottonsim_common.ros.conversions import yaw_from_quaternion_msg
+from cottonsim_common.ros.testing import wait_until
+
 ARM_JOINTS = ["ur5e_shoulder_pan_joint", "ur5e_shoulder_lift_joint", "ur5e_elbow_joint",
               "ur5e_wrist_1_joint", "ur5e_wrist_2_joint", "ur5e_wrist_3_joint"]
-
-
-def yaw(q):
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
 class SimDriveTest(unittest.TestCase):
@@ -29,8 +28,8 @@ class SimDriveTest(unittest.TestCase):
         rospy.Subscriber("/odometry/filtered", Odometry, lambda m: setattr(self, "odom", m))
         rospy.Subscriber("/ground_truth/plant_contacts", PlantContacts, lambda m: setattr(self, "contacts", m))
         self.cmd = rospy.Publisher("/cmd_vel", Twist, queue_size=1)
-        while (self.truth is None or self.odom is None) and not rospy.is_shutdown():
-            rospy.rostime.wallsleep(0.05)
+        self.assertTrue(wait_until(lambda: self.truth is not None and self.odom is not None, 60.0),
+                        "no /ground_truth/odom or /odometry/filtered within 60 s (wall)")
 
     def drive(self, v, w, duration_s, until_travelled_m=None):
         """Publish a constant command for duration_s of sim time, or until the truth moved far enough."""
@@ -72,7 +71,7 @@ class SimDriveTest(unittest.TestCase):
     @staticmethod
     def pose(odom):
         p = odom.pose.pose
-        return p.position.x, p.position.y, yaw(p.orientation)
+        return p.position.x, p.position.y, yaw_from_quaternion_msg(p.orientation)
 
     def test_straight_then_into_a_row(self):
         x0, y0, th0 = self.pose(self.truth)

@@ -19,6 +19,8 @@ from typing import Tuple
 
 import numpy as np
 
+from cottonsim_common.validation import require_fields
+
 # costmap_2d cost values (costmap_2d/cost_values.h)
 NO_INFORMATION = 255
 LETHAL_OBSTACLE = 254
@@ -42,16 +44,7 @@ class GridSpec:
     origin_y_m: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.resolution_m, (int, float)) and math.isfinite(self.resolution_m)
-                and self.resolution_m > 0):
-            raise ValueError(f"resolution_m must be a finite number > 0, got {self.resolution_m!r}")
-        for name in ("width", "height"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        for name in ("origin_x_m", "origin_y_m"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite, got {getattr(self, name)!r}")
+        require_fields(self, positive=("resolution_m",), counts=("width", "height"), finite=("origin_x_m", "origin_y_m"))
 
     # --- extents -----------------------------------------------------------
     @property

@@ -42,7 +42,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.signal import fftconvolve
 
-from cottonsim_common.validation import require_finite_values, require_instance, require_positive
+from cottonsim_common.validation import require_fields, require_finite_values, require_instance, require_positive
 
 OCCUPIED_DEFAULT = 65     # OccupancyGrid values >= this are occupied (map_server occupied_thresh 0.65)
 
@@ -71,10 +71,8 @@ class MapQualityConfig:
     cell_m: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("max_rotation_deg", "max_shift_m", "tolerance_m", "cell_m"):
-            require_positive(name, getattr(self, name), allow_zero=True)
-        for name in ("coarse_step_deg", "fine_step_deg"):
-            require_positive(name, getattr(self, name))
+        require_fields(self, non_negative=("max_rotation_deg", "max_shift_m", "tolerance_m", "cell_m"),
+                       positive=("coarse_step_deg", "fine_step_deg"))
         if self.fine_step_deg > self.coarse_step_deg:
             raise ValueError(f"fine_step_deg ({self.fine_step_deg}) must not exceed coarse_step_deg "
                              f"({self.coarse_step_deg})")

@@ -60,6 +60,7 @@ import math
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
+from cottonsim_common.validation import require_fields
 from cottonsim_navigation.geodesy.utm import UTM_MAX_LATITUDE_DEG, UTM_MIN_LATITUDE_DEG, check_latlon
 
 WGS84_A_M = 6378137.0
@@ -168,13 +169,8 @@ class NavsatConfig:
     delay: float = 3.0
 
     def __post_init__(self) -> None:
-        for name in ("yaw_offset", "magnetic_declination_radians", "frequency", "delay"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite, got {getattr(self, name)!r}")
-        if self.frequency <= 0:
-            raise ValueError(f"frequency must be > 0, got {self.frequency}")
-        if self.delay < 0:
-            raise ValueError(f"delay must be >= 0, got {self.delay}")
+        require_fields(self, finite=("yaw_offset", "magnetic_declination_radians"), positive=("frequency",),
+                       non_negative=("delay",))
         if self.datum is not None:
             if len(self.datum) != 3:
                 raise ValueError("datum must be (latitude deg, longitude deg, yaw rad)")

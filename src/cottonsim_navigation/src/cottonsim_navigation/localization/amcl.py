@@ -32,8 +32,8 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
-from cottonsim_common.validation import (require_finite_values, require_instance, require_int, require_number,
-                                         require_positive)
+from cottonsim_common.validation import (require_fields, require_finite_values, require_instance, require_int,
+                                         require_number)
 from ..core.grid import GridSpec
 from .motion_models import OdometryMotionModelConfig, _as_pose_array, motion_parts, sample_motion_model_odometry
 from .particle_filter import FreeSpaceSampler, ParticleFilter, ParticleFilterConfig
@@ -104,9 +104,8 @@ class AmclConfig:
         self.motion_config()
         self.sensor_config()
         self.filter_config()
-        for name in ("update_min_d_m", "update_min_a_rad", "initial_cov_xx_m2", "initial_cov_yy_m2",
-                     "initial_cov_aa_rad2"):
-            require_positive(name, getattr(self, name), allow_zero=True)
+        require_fields(self, non_negative=("update_min_d_m", "update_min_a_rad", "initial_cov_xx_m2",
+                                           "initial_cov_yy_m2", "initial_cov_aa_rad2"))
         require_int("resample_interval", self.resample_interval, 1)
         require_finite_values("initial_pose", self.initial_pose, 3)
         require_number("occupied_threshold", self.occupied_threshold, 0, 100)

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from cottonsim_common.validation import require_instance
+from cottonsim_common.validation import require_fields, require_instance
 from .sensor_models import LikelihoodField, Scan
 
 
@@ -81,13 +81,8 @@ class FreeSpaceConfig:
         return max(1, int(round(self.check_length_m / self.sample_spacing_m)))
 
     def __post_init__(self) -> None:
-        for name in ("tolerance_m", "check_length_m", "sample_spacing_m", "far_sample_spacing_m",
-                     "max_crossed_m", "decay_length_m"):
-            value = getattr(self, name)
-            zero_ok = name in ("tolerance_m", "far_sample_spacing_m")
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value < 0 or (value == 0 and not zero_ok):
-                raise ValueError(f"{name} must be a finite number {'>=' if zero_ok else '>'} 0, got {value!r}")
+        require_fields(self, non_negative=("tolerance_m", "far_sample_spacing_m"),
+                       positive=("check_length_m", "sample_spacing_m", "max_crossed_m", "decay_length_m"))
 
 
 @njit(cache=True, nogil=True)

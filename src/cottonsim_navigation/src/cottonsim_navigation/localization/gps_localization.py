@@ -65,7 +65,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
-from cottonsim_common.validation import require_instance, require_unit_vector
+from cottonsim_common.validation import require_fields, require_instance, require_unit_vector
 
 
 @dataclass(frozen=True)
@@ -116,22 +116,11 @@ class GpsLocalizationConfig:
     status_frequency: float = 5.0
 
     def __post_init__(self) -> None:
-        for name in ("position_time_constant_s", "yaw_time_constant_s", "yaw_offset",
-                     "magnetic_declination_radians", "max_dt_s", "frequency", "transform_tolerance_s",
-                     "reference_fix_variance_m2", "max_fix_variance_m2", "jump_gate_m", "jump_gate_timeout_s",
-                     "dead_reckoning_limit_s", "status_frequency"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"{name} must be a finite number, got {value!r}")
-        for name in ("position_time_constant_s", "yaw_time_constant_s", "transform_tolerance_s"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        for name in ("max_dt_s", "frequency", "reference_fix_variance_m2", "max_fix_variance_m2", "jump_gate_m",
-                     "dead_reckoning_limit_s", "status_frequency"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if self.jump_gate_timeout_s < 0:
-            raise ValueError(f"jump_gate_timeout_s must be >= 0, got {self.jump_gate_timeout_s}")
+        require_fields(self, finite=("yaw_offset", "magnetic_declination_radians"),
+                       non_negative=("position_time_constant_s", "yaw_time_constant_s", "transform_tolerance_s",
+                                     "jump_gate_timeout_s"),
+                       positive=("max_dt_s", "frequency", "reference_fix_variance_m2", "max_fix_variance_m2",
+                                 "jump_gate_m", "dead_reckoning_limit_s", "status_frequency"))
         if self.max_fix_variance_m2 < self.reference_fix_variance_m2:
             raise ValueError(f"max_fix_variance_m2 ({self.max_fix_variance_m2}) must be >= reference_fix_variance_m2 "
                              f"({self.reference_fix_variance_m2})")

@@ -58,7 +58,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from cottonsim_common.angles import wrap_angle
-from cottonsim_common.validation import require_positive
+from cottonsim_common.validation import require_fields
 
 # Below this translation [m] the heading of the step is not meaningful (ROS amcl: 0.01 m).
 MIN_TRANSLATION_FOR_HEADING_M = 0.01
@@ -95,8 +95,8 @@ class OdometryMotionModelConfig:
     max_step_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("alpha1", "alpha2", "alpha3", "alpha4", "alpha5", "max_step_m", "max_step_rad"):
-            require_positive(name, getattr(self, name), allow_zero=True)
+        require_fields(self, non_negative=("alpha1", "alpha2", "alpha3", "alpha4", "alpha5", "max_step_m",
+                                           "max_step_rad"))
         if self.model not in MOTION_MODELS:
             raise ValueError(f"model must be one of {MOTION_MODELS}, got {self.model!r}")
 

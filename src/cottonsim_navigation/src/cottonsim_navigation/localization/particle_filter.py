@@ -42,7 +42,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from cottonsim_common.angles import wrap_angle
-from cottonsim_common.validation import require_instance
+from cottonsim_common.validation import require_fields, require_instance
 from ..core.grid import GridSpec
 
 
@@ -67,21 +67,13 @@ class ParticleFilterConfig:
     alpha_fast: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("min_particles", "max_particles"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        require_fields(self, counts=("min_particles", "max_particles"),
+                       positive=("kld_z", "bin_size_xy_m", "bin_size_yaw_rad"))
         if self.min_particles > self.max_particles:
             raise ValueError(f"min_particles ({self.min_particles}) must not exceed max_particles "
                              f"({self.max_particles})")
         if not (0 < self.kld_err < 1):
             raise ValueError(f"kld_err must lie in (0, 1), got {self.kld_err!r}")
-        if not (math.isfinite(self.kld_z) and self.kld_z > 0):
-            raise ValueError(f"kld_z must be finite and > 0, got {self.kld_z!r}")
-        for name in ("bin_size_xy_m", "bin_size_yaw_rad"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {value!r}")
         if not (0 <= self.alpha_slow <= 1 and 0 <= self.alpha_fast <= 1):
             raise ValueError(f"alpha_slow and alpha_fast must lie in [0, 1], got {self.alpha_slow}, "
                              f"{self.alpha_fast}")

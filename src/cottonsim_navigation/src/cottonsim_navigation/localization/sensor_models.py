@@ -35,7 +35,7 @@ from typing import Optional, Tuple
 import numpy as np
 from scipy import ndimage
 
-from cottonsim_common.validation import require_instance
+from cottonsim_common.validation import require_fields, require_instance, require_int
 from ..core.grid import GridSpec
 
 try:
@@ -168,21 +168,13 @@ class LikelihoodFieldConfig:
     def __post_init__(self) -> None:
         if self.model not in LASER_MODELS:
             raise ValueError(f"model must be one of {LASER_MODELS}, got {self.model!r}")
-        for name in ("z_hit", "z_rand"):
-            value = _finite_number(getattr(self, name), name)
-            if value < 0:
-                raise ValueError(f"{name} must be >= 0, got {value}")
+        require_fields(self, non_negative=("z_hit", "z_rand", "min_range_m"),
+                       positive=("sigma_hit_m", "likelihood_max_dist_m", "max_range_m"))
         if self.z_hit + self.z_rand <= 0:
             raise ValueError("z_hit + z_rand must be > 0")
-        for name in ("sigma_hit_m", "likelihood_max_dist_m", "max_range_m"):
-            value = _finite_number(getattr(self, name), name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {value}")
-        if _finite_number(self.min_range_m, "min_range_m") < 0 or self.min_range_m >= self.max_range_m:
+        if self.min_range_m >= self.max_range_m:
             raise ValueError(f"min_range_m must lie in [0, max_range_m), got {self.min_range_m}")
-        if isinstance(self.max_beams, bool) or not isinstance(self.max_beams, (int, np.integer)) \
-                or self.max_beams < 2:
-            raise ValueError(f"max_beams must be an integer >= 2, got {self.max_beams!r}")
+        require_int("max_beams", self.max_beams, 2)
 
 
 def validate_occupancy(occupancy, spec: GridSpec) -> np.ndarray:

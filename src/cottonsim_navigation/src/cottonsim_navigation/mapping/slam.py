@@ -46,7 +46,7 @@ import numpy as np
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, compose, inverse
-from cottonsim_common.validation import require_bool, require_instance, require_int, require_positive
+from cottonsim_common.validation import require_fields, require_instance, require_int
 
 from ..core.grid import GridSpec
 from ..localization.motion_models import OdometryMotionModelConfig, _as_pose_array, sample_motion_model_odometry
@@ -119,11 +119,11 @@ class SlamConfig:
         require_int("particles", self.particles, 1)
         require_int("match_max_beams", self.match_max_beams, 3)
         require_int("lskip", self.lskip, 0)
-        for name in ("max_urange_m", "max_range_m", "delta_m", "lsigma_m", "ogain", "logodds_hit",
-                     "logodds_clamp", "heading_tau_s"):
-            require_positive(name, getattr(self, name))
-        for name in ("linear_update_m", "angular_update_rad", "srr", "srt", "str_", "stt", "heading_sigma_rad"):
-            require_positive(name, getattr(self, name), allow_zero=True)
+        require_fields(self, positive=("max_urange_m", "max_range_m", "delta_m", "lsigma_m", "ogain", "logodds_hit",
+                                       "logodds_clamp", "heading_tau_s"),
+                       non_negative=("linear_update_m", "angular_update_rad", "srr", "srt", "str_", "stt",
+                                     "heading_sigma_rad"),
+                       flags=("heading_track_rate",))
         if not (isinstance(self.temporal_update_s, (int, float)) and not math.isnan(self.temporal_update_s)):
             raise ValueError(f"temporal_update_s must be a number, got {self.temporal_update_s!r}")
         if self.max_urange_m > self.max_range_m:
@@ -140,7 +140,6 @@ class SlamConfig:
             a, b = getattr(self, lo), getattr(self, hi)
             if not (math.isfinite(a) and math.isfinite(b) and a < b):
                 raise ValueError(f"need finite {lo} < {hi}, got {a}, {b}")
-        require_bool("heading_track_rate", self.heading_track_rate)
         require_instance("matcher", self.matcher, ScanMatcherConfig)
 
     def motion_config(self) -> OdometryMotionModelConfig:

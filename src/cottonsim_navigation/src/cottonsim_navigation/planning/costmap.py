@@ -39,7 +39,7 @@ import numpy as np
 from scipy import ndimage
 
 from cottonsim_common.raytrace import clear_rays
-from cottonsim_common.validation import require_positive
+from cottonsim_common.validation import require_fields, require_positive
 from cottonsim_common.pose import Pose2D, as_pose, transform_points
 from cottonsim_navigation.core.footprint import footprint_cells, footprint_radii, pad_footprint, validate_footprint
 from cottonsim_navigation.core.grid import (FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE,
@@ -81,13 +81,10 @@ class CostmapConfig:
     transform_tolerance: float = 0.3
 
     def __post_init__(self) -> None:
-        for name in ("width", "height", "resolution"):
-            require_positive(name, getattr(self, name))
-        for name in ("update_frequency", "publish_frequency", "footprint_padding", "transform_tolerance"):
-            require_positive(name, getattr(self, name), allow_zero=True)
-        for name in ("origin_x", "origin_y"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite")
+        require_fields(self, positive=("width", "height", "resolution"),
+                       non_negative=("update_frequency", "publish_frequency", "footprint_padding",
+                                     "transform_tolerance"),
+                       finite=("origin_x", "origin_y"))
         try:
             validate_footprint(self.footprint)
         except ValueError as exc:

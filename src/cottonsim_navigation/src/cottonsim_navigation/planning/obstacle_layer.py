@@ -11,7 +11,6 @@ passing object) still clears within a second or two.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import List, Optional, Sequence, Tuple
 
@@ -20,7 +19,7 @@ import numpy as np
 from cottonsim_navigation.core.footprint import footprint_cells
 from cottonsim_navigation.core.grid import FREE_SPACE, LETHAL_OBSTACLE, NO_INFORMATION, GridSpec
 from cottonsim_common.raytrace import clear_rays
-from cottonsim_common.validation import require_positive
+from cottonsim_common.validation import require_fields
 from cottonsim_navigation.planning.costmap_layer import CostmapLayer, shift_grid
 
 
@@ -49,11 +48,8 @@ class ObstacleLayerConfig:
     clearing_miss_count: int = 1
 
     def __post_init__(self) -> None:
-        require_positive("obstacle_range", self.obstacle_range)
-        require_positive("raytrace_range", self.raytrace_range)
-        for name in ("min_obstacle_height", "max_obstacle_height"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite")
+        require_fields(self, positive=("obstacle_range", "raytrace_range"),
+                       finite=("min_obstacle_height", "max_obstacle_height"))
         if self.min_obstacle_height > self.max_obstacle_height:
             raise ValueError(f"min_obstacle_height ({self.min_obstacle_height}) exceeds "
                              f"max_obstacle_height ({self.max_obstacle_height})")

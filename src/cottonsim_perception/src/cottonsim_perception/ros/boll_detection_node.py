@@ -73,13 +73,14 @@ from cottonsim_common.rate_slots import slot_index
 from cottonsim_common.ros import conversions as conv
 from cottonsim_common.ros.frames_done import FramesDonePublisher
 from cottonsim_common.ros.params import config_from_params
+from cottonsim_common.transforms import transform_points
 from cottonsim_perception.monitoring.input_health import is_black
 from cottonsim_perception.monitoring.rate_gate import check_rate_hz
 from cottonsim_perception.ros.health_reporting import HealthReporter
 from cottonsim_perception.ros.predictor_loading import backend_from_params, load_predictor
 
 from cottonsim_perception.localization import (BOLL, BollLocalizationConfig, boxes_from_semantic, localize_boxes,
-                                               points_within_reach, transform_points)
+                                               points_within_reach)
 
 SOURCES = ("network", "ground_truth")
 BUFF_SIZE = 1 << 25
@@ -290,20 +291,16 @@ class BollDetectionNode:
         detections = self.predictor.predict_batch(list(images.values()))
         return {camera: (d.boxes_xyxy, d.scores) for camera, d in zip(images, detections)}
 
-    def _lookup(self, target: str, source: str, stamp):
+    def _lookup(self, target: str, source: str, stamp) -> np.ndarray:
+        """The 4x4 ``target_T_source`` at ``stamp`` (else the latest), or ValueError naming both frames."""
         try:
-            return self.tf_buffer.lookup_transform(target, source, stamp, rospy.Duration(0.2))
+            return conv.transform_matrix(self.tf_buffer.lookup_transform(target, source, stamp, rospy.Duration(0.2)))
         except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
             try:       # camera and arm are fixed to the base: the latest transform is as good
-                return self.tf_buffer.lookup_transform(target, source, rospy.Time(0))
+                return conv.transform_matrix(self.tf_buffer.lookup_transform(target, source, rospy.Time(0)))
             except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
                     tf2_ros.ExtrapolationException):
                 raise ValueError(f"no transform {target} <- {source}: {exc}")
-
-    @staticmethod
-    def _apply(tf_msg, points):
-        t, q = tf_msg.transform.translation, tf_msg.transform.rotation
-        return transform_points(points, (t.x, t.y, t.z), (q.x, q.y, q.z, q.w))
 
     def process(self, camera: str, frame: Image, cloud: PointCloud2, rgb_msg: Optional[Image], info: CameraInfo,
                 boxes: np.ndarray, scores: np.ndarray, image: np.ndarray):
@@ -312,8 +309,8 @@ class BollDetectionNode:
         xyz = conv.cloud_to_xyz(cloud)
         positions, valid = localize_boxes(boxes, xyz, info.K, self.loc_config)
         stamp = frame.header.stamp
-        in_base = self._apply(self._lookup(self.target_frame, inputs.optical_frame, stamp), positions)
-        in_arm = self._apply(self._lookup(self.arm_base_frame, inputs.optical_frame, stamp), positions)
+        in_base = transform_points(self._lookup(self.target_frame, inputs.optical_frame, stamp), positions)
+        in_arm = transform_points(self._lookup(self.arm_base_frame, inputs.optical_frame, stamp), positions)
         reach = points_within_reach(in_arm, self.reach_m) & valid
         msg = BollDetections(camera=camera, in_reach=bool(reach.any()))
         msg.header.stamp = stamp

@@ -21,6 +21,8 @@ from typing import Tuple
 
 import numpy as np
 
+from cottonsim_common.validation import require_fields
+
 
 @dataclass(frozen=True)
 class PurePursuitConfig:
@@ -32,11 +34,9 @@ class PurePursuitConfig:
     search_window_m: float = 2.0          # how far ahead of the progress index projection searches [m]
 
     def __post_init__(self):
-        for name in ("lookahead_m", "cruise_speed_m_s", "max_angular_rad_s", "turn_in_place_rad",
-                     "goal_tolerance_m", "search_window_m"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"PurePursuitConfig.{name} must be a positive number, got {value}")
+        require_fields(self, "PurePursuitConfig.",
+                       positive=("lookahead_m", "cruise_speed_m_s", "max_angular_rad_s", "turn_in_place_rad",
+                                 "goal_tolerance_m", "search_window_m"))
 
 
 def densify(points_xy: np.ndarray, spacing_m: float = 0.05) -> np.ndarray:

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import Tuple
 
-from cottonsim_common.validation import require_finite_values, require_positive
+from cottonsim_common.validation import require_fields, require_finite_values, require_positive
 
 
 @dataclass(frozen=True)
@@ -68,10 +68,9 @@ class HuskyParams:
     wheel_axle_z_m: float = 0.03282              # axle height relative to base_link
 
     def __post_init__(self) -> None:
-        for name in ("overall_length_m", "overall_width_m", "overall_height_m",
-                     "chassis_mass_kg", "wheel_radius_m", "wheel_width_m",
-                     "wheel_mass_kg", "wheelbase_m", "track_m", "base_link_height_m"):
-            require_positive(name, getattr(self, name))
+        require_fields(self, positive=("overall_length_m", "overall_width_m", "overall_height_m", "chassis_mass_kg",
+                                       "wheel_radius_m", "wheel_width_m", "wheel_mass_kg", "wheelbase_m", "track_m",
+                                       "base_link_height_m"))
         for name in ("chassis_inertia_kg_m2", "lower_box_size_m", "upper_box_size_m"):
             values = getattr(self, name)
             if len(values) != 3:
@@ -134,9 +133,8 @@ class DriveLimits:
     twist_covariance_diagonal: Tuple[float, ...] = (0.001, 0.001, 0.001, 0.001, 0.001, 0.03)
 
     def __post_init__(self) -> None:
-        for name in ("max_linear_m_s", "max_linear_acc_m_s2", "max_angular_rad_s",
-                     "max_angular_acc_rad_s2", "cmd_timeout_s", "control_rate_hz",
-                     "wheel_separation_multiplier", "wheel_radius_multiplier"):
-            require_positive(name, getattr(self, name))
+        require_fields(self, positive=("max_linear_m_s", "max_linear_acc_m_s2", "max_angular_rad_s",
+                                       "max_angular_acc_rad_s2", "cmd_timeout_s", "control_rate_hz",
+                                       "wheel_separation_multiplier", "wheel_radius_multiplier"))
         for name in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
             require_finite_values(name, getattr(self, name), 6, low=0.0)

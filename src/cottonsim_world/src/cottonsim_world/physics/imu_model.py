@@ -24,6 +24,8 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from cottonsim_common.validation import require_fields
+
 
 @dataclass(frozen=True)
 class ImuConfig:
@@ -51,15 +53,9 @@ class ImuConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("rate_hz", "drift_time_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"ImuConfig.{name} must be a finite number > 0, got {v!r}")
-        for name in ("gyro_noise_rad_s", "gyro_drift_rad_s", "accel_noise_m_s2", "accel_drift_m_s2",
-                     "orientation_noise_rad", "yaw_drift_rad"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"ImuConfig.{name} must be a finite number >= 0, got {v!r}")
+        require_fields(self, "ImuConfig.", positive=("rate_hz", "drift_time_s"),
+                       non_negative=("gyro_noise_rad_s", "gyro_drift_rad_s", "accel_noise_m_s2", "accel_drift_m_s2",
+                                     "orientation_noise_rad", "yaw_drift_rad"))
         if not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"ImuConfig.seed must be an int >= 0, got {self.seed!r}")
 

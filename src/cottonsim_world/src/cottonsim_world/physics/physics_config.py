@@ -11,6 +11,8 @@ from typing import Tuple
 
 import numpy as np
 
+from cottonsim_common.validation import require_fields
+
 
 @dataclass(frozen=True)
 class PhysicsConfig:
@@ -88,19 +90,13 @@ class PhysicsConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        def positive(name: str) -> None:
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"PhysicsConfig.{name} must be a finite number > 0, got {v!r}")
-
-        for name in ("step_s", "wheel_mu", "chassis_mu", "plant_mu1", "plant_mu2",
-                     "contact_stiffness_n_m", "contact_max_correcting_vel_m_s",
-                     "wheel_max_torque_n_m", "accel_window_s"):
-            positive(name)
-        for name in ("wheel_slip", "contact_damping_n_s_m", "contact_surface_layer_m", "contact_rearm_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"PhysicsConfig.{name} must be a finite number >= 0, got {v!r}")
+        require_fields(self, "PhysicsConfig.",
+                       positive=("step_s", "wheel_mu", "chassis_mu", "plant_mu1", "plant_mu2",
+                                 "contact_stiffness_n_m", "contact_max_correcting_vel_m_s", "wheel_max_torque_n_m",
+                                 "accel_window_s", "broadphase_extent_m"),
+                       non_negative=("wheel_slip", "contact_damping_n_s_m", "contact_surface_layer_m",
+                                     "contact_rearm_s"),
+                       flags=("merge_wheel_contacts",))
         if self.step_s > 0.02:
             raise ValueError(f"PhysicsConfig.step_s must be <= 0.02 s for a stable wheel contact, got {self.step_s}")
         if not math.isfinite(self.gravity_m_s2) or self.gravity_m_s2 >= 0:
@@ -109,11 +105,8 @@ class PhysicsConfig:
             raise ValueError(f"PhysicsConfig.solver_iterations must be an int >= 1, got {self.solver_iterations!r}")
         if not isinstance(self.max_contacts_per_pair, int) or not 1 <= self.max_contacts_per_pair <= 64:
             raise ValueError(f"PhysicsConfig.max_contacts_per_pair must be an int in 1..64, got {self.max_contacts_per_pair!r}")
-        if not isinstance(self.merge_wheel_contacts, bool):
-            raise ValueError(f"PhysicsConfig.merge_wheel_contacts must be a bool, got {self.merge_wheel_contacts!r}")
         if len(self.broadphase_centre_m) != 2 or not all(math.isfinite(v) for v in self.broadphase_centre_m):
             raise ValueError(f"PhysicsConfig.broadphase_centre_m must be 2 finite numbers, got {self.broadphase_centre_m!r}")
-        positive("broadphase_extent_m")
         if not isinstance(self.broadphase_depth, int) or not 1 <= self.broadphase_depth <= 12:
             raise ValueError(f"PhysicsConfig.broadphase_depth must be an int in 1..12, got {self.broadphase_depth!r}")
         if not isinstance(self.seed, int) or self.seed < 0:

@@ -23,7 +23,7 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from cottonsim_common.transforms import yaw_to_quaternion
-from cottonsim_common.validation import require_finite_values, require_positive
+from cottonsim_common.validation import require_fields, require_finite_values
 
 from .husky_params import DriveLimits, HuskyParams
 
@@ -48,8 +48,8 @@ class WheelOdometryConfig:
     twist_covariance_diagonal: Tuple[float, ...] = _LIMITS.twist_covariance_diagonal
 
     def __post_init__(self) -> None:
-        for name in ("wheel_radius_m", "track_m", "wheel_separation_multiplier", "wheel_radius_multiplier"):
-            require_positive(f"WheelOdometryConfig.{name}", getattr(self, name))
+        require_fields(self, "WheelOdometryConfig.",
+                       positive=("wheel_radius_m", "track_m", "wheel_separation_multiplier", "wheel_radius_multiplier"))
         for name in ("pose_covariance_diagonal", "twist_covariance_diagonal"):
             require_finite_values(f"WheelOdometryConfig.{name}", getattr(self, name), 6, low=0.0)
 

@@ -60,7 +60,7 @@ except ImportError as exc:  # pragma: no cover
 
 from cottonsim_common.angles import wrap_angle
 from cottonsim_common.pose import Pose2D, as_pose
-from cottonsim_common.validation import require_positive
+from cottonsim_common.validation import require_fields
 from cottonsim_navigation.core.grid import INSCRIBED_INFLATED_OBSTACLE, NO_INFORMATION
 from cottonsim_navigation.planning.base import GlobalPlanner, Plan, register_global_planner
 
@@ -98,8 +98,8 @@ class NavfnConfig:
                 and 0.0 <= self.goal_approach_max_angle_rad <= math.pi / 2):
             raise ValueError(f"goal_approach_max_angle_rad must be in [0, pi/2], got "
                              f"{self.goal_approach_max_angle_rad!r}")
-        for name in ("default_tolerance", "cost_factor", "orientation_window_m", "goal_approach_join_m"):
-            require_positive(name, getattr(self, name), allow_zero=True)
+        require_fields(self, non_negative=("default_tolerance", "cost_factor", "orientation_window_m",
+                                           "goal_approach_join_m"))
         if not (math.isfinite(self.neutral_cost) and self.neutral_cost > 0):
             raise ValueError(f"neutral_cost must be > 0, got {self.neutral_cost!r}")
 

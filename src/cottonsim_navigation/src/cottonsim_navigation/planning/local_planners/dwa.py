@@ -50,6 +50,7 @@ import numpy as np
 
 from cottonsim_common.angles import shortest_angular_distance
 from cottonsim_common.pose import Pose2D, as_pose
+from cottonsim_common.validation import require_fields
 from cottonsim_navigation.planning.base import LocalPlanner, LocalPlannerStatus, register_local_planner
 from cottonsim_navigation.planning.local_planners.trajectories import (distance_fields, footprint_collides,
                                                                      polyline_distance, simulate_arcs)
@@ -116,18 +117,12 @@ class DWAConfig:
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{f.name} must be a finite number, got {v!r}")
-        positive = ("max_vel_x", "max_rot_vel", "acc_lim_x", "acc_lim_theta", "controller_frequency",
-                    "sim_time", "sim_granularity", "angular_sim_granularity")
-        for name in positive:
-            if getattr(self, name) <= 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
-        nonneg = ("min_rot_vel", "min_vel_trans", "xy_goal_tolerance", "yaw_goal_tolerance",
-                  "path_distance_bias", "goal_distance_bias", "occdist_scale", "forward_point_distance",
-                  "oscillation_reset_dist", "oscillation_reset_angle", "trans_stopped_vel",
-                  "theta_stopped_vel")
-        for name in nonneg:
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        require_fields(self, positive=("max_vel_x", "max_rot_vel", "acc_lim_x", "acc_lim_theta", "controller_frequency",
+                                       "sim_time", "sim_granularity", "angular_sim_granularity"),
+                       non_negative=("min_rot_vel", "min_vel_trans", "xy_goal_tolerance", "yaw_goal_tolerance",
+                                     "path_distance_bias", "goal_distance_bias", "occdist_scale",
+                                     "forward_point_distance", "oscillation_reset_dist", "oscillation_reset_angle",
+                                     "trans_stopped_vel", "theta_stopped_vel"))
         if self.min_vel_x > self.max_vel_x:
             raise ValueError(f"min_vel_x ({self.min_vel_x}) exceeds max_vel_x ({self.max_vel_x})")
         if self.min_rot_vel > self.max_rot_vel:
