@@ -86,6 +86,7 @@ import numpy as np
 
 from cottonsim_common.capsules import CapsuleSet
 from cottonsim_common.kinematics.ur5e import Ur5eKinematics
+from cottonsim_common.transforms import transform_points
 from cottonsim_common.validation import require_fields, require_int, require_number
 from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks
@@ -182,13 +183,6 @@ def _pose(matrix, what: str) -> np.ndarray:
     if t.shape != (4, 4) or not np.all(np.isfinite(t)):
         raise ValueError(f"{what} must be a finite 4x4 matrix")
     return t
-
-
-def transform_points(transform, points_m) -> np.ndarray:
-    """Points (N, 3) [m] moved by a 4x4 rigid transform."""
-    t = _pose(transform, "the transform")
-    p = np.asarray(points_m, dtype=float).reshape(-1, 3)
-    return p @ t[:3, :3].T + t[:3, 3]
 
 
 def estimate_stem(boll_base_m, targets_base_m, config: HarvestConfig = HarvestConfig()) -> np.ndarray:

@@ -64,7 +64,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 from cottonsim_common.kinematics.ur5e import JOINT_NAMES
 from cottonsim_common.ros.conversions import transform_matrix
 from cottonsim_common.ros.params import config_from_params, typed_param
-from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester, transform_points
+from cottonsim_common.transforms import transform_points
+from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester
 from cottonsim_manipulation.harvest.pick_cycle import (CancelTrajectory, CaptureConfirmed, HaltRoute, PickCycleConfig,
                                                        ResumeRoute, RobotStopped, SendTrajectory, SetVacuum,
                                                        TrajectoryDone, TrajectoryFailed)

@@ -22,7 +22,7 @@ from nav_msgs.msg import Odometry
 
 from cottonsim_common.ros.conversions import transform_matrix
 from cottonsim_common.transforms import pose_matrix
-from cottonsim_manipulation.harvest.harvester import transform_points
+from cottonsim_common.transforms import transform_points
 
 TRUTH_POSES_TRIED = 10             # the newest true poses tried, newest first, for one TF at their stamp
 
