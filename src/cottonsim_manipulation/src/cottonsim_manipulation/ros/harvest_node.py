@@ -86,6 +86,9 @@ _MARKER_RGB = {"tentative": (0.6, 0.6, 0.6), "confirmed": (1.0, 0.8, 0.0), "pick
 READY_TOLERANCE_RAD = 0.02                      # the arm is at its ready pose this close [rad]
 REST_SPEED_RAD_S = 0.01                         # the arm is at rest below this joint speed [rad/s]
 START_TOLERANCE_RAD = 0.01                      # a trajectory starting farther from the arm gets a lead-in [rad]
+HOLD_PERIOD_S = 0.2                             # the route hold is sent this often, from a timer of its own
+                                                # (a stop's planning holds the loop for longer than the
+                                                # navigator's hold lasts: the robot drove off mid-stop) [s]
 
 
 class HarvestNode:
@@ -144,6 +147,7 @@ class HarvestNode:
         self.markers_pub = rospy.Publisher("~markers", MarkerArray, queue_size=2, latch=True)
         self.status_pub = rospy.Publisher("~status", String, queue_size=2, latch=True)
         self.hold_pub = rospy.Publisher(typed_param("~hold_topic", "/harvest/hold_route"), Bool, queue_size=2)
+        self._hold_timer = rospy.Timer(rospy.Duration(HOLD_PERIOD_S), self._publish_hold)
         self.arm = actionlib.ActionClient("/arm_controller/follow_joint_trajectory", FollowJointTrajectoryAction)
         self._arm_goal = None                    # the goal handle of the trajectory in flight
         self.vacuum = rospy.ServiceProxy("/arm_controller/vacuum", SetBool)
@@ -198,6 +202,10 @@ class HarvestNode:
         if np.all(np.isfinite(pts)):
             with self._lock:
                 self._detections.append((pts, msg.header.stamp.to_sec()))
+
+    def _publish_hold(self, _event) -> None:
+        if self._route_held:
+            self.hold_pub.publish(Bool(True))
 
     def _on_enable(self, req):
         with self._lock:
@@ -313,8 +321,6 @@ class HarvestNode:
         elif q is not None:
             self._maybe_start(q, stopped, now)
         self._send_waiting()
-        if self._route_held:
-            self.hold_pub.publish(Bool(True))
         if changed:
             self._publish_targets()
         if changed or now >= self._next_status_s:
@@ -348,6 +354,7 @@ class HarvestNode:
                 with self._lock:
                     self._requests.appendleft(request)
             self._route_held = request is None
+            self._publish_hold(None)
             self._parking = True
             park = plan_trajectory(np.stack([q, self.ready_rad]), self.trajectory_config)
             self._park_deadline_s = now + park.duration_s + h.cycle_config.motion_margin_s
@@ -390,6 +397,7 @@ class HarvestNode:
         for command in commands:
             if isinstance(command, HaltRoute):
                 self._route_held = True
+                self._publish_hold(None)
             elif isinstance(command, ResumeRoute):
                 self._route_held = False
                 self.hold_pub.publish(Bool(False))
