@@ -2,8 +2,8 @@
 
 The simulator's open bolls (/sim/bolls, world frame) within ``range_m`` of the robot's true position
 (/ground_truth/odom) are given to the harvester as if detected, in the targets' fixed frame. The true
-pose is paired with TF by stamp: the newest true pose for which TF ``frame <- robot_frame`` is known
-at its stamp (tf2 interpolates between its samples). With the newest of each, a driving robot's targets
+pose is paired with TF by stamp: the newest true pose no newer than the newest TF ``frame <- robot_frame``,
+and TF at its stamp (tf2 interpolates between its samples); TF comes up to ~0.2 s after the truth. With the newest of each, a driving robot's targets
 were off by its speed times the two messages' age difference; with the nearest pose to the newest TF
 (up to 50 ms apart, 25 mm at 0.5 m/s) a boll's target could jump out of the fusion's gate and start a
 second target.
@@ -23,8 +23,6 @@ from nav_msgs.msg import Odometry
 from cottonsim_common.ros.conversions import transform_matrix
 from cottonsim_common.transforms import pose_matrix
 from cottonsim_common.transforms import transform_points
-
-TRUTH_POSES_TRIED = 10             # the newest true poses tried, newest first, for one TF at their stamp
 
 
 class TruthTargets:
@@ -57,18 +55,19 @@ class TruthTargets:
             bolls, poses = self._open_bolls, list(self._true_poses)
         if bolls is None or not poses:
             return self._missing("no /sim/bolls or /ground_truth/odom yet")
-        error = None
-        for pose_stamp_s, world_T_base in reversed(poses[-TRUTH_POSES_TRIED:]):
-            try:
-                tf_msg = self.tf_buffer.lookup_transform(self.frame, self.robot_frame,
-                                                         rospy.Time.from_sec(pose_stamp_s))
-            except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
-                error = exc
-                continue
-            near = bolls[np.linalg.norm(bolls[:, :2] - world_T_base[:2, 3], axis=1) <= self.range_m]
-            return transform_points(transform_matrix(tf_msg) @ np.linalg.inv(world_T_base), near)
-        return self._missing(f"no TF {self.frame} <- {self.robot_frame} at the stamps of the last "
-                             f"{min(len(poses), TRUTH_POSES_TRIED)} true poses: {error}")
+        try:
+            newest = self.tf_buffer.lookup_transform(self.frame, self.robot_frame, rospy.Time(0))
+            newest_s = newest.header.stamp.to_sec()
+            known = [sp for sp in poses if sp[0] <= newest_s]        # TF lags the truth by up to ~0.2 s
+            if not known:
+                return self._missing(f"every true pose is newer than the newest TF {self.frame} <- "
+                                     f"{self.robot_frame} ({newest_s:.3f} s)")
+            pose_stamp_s, world_T_base = known[-1]
+            tf_msg = self.tf_buffer.lookup_transform(self.frame, self.robot_frame, rospy.Time.from_sec(pose_stamp_s))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
+            return self._missing(f"no TF {self.frame} <- {self.robot_frame}: {exc}")
+        near = bolls[np.linalg.norm(bolls[:, :2] - world_T_base[:2, 3], axis=1) <= self.range_m]
+        return transform_points(transform_matrix(tf_msg) @ np.linalg.inv(world_T_base), near)
 
     @staticmethod
     def _missing(why: str) -> None:
