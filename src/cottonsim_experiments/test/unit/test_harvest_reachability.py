@@ -70,8 +70,8 @@ def test_a_thick_stem_in_front_of_the_boll_makes_it_unreachable_by_collision(rob
 
 
 def test_a_boll_facing_along_the_row_needs_the_planners_approach_turned_towards_the_lane(robot):
-    # the boll faces the next plant (+y), whose 8 cm thick stem stands 12 cm ahead of it
-    plants = [plant(0, 0.9, 1.0), plant(1, 0.85, 1.17, stem_radius=0.04, height=2.0)]
+    # the boll faces the next plant (+y), whose 8 cm thick stem stands 14 cm ahead of it
+    plants = [plant(0, 0.9, 1.0), plant(1, 0.85, 1.19, stem_radius=0.04, height=2.0)]
     straight = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants, study(8, yaw_samples_rad=(0.0,)))
     turned = judge(robot, (0.85, 1.05, 0.5), (0.0, 1.0, 0.0), plants)          # the planner's yaw samples
     assert not straight.reachable and turned.reachable

@@ -101,11 +101,14 @@ def test_a_boll_facing_along_the_row_past_a_stem_is_reached_with_a_yawed_approac
 
 def test_approach_directions_least_deviation_first_inside_the_capture_cone():
     outward = np.array([0.0, 1.0, 0.0])
-    cfg = ApproachConfig(tilt_samples_rad=(0.0, 0.35, 0.7), yaw_samples_rad=(0.0, 0.4, -0.4, 0.7, -0.7))
+    assert ApproachConfig().max_deviation_rad == pytest.approx(math.radians(35.0))   # 10 deg inside the cone
+    defaults = approach_directions(outward, ApproachConfig())
+    assert len(defaults) == 9 and max(d.deviation_rad for d in defaults) <= math.radians(35.0)
+    cfg = ApproachConfig(tilt_samples_rad=(0.0, 0.35, 0.7), yaw_samples_rad=(0.0, 0.4, -0.4, 0.7, -0.7),
+                         max_deviation_rad=math.radians(45.0))                  # the whole capture cone
     directions = approach_directions(outward, cfg)
     deviations = [d.deviation_rad for d in directions]
     assert deviations == sorted(deviations) and deviations[0] == 0.0
-    assert cfg.max_deviation_rad == pytest.approx(math.radians(45.0))          # the capture cone
     assert max(deviations) <= cfg.max_deviation_rad + 1e-9
     # 15 combinations; (+-0.4, 0.7) at 45.2 deg and (+-0.7, 0.7) at 54 deg lie outside the cone
     assert len(directions) == 11
@@ -119,7 +122,7 @@ def test_approach_directions_least_deviation_first_inside_the_capture_cone():
         assert math.atan2(-d.vector[0], d.vector[1]) == pytest.approx(d.yaw_rad)       # turned about +z
     # the planner's previous order when there is no yaw: the tilts in turn
     only_tilts = approach_directions(outward, ApproachConfig(yaw_samples_rad=(0.0,)))
-    assert [(d.yaw_rad, d.tilt_rad) for d in only_tilts] == [(0.0, 0.0), (0.0, 0.35), (0.0, 0.7)]
+    assert [(d.yaw_rad, d.tilt_rad) for d in only_tilts] == [(0.0, 0.0), (0.0, 0.3), (0.0, 0.6)]
 
 
 def test_the_least_travel_candidate_is_chosen_without_obstacles():
