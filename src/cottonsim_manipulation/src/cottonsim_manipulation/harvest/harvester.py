@@ -145,8 +145,8 @@ class HarvestConfig:
     def __post_init__(self) -> None:
         require_fields(self, "HarvestConfig.", flags=("stem_obstacles",),
                        positive=("reach_m", "min_reach_m", "detection_sigma_m", "stopped_speed_m_s",
-                                 "stopped_yaw_rate_rad_s", "row_offset_m", "plant_half_spacing_m", "grid_window_m", "retry_distance_m",
-                                 "max_target_age_s"))
+                                 "stopped_yaw_rate_rad_s", "row_offset_m", "plant_half_spacing_m", "grid_window_m",
+                                 "retry_distance_m", "max_target_age_s"))
         require_number("HarvestConfig.stop_ahead_m", self.stop_ahead_m, -10.0, 10.0)
         require_number("HarvestConfig.ground_z_m", self.ground_z_m, -5.0, 5.0)
         require_int("HarvestConfig.max_targets_per_stop", self.max_targets_per_stop, 1, 1000)

@@ -2,11 +2,11 @@
 
 The simulator's open bolls (/sim/bolls, world frame) within ``range_m`` of the robot's true position
 (/ground_truth/odom) are given to the harvester as if detected, in the targets' fixed frame. The true
-pose is paired with TF by stamp: the newest true pose no newer than the newest TF ``frame <- robot_frame``,
-and TF at its stamp (tf2 interpolates between its samples); TF comes up to ~0.2 s after the truth. With the newest of each, a driving robot's targets
-were off by its speed times the two messages' age difference; with the nearest pose to the newest TF
-(up to 50 ms apart, 25 mm at 0.5 m/s) a boll's target could jump out of the fusion's gate and start a
-second target.
+pose is paired with TF by stamp: the newest true pose no newer than the newest TF
+``frame <- robot_frame``, and TF at its stamp (tf2 interpolates between its samples); TF comes up to
+~0.2 s after the truth. With the newest of each, a driving robot's targets were off by its speed
+times the two messages' age difference; with the nearest pose to the newest TF (up to 50 ms apart,
+25 mm at 0.5 m/s) a boll's target could jump out of the fusion's gate and start a second target.
 """
 from __future__ import annotations
 
