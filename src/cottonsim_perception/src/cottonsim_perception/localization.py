@@ -157,6 +157,11 @@ class BollLocalizationConfig:
         radius). True: the median point is moved along its viewing ray to the depth of the near
         surface (the 10th-percentile depth) plus the boll's radius, taken as a quarter of the box's
         metric width + height at that depth. False: the median of the surface points.
+    lint_colour: with the camera's colour image, only the points whose pixel looks like cotton lint
+        (every channel at least ``lint_min_value``, channels at most ``lint_max_chroma`` apart: bright
+        and grey-white; leaves are green, soil brown, sky blue) count, when at least min_points of the
+        box do; a leaf in front of part of a boll otherwise becomes the box's front surface.
+    lint_min_value, lint_max_chroma: the lint test's thresholds [0-255].
     """
 
     min_points: int = 3
@@ -165,8 +170,17 @@ class BollLocalizationConfig:
     max_depth_m: float = 4.0
     front_depth_m: float = 0.15
     surface_to_centre: bool = True
+    lint_colour: bool = False
+    lint_min_value: int = 150
+    lint_max_chroma: int = 60
 
     def __post_init__(self) -> None:
+        if not isinstance(self.lint_colour, bool):
+            raise ValueError(f"BollLocalizationConfig.lint_colour must be true or false, got {self.lint_colour!r}")
+        for name in ("lint_min_value", "lint_max_chroma"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= 255:
+                raise ValueError(f"BollLocalizationConfig.{name} must be an int in [0, 255], got {v!r}")
         if not isinstance(self.surface_to_centre, bool):
             raise ValueError(f"BollLocalizationConfig.surface_to_centre must be true or false, "
                              f"got {self.surface_to_centre!r}")
@@ -198,7 +212,8 @@ def project_points(xyz: np.ndarray, fx: float, fy: float, cx: float, cy: float) 
 
 
 def localize_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[float],
-                   config: BollLocalizationConfig = BollLocalizationConfig()) -> Tuple[np.ndarray, np.ndarray]:
+                   config: BollLocalizationConfig = BollLocalizationConfig(),
+                   image_rgb: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
     """3-D position of each box: the per-axis median of the cloud points inside it.
 
     boxes_xyxy: (N, 4) [px, pixel edges]; cloud_xyz: (M, 3) points in the
@@ -207,7 +222,8 @@ def localize_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[fl
     unorganised cloud works as well as an organised one); k: the 3x3 camera
     matrix (9 numbers, row-major, CameraInfo.K).
     Only the points near the box's front surface count (``front_depth_m``); their median is moved
-    from the surface to the boll's centre (``surface_to_centre``).
+    from the surface to the boll's centre (``surface_to_centre``). With ``config.lint_colour`` and the
+    colour image the points project into ((H, W, 3) uint8 RGB), only lint-coloured points count.
     Returns (positions (N, 3) float64 [m] in the optical frame, NaN where
     a box holds fewer than ``min_points`` points; valid (N,) bool).
     """
@@ -226,12 +242,15 @@ def localize_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[fl
     keep = np.all(np.isfinite(pts), axis=1) & (pts[:, 2] >= config.min_depth_m) & (pts[:, 2] <= config.max_depth_m)
     pts = pts[keep]
     uv = project_points(pts, kk[0], kk[4], kk[2], kk[5])
+    lint = _lint_points(uv, image_rgb, config) if config.lint_colour and image_rgb is not None else None
     s = config.box_shrink_fraction
     for i, (x0, y0, x1, y1) in enumerate(boxes):
         dx, dy = s * (x1 - x0), s * (y1 - y0)
         inside = (uv[:, 0] >= x0 + dx) & (uv[:, 0] < x1 - dx) & (uv[:, 1] >= y0 + dy) & (uv[:, 1] < y1 - dy)
         if int(inside.sum()) < config.min_points:
             continue
+        if lint is not None and int((inside & lint).sum()) >= config.min_points:
+            inside &= lint
         box_pts = pts[inside]
         front_z = np.percentile(box_pts[:, 2], 10.0)
         near = box_pts[:, 2] <= front_z + config.front_depth_m
@@ -243,6 +262,20 @@ def localize_boxes(boxes_xyxy: np.ndarray, cloud_xyz: np.ndarray, k: Sequence[fl
             positions[i] = median
             valid[i] = True
     return positions, valid
+
+
+def _lint_points(uv: np.ndarray, image_rgb: np.ndarray, config: BollLocalizationConfig) -> np.ndarray:
+    """(M,) bool: the point's pixel (uv: pixel edges) in the image looks like cotton lint (outside: False)."""
+    img = np.asarray(image_rgb)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"image_rgb must be (H, W, 3), got shape {img.shape}")
+    h, w = img.shape[:2]
+    col, row = np.floor(uv[:, 0]).astype(np.int64), np.floor(uv[:, 1]).astype(np.int64)
+    on = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    rgb = np.zeros((len(uv), 3), dtype=np.int32)
+    rgb[on] = img[row[on], col[on]]
+    lo, hi = rgb.min(axis=1), rgb.max(axis=1)
+    return on & (lo >= config.lint_min_value) & (hi - lo <= config.lint_max_chroma)
 
 
 def points_within_reach(points_arm: np.ndarray, reach_m: float) -> np.ndarray:

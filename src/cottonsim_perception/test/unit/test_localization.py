@@ -127,6 +127,34 @@ def test_a_boll_is_localised_at_its_centre_not_on_its_visible_surface(centre):
         BollLocalizationConfig(surface_to_centre="yes")
 
 
+def test_a_leaf_in_front_of_a_boll_takes_the_front_surface_unless_the_lint_colour_picks_the_boll():
+    """A 6 cm white sphere 0.9 m away, its left half behind a green leaf 5 cm in front: the box's front
+    surface is the leaf (over 2 cm off, the nozzle's capture radius); with the lint colour test the boll's
+    visible half puts it within 1 cm of its centre (the half's own centroid is off to its side)."""
+    radius, centre = 0.03, np.array([0.05, 0.02, 0.9])
+    depth = sphere_depth(tuple(centre), radius)
+    h, w = depth.shape
+    image = np.zeros((h, w, 3), np.uint8)
+    image[np.isfinite(depth) & (depth < 2.0)] = (235, 232, 225)          # lint
+    uv = project_points(np.array([centre - [radius, radius, 0.0], centre + [radius, radius, 0.0]]), FX, FY, CX, CY)
+    box = np.array([[uv[0, 0], uv[0, 1], uv[1, 0], uv[1, 1]]])
+    leaf_cols = slice(int(uv[0, 0]), int((uv[0, 0] + uv[1, 0]) / 2))
+    leaf_rows = slice(int(uv[0, 1]), int(uv[1, 1]) + 1)
+    depth[leaf_rows, leaf_cols] = centre[2] - 0.05
+    image[leaf_rows, leaf_cols] = (40, 150, 40)
+    plain, _ = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(), image)
+    lint, valid = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(lint_colour=True), image)
+    assert valid.tolist() == [True]
+    assert np.linalg.norm(plain[0] - centre) > 0.02                   # on the leaf
+    assert np.linalg.norm(lint[0] - centre) < 0.01
+    no_image, _ = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(lint_colour=True))
+    np.testing.assert_allclose(no_image, plain)                       # without an image: as before
+    with pytest.raises(ValueError, match="lint_min_value"):
+        BollLocalizationConfig(lint_min_value=300)
+    with pytest.raises(ValueError, match="image_rgb"):
+        localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(lint_colour=True), image[..., 0])
+
+
 def test_localize_handles_empty_nan_and_decimated_clouds():
     depth = np.full((80, 100), 2.0)
     cloud = organized_cloud(depth)

@@ -307,7 +307,8 @@ class BollDetectionNode:
         """Locate one camera's boxes in 3-D and publish its BollDetections (and overlay)."""
         inputs = self.cameras[camera]
         xyz = conv.cloud_to_xyz(cloud)
-        positions, valid = localize_boxes(boxes, xyz, info.K, self.loc_config)
+        colour = image if image.ndim == 3 else None            # the network's rgb8 frame (not a semantic image)
+        positions, valid = localize_boxes(boxes, xyz, info.K, self.loc_config, colour)
         stamp = frame.header.stamp
         in_base = transform_points(self._lookup(self.target_frame, inputs.optical_frame, stamp), positions)
         in_arm = transform_points(self._lookup(self.arm_base_frame, inputs.optical_frame, stamp), positions)
