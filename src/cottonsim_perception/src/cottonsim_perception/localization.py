@@ -160,7 +160,9 @@ class BollLocalizationConfig:
     lint_colour: with the camera's colour image, only the points whose pixel looks like cotton lint
         (every channel at least ``lint_min_value``, channels at most ``lint_max_chroma`` apart: bright
         and grey-white; leaves are green, soil brown, sky blue) count, when at least min_points of the
-        box do; a leaf in front of part of a boll otherwise becomes the box's front surface.
+        box do; a leaf in front of part of a boll otherwise becomes the box's front surface (a
+        detections harvest of row 1, seed 0, first 320 s of sim time: 'capture_missed' 36 -> 6,
+        'ok' 26 -> 35).
     lint_min_value, lint_max_chroma: the lint test's thresholds [0-255].
     """
 
@@ -170,7 +172,7 @@ class BollLocalizationConfig:
     max_depth_m: float = 4.0
     front_depth_m: float = 0.15
     surface_to_centre: bool = True
-    lint_colour: bool = False
+    lint_colour: bool = True
     lint_min_value: int = 150
     lint_max_chroma: int = 60
 

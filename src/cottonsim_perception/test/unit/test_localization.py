@@ -142,12 +142,12 @@ def test_a_leaf_in_front_of_a_boll_takes_the_front_surface_unless_the_lint_colou
     leaf_rows = slice(int(uv[0, 1]), int(uv[1, 1]) + 1)
     depth[leaf_rows, leaf_cols] = centre[2] - 0.05
     image[leaf_rows, leaf_cols] = (40, 150, 40)
-    plain, _ = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(), image)
-    lint, valid = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(lint_colour=True), image)
+    plain, _ = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(lint_colour=False), image)
+    lint, valid = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(), image)     # default on
     assert valid.tolist() == [True]
     assert np.linalg.norm(plain[0] - centre) > 0.02                   # on the leaf
     assert np.linalg.norm(lint[0] - centre) < 0.01
-    no_image, _ = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig(lint_colour=True))
+    no_image, _ = localize_boxes(box, organized_cloud(depth), K, BollLocalizationConfig())
     np.testing.assert_allclose(no_image, plain)                       # without an image: as before
     with pytest.raises(ValueError, match="lint_min_value"):
         BollLocalizationConfig(lint_min_value=300)
