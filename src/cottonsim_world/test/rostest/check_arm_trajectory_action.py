@@ -215,7 +215,9 @@ class ArmTrajectoryActionTest(unittest.TestCase):
         answer = vacuum(True)
         self.assertTrue(answer.success)
         self.assertIn("vacuum on", answer.message)
-        self.assertEqual(vacuum(False).message, "vacuum off")
+        # off with nothing held: it says so, and how close the tip came to an open boll while it was on
+        self.assertRegex(vacuum(False).message,
+                         r"^vacuum off(: nothing captured; the tip came within [0-9.]+ mm of boll \d+, .*)?$")
         rospy.sleep(0.5)
         self.assertEqual(holding, [False])          # the stowed nozzle is nowhere near a boll
 
