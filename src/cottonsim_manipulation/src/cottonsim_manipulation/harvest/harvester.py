@@ -310,9 +310,14 @@ class Harvester:
     def pickable(self, now_s: Optional[float] = None) -> List[BollTarget]:
         """What a stop would pick now: in_reach(now_s) less the targets the planner failed for from about
         here (retry_distance_m)."""
+        return self._away_from_failures(self.in_reach(now_s), self.config.retry_distance_m)
+
+    def _away_from_failures(self, targets: List[BollTarget], distance_m: float) -> List[BollTarget]:
+        """The targets the planner never failed for, or failed for with the shoulder at least distance_m from
+        where it is now."""
         shoulder = self._shoulder_in_frame()
-        return [t for t in self.in_reach(now_s) if t.target_id not in self._plan_failed_at or
-                np.linalg.norm(shoulder - self._plan_failed_at[t.target_id]) >= self.config.retry_distance_m]
+        return [t for t in targets if t.target_id not in self._plan_failed_at or
+                np.linalg.norm(shoulder - self._plan_failed_at[t.target_id]) >= distance_m]
 
     def want_stop(self, robot_stopped: bool, now_s: Optional[float] = None) -> bool:
         """Whether to stop for a pick now (not while a cycle runs); now_s as in :meth:`in_reach`."""
@@ -323,9 +328,7 @@ class Harvester:
             return False
         if robot_stopped:
             return True
-        shoulder = self._shoulder_in_frame()
-        reach = [t for t in reach if t.target_id not in self._plan_failed_at or
-                 np.linalg.norm(shoulder - self._plan_failed_at[t.target_id]) >= self.config.reach_m]
+        reach = self._away_from_failures(reach, self.config.reach_m)
         if not reach:
             return False
         base = transform_points(np.linalg.inv(self._arm_T_base) @ self._arm_T_frame, [t.position_m for t in reach])
