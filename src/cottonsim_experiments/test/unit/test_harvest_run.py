@@ -70,8 +70,11 @@ def test_record_keeps_start_and_end_bolls_and_each_cycle_time_with_its_target(tm
     targets = [{"id": 7, "position": [0, 0, 0], "position_world": [1.0, 2.0, 0.51], "state": 2, "attempts": 0,
                 "last_result": "ok"},
                {"id": 3, "position": [0, 0, 0], "position_world": [1.1, 2.0, 0.6], "state": 1, "attempts": 0,
-                "last_result": ""}]
+                "last_result": "", "first_seen_s": 3.5, "last_seen_s": 7.5}]
     assert rec.on_targets("odom", 8.0, targets)
+    kept = {t["id"]: t for t in rec.to_dict()["targets"]}
+    assert (kept[3]["first_seen_s"], kept[3]["last_seen_s"]) == (3.5, 7.5)
+    assert kept[7]["last_seen_s"] is None                        # not sent: not invented
     assert rec.to_dict()["cycle_time_by_target_s"] == {"7": 5.5}
     duplicate = {"id": 2, "position": [0, 0, 0], "position_world": [1.0, 2.0, 0.52], "state": 2, "attempts": 0,
                  "last_result": ""}

@@ -106,9 +106,24 @@ def test_launch_switches_the_harvest_and_its_route_hold(launch_file):
     assert max_age.get("if") == "$(arg harvest)"
     overlay = [r for r in root.iter("rosparam") if r.get("ns") == "harvest"][0]
     assert overlay.get("if") == "$(arg harvest)" and args["harvest_route_config"].endswith("harvest_route.yaml")
+    speed = [r for r in root.iter("rosparam") if r.get("ns") == "move_base"][0]
+    assert speed.get("if") == "$(arg harvest)" and args["harvest_move_base_config"].endswith("harvest_move_base.yaml")
+    children = list(root)
+    move_base = [i for i, c in enumerate(children) if "move_base.launch" in c.get("file", "")][0]
+    assert children.index(speed) > move_base                    # loaded after move_base's own settings
     includes = [i for i in root.iter("include") if "harvest.launch" in i.get("file", "")]
     assert includes and includes[0].get("if") == "$(arg harvest)"
     assert [n for n in root.iter("node") if n.get("type") == "harvest_recorder"][0].get("if") == "$(arg harvest)"
+
+
+def test_the_harvest_scans_the_lanes_slower_than_the_routes_drive():
+    import yaml
+
+    harvest = yaml.safe_load((PACKAGE / "config" / "harvest_move_base.yaml").read_text())
+    nav = PACKAGE.parent / "cottonsim_navigation" / "config"
+    for route in ("gps_navigation_move_base.yaml", "map_navigation_move_base.yaml"):
+        route_speed = yaml.safe_load((nav / route).read_text())["DWAPlannerROS"]["max_vel_x"]
+        assert 0.0 < harvest["DWAPlannerROS"]["max_vel_x"] < route_speed
 
 
 def test_the_command_refuses_bad_requests_with_one_line(tmp_path, capsys, monkeypatch):

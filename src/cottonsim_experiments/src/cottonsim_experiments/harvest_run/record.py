@@ -13,7 +13,7 @@ reader never sees half a file.
 
 harvest.json: {"version": 1, "status": {...} | null, "status_stamp_s", "targets_frame", "targets_stamp_s",
 "targets": [{"id", "position": [x, y, z] (targets_frame), "position_world": [x, y, z] | null, "sigma_m",
-"observations", "state", "attempts", "last_result"}], "picked_order": [ids], "cycle_time_by_target_s": {id: s},
+"observations", "state", "attempts", "last_result", "first_seen_s", "last_seen_s"}], "picked_order": [ids], "cycle_time_by_target_s": {id: s},
 "bolls_start": {"stamp_s", "bolls": [{"id", "plant", "position", "state"}]} | null, "bolls_end": same,
 "status_changes": n}
 """
@@ -36,6 +36,10 @@ def _finite_point(value, what: str) -> List[float]:
     if len(point) != 3 or not all(math.isfinite(v) for v in point):
         raise ValueError(f"{what} must be three finite numbers, got {value!r}")
     return point
+
+
+def _optional_stamp(value) -> Optional[float]:
+    return None if value is None else float(value)
 
 
 def state_name(value, names: Sequence[str], what: str) -> str:
@@ -77,7 +81,8 @@ class HarvestRecord:
         return changed
 
     def on_targets(self, frame: str, stamp_s: float, targets: Sequence[Mapping]) -> bool:
-        """The node's targets: dicts with id, position, sigma_m, observations, state, attempts, last_result and
+        """The node's targets: dicts with id, position, sigma_m, observations, state, attempts, last_result,
+        first_seen_s and last_seen_s (the stamps of its first and newest detections [s]; None where not sent) and
         position_world (or None where the frame's pose in the world was not known)."""
         changed = False
         for t in sorted(targets, key=lambda t: int(t["id"])):
@@ -85,7 +90,9 @@ class HarvestRecord:
             entry = {"id": tid, "position": _finite_point(t["position"], f"target {tid} position"),
                      "sigma_m": float(t.get("sigma_m", 0.0)), "observations": int(t.get("observations", 0)),
                      "state": state_name(t["state"], TARGET_STATES, f"target {tid} state"),
-                     "attempts": int(t.get("attempts", 0)), "last_result": str(t.get("last_result", ""))}
+                     "attempts": int(t.get("attempts", 0)), "last_result": str(t.get("last_result", "")),
+                     "first_seen_s": _optional_stamp(t.get("first_seen_s")),
+                     "last_seen_s": _optional_stamp(t.get("last_seen_s"))}
             world = t.get("position_world")
             entry["position_world"] = None if world is None else _finite_point(world, f"target {tid} position_world")
             old = self.targets.get(tid)

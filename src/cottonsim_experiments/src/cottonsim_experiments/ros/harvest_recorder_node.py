@@ -104,7 +104,8 @@ class HarvestRecorderNode:
                     self.world_of_target[t.id] = (position, world)
             targets.append({"id": t.id, "position": position, "position_world": world, "sigma_m": t.sigma_m,
                             "observations": t.observations, "state": t.state, "attempts": t.attempts,
-                            "last_result": t.last_result})
+                            "last_result": t.last_result, "first_seen_s": t.first_seen.to_sec(),
+                            "last_seen_s": t.last_seen.to_sec()})
         try:
             with self.lock:
                 self.dirty |= self.record.on_targets(msg.header.frame_id, msg.header.stamp.to_sec(), targets)

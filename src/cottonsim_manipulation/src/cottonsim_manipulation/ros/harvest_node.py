@@ -362,8 +362,10 @@ class HarvestNode:
             return
         if request is None:
             count = min(len(h.pickable(now)), self.config.max_targets_per_stop)
+            not_seen_lately = len(h.in_reach()) - len(h.in_reach(now))
             self._carry_out(h.start_stop(q, now))
-            rospy.loginfo("harvest: stop %d: halting for %d targets in reach", h.figures.stops, count)
+            rospy.loginfo("harvest: stop %d: halting for %d targets in reach (%d more in reach not seen in the last "
+                          "%.1f s)", h.figures.stops, count, not_seen_lately, h.config.max_target_age_s)
             return
         goal = request["goal"]
         try:
@@ -453,7 +455,9 @@ class HarvestNode:
             last = self.harvester.last_result.get(t.target_id)
             item = BollTarget(id=t.target_id, sigma_m=t.sigma_m, observations=t.observations,
                               state=_TARGET_STATES[t.state], attempts=t.attempts,
-                              last_result=last.reason if last else "")
+                              last_result=last.reason if last else "",
+                              first_seen=rospy.Time.from_sec(max(t.first_seen_s, 0.0)),
+                              last_seen=rospy.Time.from_sec(max(t.last_seen_s, 0.0)))
             item.position.x, item.position.y, item.position.z = (float(v) for v in t.position_m)
             msg.targets.append(item)
         self.targets_pub.publish(msg)
