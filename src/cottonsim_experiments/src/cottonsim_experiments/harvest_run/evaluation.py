@@ -90,8 +90,9 @@ def evaluate_run(run_dir: str, lanes: Sequence[int], urdf_xml: str,
         field_plot = harvest_module("field_plot")
         records = [metrics.BollOutcome(**dict(o, position_m=tuple(o["position_m"]))) for o in outcomes]
         plants = [(p.x_m, p.y_m) for p in farm.plants if p.row in rows]
-        xs = [farm_config.lane_x_m(k) for k in lanes]
-        region = (min(xs) - 0.5, max(xs) + 0.5, farm_config.first_plant_y_m - 1.0, farm_config.last_plant_y_m + 1.0)
+        # every row whose bolls count, beside the lanes (the rows beyond a lane count their lane-facing halves)
+        xs = [farm_config.lane_x_m(k) for k in lanes] + [x for x, _ in plants]
+        region = (min(xs) - 0.6, max(xs) + 0.6, farm_config.first_plant_y_m - 1.0, farm_config.last_plant_y_m + 1.0)
         field_plot.plot_harvest_field(os.path.join(run_dir, PLOT_FILE), records, plants,
                                       lanes=[lane for lane in farm.lanes if lane.index in set(lanes)],
                                       title=f"harvest of lanes {', '.join(str(k) for k in lanes)}", region=region)
