@@ -209,3 +209,33 @@ def test_bad_input_is_rejected():
         ApproachConfig(tilt_samples_rad=(0.7,), yaw_samples_rad=(0.7, -0.7))
     with pytest.raises(ValueError, match="pregrasp_distance_m"):
         ApproachConfig(pregrasp_distance_m=-0.1)
+
+
+def test_a_via_point_takes_the_swings_to_and_from_the_bin_outside_the_plant(model):
+    plants = plant_row()
+    boll = np.array([0.9 - 0.2, 0.05, GROUND_Z_M + 0.6])
+    outward = np.array([-1.0, 0.2, 0.0])
+    config = ApproachConfig(via_distance_m=0.25)
+    result = plan_approach(boll, outward, STOW_RAD, model, plants, config)
+    assert result.ok, result.detail
+    plan = result.plan
+    direction = -plan.approach_direction
+    # transit: start -> via -> pre-grasp; the retreat ends back at the via, where the move to the bin starts
+    assert len(plan.transit.waypoints_rad) == 3
+    np.testing.assert_allclose(plan.transit.waypoints_rad[0], STOW_RAD)
+    for q in (plan.transit.waypoints_rad[1], plan.q_retreat_rad):
+        tip, _ = tip_and_axis(q)
+        np.testing.assert_allclose(tip, boll + 0.25 * direction, atol=1e-6)
+    np.testing.assert_allclose(plan.retreat.waypoints_rad[-1], plan.q_retreat_rad)
+    tip, _ = tip_and_axis(plan.q_pregrasp_rad)
+    np.testing.assert_allclose(tip, boll + config.pregrasp_distance_m * direction, atol=1e-6)
+    tip, _ = tip_and_axis(plan.q_grasp_rad)
+    np.testing.assert_allclose(tip, boll, atol=1e-6)
+    for traj in (plan.transit, plan.approach, plan.retreat):
+        assert model.first_collision(traj, plants, step_rad=config.collision_step_rad / 4) is None
+    # without the via (or one no farther out than the pre-grasp) the transit is one move
+    for via in (0.0, 0.1):
+        plain = plan_approach(boll, outward, STOW_RAD, model, plants, ApproachConfig(via_distance_m=via))
+        assert len(plain.plan.transit.waypoints_rad) == 2
+    with pytest.raises(ValueError, match="via <= 0.5 m"):
+        ApproachConfig(via_distance_m=0.6)

@@ -400,9 +400,16 @@ class Harvester:
             if np.abs(np.asarray(q_rad) - q_planned).max() <= PLAN_REUSE_MAX_JOINT_RAD and \
                     shift[:3, 3].max() + 2.0 * self.config.reach_m * shift[:3, :3].max() <= PLAN_REUSE_MAX_SHIFT_M:
                 return result
+        return self.plan_from_here(target.position_m, q_rad)
+
+    def plan_from_here(self, point_frame_m, q_rad) -> ApproachResult:
+        """Plan a pick of the boll at point_frame_m (the fixed frame) with the arm where it is now (update_pose)
+        and at joints q_rad: its outward direction estimated (``outward``) and the stems of the targets near
+        it as obstacles (``stem_obstacles``), from every target known."""
+        self._require_pose()
         base_T_arm = np.linalg.inv(self._arm_T_base)
         base_T_frame = base_T_arm @ self._arm_T_frame
-        boll = transform_points(base_T_frame, [target.position_m])[0]
+        boll = transform_points(base_T_frame, [point_frame_m])[0]
         others = transform_points(base_T_frame, [t.position_m for t in self.fusion.targets()])
         outward = estimate_outward(boll, others, transform_points(base_T_arm, [self._shoulder_m])[0], self.config)
         return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad,

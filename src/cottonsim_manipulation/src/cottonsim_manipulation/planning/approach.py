@@ -59,6 +59,11 @@ class ApproachConfig:
 
     pregrasp_distance_m: nozzle tip distance from the grasp point before the approach [m].
     retreat_distance_m: how far the tip backs out along n after the grasp [m].
+    via_distance_m: when larger than the pre-grasp and retreat distances, the arm comes to
+        the pre-grasp from a point this far out along n (the tip outside the plant's
+        canopy) and goes back out to it after the retreat, each a joint move of its own;
+        the big swings to and from the bin then happen outside the plant (their branches
+        are not seen) [m]; 0 = straight to the pre-grasp and from the retreat's end.
     grasp_standoff_m: the tip stops this far short of the boll centre along n [m].
     approach_steps: points on the approach (and retreat) line that IK follows (>= 2).
     roll_samples: rotations of the nozzle about its axis tried, evenly over a turn.
@@ -91,6 +96,7 @@ class ApproachConfig:
 
     pregrasp_distance_m: float = 0.10
     retreat_distance_m: float = 0.10
+    via_distance_m: float = 0.0
     grasp_standoff_m: float = 0.0
     approach_steps: int = 5
     roll_samples: int = 12
@@ -105,7 +111,8 @@ class ApproachConfig:
     stem_merge_distance_m: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("pregrasp_distance_m", "retreat_distance_m", "grasp_standoff_m", "max_step_jump_rad",
+        for name in ("pregrasp_distance_m", "retreat_distance_m", "via_distance_m", "grasp_standoff_m",
+                     "max_step_jump_rad",
                      "max_line_deviation_m", "collision_step_rad", "max_deviation_rad", "stem_radius_m",
                      "stem_height_m", "stem_merge_distance_m"):
             value = getattr(self, name)
@@ -113,9 +120,10 @@ class ApproachConfig:
                 raise ValueError(f"ApproachConfig.{name} must be a finite number, got {value!r}")
             if value < 0.0 or (value == 0.0 and name in ("max_step_jump_rad", "collision_step_rad")):
                 raise ValueError(f"ApproachConfig.{name} must be > 0, got {value!r}")
-        if self.pregrasp_distance_m > 0.5 or self.retreat_distance_m > 0.5 or self.grasp_standoff_m > 0.2:
+        if self.pregrasp_distance_m > 0.5 or self.retreat_distance_m > 0.5 or self.via_distance_m > 0.5 \
+                or self.grasp_standoff_m > 0.2:
             raise ValueError("ApproachConfig distances must stay within the arm's scale "
-                             "(pre-grasp and retreat <= 0.5 m, standoff <= 0.2 m)")
+                             "(pre-grasp, retreat and via <= 0.5 m, standoff <= 0.2 m)")
         for name, high in (("stem_radius_m", 0.2), ("stem_height_m", 5.0), ("stem_merge_distance_m", 1.0)):
             if getattr(self, name) > high:
                 raise ValueError(f"ApproachConfig.{name} must be at most {high} m, got {getattr(self, name)!r}")
@@ -305,10 +313,15 @@ def _plan_direction(p, n, q0, model, obstacles, cfg, trajectory_config, ik_cfg) 
     rolls = np.arange(cfg.roll_samples) * (2.0 * math.pi / cfg.roll_samples)
     rot = tool_rotations(-n, rolls)                                             # (R, 3, 3)
 
-    # Tip offsets along n: approach line (pre-grasp -> grasp), then the retreat line (grasp -> out).
+    # Tip offsets along n: approach line (pre-grasp -> grasp), then the retreat line (grasp -> out); with a
+    # via point, the via before and after them.
     approach_s = cfg.grasp_standoff_m + cfg.pregrasp_distance_m * np.linspace(1.0, 0.0, steps)
     retreat_s = cfg.grasp_standoff_m + cfg.retreat_distance_m * np.linspace(0.0, 1.0, steps)[1:]
-    line_s = np.concatenate([approach_s, retreat_s])                            # (S,)
+    via = cfg.via_distance_m > max(cfg.pregrasp_distance_m, cfg.retreat_distance_m)
+    via_s = [cfg.grasp_standoff_m + cfg.via_distance_m] if via else []
+    line_s = np.concatenate([via_s, approach_s, retreat_s, via_s])                # (S,)
+    first = 1 if via else 0                                                     # the pre-grasp's index
+    grasp, retreat_end = first + steps - 1, first + 2 * steps - 2
     tips = p + line_s[:, None] * n                                              # (S, 3)
     flange = tips[None, :, :] + nozzle * n                                      # tool z = -n: flange behind the tip
     n_rolls, n_pts = len(rolls), len(line_s)
@@ -321,7 +334,7 @@ def _plan_direction(p, n, q0, model, obstacles, cfg, trajectory_config, ik_cfg) 
 
     # Which poses have any configuration at all (joint limits aside)?
     unlimited = IkConfig(lower_limits_rad=(-1e3,) * NUM_JOINTS, upper_limits_rad=(1e3,) * NUM_JOINTS)
-    exists, _ = inverse_kinematics_batch(poses[:, [0, steps - 1]].reshape(-1, 4, 4), q0, model.kinematics, unlimited)
+    exists, _ = inverse_kinematics_batch(poses[:, [first, grasp]].reshape(-1, 4, 4), q0, model.kinematics, unlimited)
     if not np.all(np.isfinite(exists), axis=-1).reshape(n_rolls, 2, 8).any(axis=2).all(axis=1).any():
         return ApproachResult("unreachable", "no arm configuration puts the nozzle at the pre-grasp and grasp "
                                              f"poses for any of {n_rolls} rolls (boll at {np.round(p, 3).tolist()})")
@@ -332,7 +345,7 @@ def _plan_direction(p, n, q0, model, obstacles, cfg, trajectory_config, ik_cfg) 
             chain = q[r, :, b]                                                  # (S, 6)
             if not np.all(np.isfinite(chain)):
                 continue
-            chain = _unwrap_chain(chain)                                        # pre-grasp .. grasp .. retreat
+            chain = _unwrap_chain(chain)                                        # [via] pre-grasp .. grasp .. retreat [via]
             if np.any(chain < lower - 1e-9) or np.any(chain > upper + 1e-9):
                 continue
             if np.abs(np.diff(chain, axis=0)).max() > cfg.max_step_jump_rad:
@@ -345,20 +358,27 @@ def _plan_direction(p, n, q0, model, obstacles, cfg, trajectory_config, ik_cfg) 
     candidates.sort(key=lambda c: c[0])
     total = len(candidates)
 
-    # The stops themselves (pre-grasp, grasp, retreat end) of every candidate in one go.
-    stops = np.array([c[3][[0, steps - 1, -1]] for c in candidates]).reshape(-1, NUM_JOINTS)
-    stop_hit = model.in_collision(stops, obstacles).reshape(total, 3).any(axis=1)
+    # The stops themselves ([via,] pre-grasp, grasp, retreat end) of every candidate in one go.
+    stop_index = ([0] if via else []) + [first, grasp, retreat_end]
+    stop_names = (("via",) if via else ()) + ("pre-grasp", "grasp", "retreat")
+    stops = np.array([c[3][stop_index] for c in candidates]).reshape(-1, NUM_JOINTS)
+    stop_hit = model.in_collision(stops, obstacles).reshape(total, len(stop_index)).any(axis=1)
     first_contact: Optional[str] = None
     if stop_hit[0]:
-        hit = model.contacts(candidates[0][3][[0, steps - 1, -1]], obstacles, first_only=True)[0]
-        first_contact = f"at its {('pre-grasp', 'grasp', 'retreat')[hit.sample]} pose {hit.link} hits {hit.kind} " \
+        hit = model.contacts(candidates[0][3][stop_index], obstacles, first_only=True)[0]
+        first_contact = f"at its {stop_names[hit.sample]} pose {hit.link} hits {hit.kind} " \
                         f"{hit.other} ({hit.clearance_m * 1000:.1f} mm)"
     candidates = [c for c, hit in zip(candidates, stop_hit) if not hit]
     for checked, (travel, r, b, chain) in enumerate(candidates, 1):
-        approach_wp = _line_waypoints(chain[:steps], tips[:steps], nozzle, cfg.max_line_deviation_m, model)
-        retreat_wp = _line_waypoints(chain[steps - 1:], tips[steps - 1:], nozzle, cfg.max_line_deviation_m, model)
+        transit_wp = np.stack([q0] + [chain[i] for i in range(first + 1)])
+        approach_wp = _line_waypoints(chain[first:grasp + 1], tips[first:grasp + 1], nozzle, cfg.max_line_deviation_m,
+                                      model)
+        retreat_wp = _line_waypoints(chain[grasp:retreat_end + 1], tips[grasp:retreat_end + 1], nozzle,
+                                     cfg.max_line_deviation_m, model)
+        if via:
+            retreat_wp = np.vstack([retreat_wp, chain[-1:]])
         contact = None
-        for path in (np.stack([q0, chain[0]]), approach_wp, retreat_wp):
+        for path in (transit_wp, approach_wp, retreat_wp):
             contact = model.first_collision(path, obstacles, cfg.collision_step_rad)
             if contact is not None:
                 break
@@ -366,10 +386,10 @@ def _plan_direction(p, n, q0, model, obstacles, cfg, trajectory_config, ik_cfg) 
             first_contact = first_contact or f"on its path {contact}"
             continue
         plan = ApproachPlan(
-            q_pregrasp_rad=chain[0].copy(),
-            q_grasp_rad=chain[steps - 1].copy(),
-            q_retreat_rad=chain[-1].copy(),
-            transit=plan_trajectory(np.stack([q0, chain[0]]), trajectory_config),
+            q_pregrasp_rad=chain[first].copy(),
+            q_grasp_rad=chain[grasp].copy(),
+            q_retreat_rad=retreat_wp[-1].copy(),
+            transit=plan_trajectory(transit_wp, trajectory_config),
             approach=plan_trajectory(approach_wp, trajectory_config),
             retreat=plan_trajectory(retreat_wp, trajectory_config),
             roll_rad=float(rolls[r]),
