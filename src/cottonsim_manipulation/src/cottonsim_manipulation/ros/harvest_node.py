@@ -14,7 +14,8 @@ Subscriptions
   ~odom_topic (nav_msgs/Odometry, /odometry/filtered): the robot stands when its speeds are small.
   /arm_controller/vacuum/holding (std_msgs/Bool): the nozzle holds a boll (confirms a capture).
 Publications
-  ~targets (cottonsim_msgs/BollTargetArray, latched): every target in ~frame, after each change.
+  ~targets (cottonsim_msgs/BollTargetArray, latched): every target in ~frame, after a change, at most every
+      ~targets_period_s (a farm's targets are thousands: each message carries them all).
   ~markers (visualization_msgs/MarkerArray, latched): the targets as 4 cm spheres for rviz, grey tentative,
       yellow confirmed, green picked, red abandoned.
   ~status (std_msgs/String, latched): JSON {"state": idle|parking|picking, "auto": bool, "phase": the pick
@@ -22,7 +23,8 @@ Publications
       "in_reach": ids of the targets a stop would pick now (recently seen, in the arm's workspace, not
       failed to plan from about here), the nearest first,
       "results": {reason: count}, "picked", "attempted", "stops", "cycle_time_median_s",
-      "cycle_time_p95_s", "cycle_times_s": [...]}, every ~status_period_s and after each pick.
+      "cycle_time_p95_s", "cycle_times_s": [...]}, every ~status_period_s, after each pick result and when
+      the state, phase or target changes.
   ~hold_topic (std_msgs/Bool, /harvest/hold_route): true every loop cycle while the route must stand
       (a stop), false once when it may go on (the navigator's route hold).
 Action client / service client
@@ -104,6 +106,7 @@ class HarvestNode:
         self.joint_names = [typed_param("~joint_prefix", "ur5e_") + j for j in JOINT_NAMES]
         self.loop_hz = typed_param("~loop_hz", 20.0, minimum=1.0)
         self.status_period_s = typed_param("~status_period_s", 1.0, minimum=0.05)
+        self.targets_period_s = typed_param("~targets_period_s", 1.0, minimum=0.0)
         self.truth_range_m = typed_param("~truth_range_m", 1.5, minimum=0.1)
         self.odom_max_age_s = typed_param("~odom_max_age_s", 0.5, minimum=0.01)
         self.auto = typed_param("~auto_harvest", True)
@@ -139,6 +142,9 @@ class HarvestNode:
         self._request = None                     # the pick request being served
         self._cancel_request = False
         self._next_status_s = 0.0
+        self._next_targets_s = 0.0
+        self._targets_dirty = False
+        self._published_activity = None          # (parking, picking, phase, target) of the last status
         self._logged = 0                         # pick results logged
 
         self.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
@@ -314,16 +320,20 @@ class HarvestNode:
             for result in h.history[self._logged:]:
                 rospy.loginfo("harvest: target %d: %s (%s), %.2f s", result.target_id, result.reason, result.detail,
                               result.cycle_time_s)
+            changed |= len(h.history) > self._logged       # a result changes its target (picked, attempts)
             self._logged = len(h.history)
-            changed = True
             if not h.busy:
                 self._finish_request(now)
         elif q is not None:
             self._maybe_start(q, stopped, now)
         self._send_waiting()
-        if changed:
-            self._publish_targets()
-        if changed or now >= self._next_status_s:
+        self._targets_dirty |= changed
+        if self._targets_dirty and now >= self._next_targets_s:
+            self._publish_targets(now)
+        activity = (self._parking, h.busy, h.cycle.phase if h.busy else None,
+                    h.cycle.current_target_id if h.busy else None)
+        if changed or activity != self._published_activity or now >= self._next_status_s:
+            self._published_activity = activity
             self._publish_status(now)
 
     def _fuse(self, detections, now: float) -> bool:
@@ -447,7 +457,9 @@ class HarvestNode:
         self._arm_goal = self.arm.send_goal(goal, transition_cb=lambda handle, s=seq: self._on_arm_transition(s, handle))
 
     # ------------------------------------------------------------------ outputs
-    def _publish_targets(self) -> None:
+    def _publish_targets(self, now: float) -> None:
+        self._targets_dirty = False
+        self._next_targets_s = now + self.targets_period_s
         msg = BollTargetArray()
         msg.header.stamp = rospy.Time.now()
         msg.header.frame_id = self.frame
