@@ -346,9 +346,10 @@ def test_targets_not_seen_lately_neither_stop_the_robot_nor_are_picked(model):
 
 
 def test_a_target_the_planner_failed_for_is_tried_again_from_elsewhere_without_counting_an_attempt(model):
-    """Planned again at stops 0.2 m on; it stops a driving robot again only from the next lane."""
+    """Planned again at stops 0.2 m on; with retry_stops 0 it stops a driving robot again only from the next
+    lane."""
     h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(outward="lateral",
-                                                                                 retry_distance_m=0.2))
+                                                                                 retry_distance_m=0.2, retry_stops=0))
     h.update_pose(np.eye(4), ARM_T_BASE)
     beyond = (0.3, 0.0, -0.5)                      # in reach of the shoulder; the nozzle cannot get there
     see(h, [beyond])
@@ -375,6 +376,32 @@ def test_a_target_the_planner_failed_for_is_tried_again_from_elsewhere_without_c
     moved[:3, 3] = (-1.0, 0.0, 0.3)                # from the next lane: over reach_m (1 m) from the failures
     h.update_pose(moved, ARM_T_BASE)
     assert h.pickable() and h.want_stop(robot_stopped=False)
+
+
+def test_a_target_the_planner_failed_for_stops_a_driving_robot_again_retry_stops_times(model):
+    """Each retry once the shoulder moved retry_distance_m from the last failure; then only from the next lane."""
+    h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems),
+                  HarvestConfig(outward="lateral", retry_distance_m=0.2, retry_stops=2))
+    pose = np.eye(4)
+    h.update_pose(pose, ARM_T_BASE)
+    see(h, [(0.3, 0.0, -0.5)])                     # in reach of the shoulder; the nozzle cannot get there
+    for failures in (1, 2, 3):
+        assert h.want_stop(robot_stopped=True)
+        drive(h, h.start_stop(STOW_RAD, float(failures)))
+        assert sum(h.figures.results[r] for r in PLANNING_FAILURES) == failures
+        last = pose[1, 3]
+        step = 0.25 if last == 0.0 else -0.25      # the target abeam, then 0.25 m behind, and back
+        pose[1, 3] = last + 0.4 * step             # 0.1 m from the failure: too close
+        h.update_pose(pose, ARM_T_BASE)
+        assert not h.want_stop(robot_stopped=False)
+        pose[1, 3] = last + step
+        h.update_pose(pose, ARM_T_BASE)
+        assert h.want_stop(robot_stopped=False) == (failures <= 2), failures
+    pose[:3, 3] = (-1.0, 0.0, 0.3)                 # the next lane: over reach_m (1 m) from the last failure
+    h.update_pose(pose, ARM_T_BASE)
+    assert h.want_stop(robot_stopped=False)
+    with pytest.raises(ValueError, match="retry_stops"):
+        HarvestConfig(retry_stops=-1)
 
 
 def test_the_estimated_stems_are_obstacles_of_the_plan(model):

@@ -24,11 +24,13 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   is picked again once the shoulder has moved ``retry_distance_m`` from where
   it failed: from the same place the plan fails the same way. Such a failure
   does not count as an attempt (the arm did not move: a boll tried too far
-  ahead of the shoulder is often reachable from the next stop), and such a
-  target stops a driving robot again only once the shoulder is ``reach_m``
-  from where it failed (the next lane): a boll that no stop of this lane can
-  reach would stop it every ``retry_distance_m``; until then it is tried again
-  at the stops other targets make.
+  ahead of the shoulder is often reachable from the next stop). Such a target
+  stops a driving robot again once the shoulder moved ``retry_distance_m``,
+  ``retry_stops`` times at most; after that only once the shoulder is
+  ``reach_m`` from where it last failed (the next lane): a boll that no stop of
+  this lane can reach would stop it every ``retry_distance_m``; until then it is
+  tried again at the stops other targets make. Offline, 7 of 39 reachable bolls
+  the planner failed for with the shoulder abeam were plannable 0.2-0.4 m on.
 * A stop starts (:meth:`Harvester.want_stop`) when a target in reach lies no
   more than ``stop_ahead_m`` ahead of the shoulder along the robot's heading
   (base_link x: the robot has come abeam of it), or when the robot stands
@@ -123,6 +125,7 @@ class HarvestConfig:
     stopped_yaw_rate_rad_s: ... and its yaw rate at most this [rad/s].
     max_target_age_s: a target counts for stops and picks while its last detection is at most this old [s].
     retry_distance_m: a target the planner failed for is planned again once the shoulder moved this far [m].
+    retry_stops: ... and stops a driving robot again at most this many times (0: only from reach_m away).
     stem_obstacles: the estimated stems of the targets near the boll are obstacles of its plan.
     ground_z_m: the ground's height in base_link [m], where the stems stand (the Husky: base_link 0.13228 m up)."""
 
@@ -139,6 +142,7 @@ class HarvestConfig:
     stopped_yaw_rate_rad_s: float = 0.02
     max_target_age_s: float = 2.0
     retry_distance_m: float = 0.2
+    retry_stops: int = 2
     stem_obstacles: bool = True
     ground_z_m: float = -0.13228
 
@@ -150,6 +154,7 @@ class HarvestConfig:
         require_number("HarvestConfig.stop_ahead_m", self.stop_ahead_m, -10.0, 10.0)
         require_number("HarvestConfig.ground_z_m", self.ground_z_m, -5.0, 5.0)
         require_int("HarvestConfig.max_targets_per_stop", self.max_targets_per_stop, 1, 1000)
+        require_int("HarvestConfig.retry_stops", self.retry_stops, 0, 100)
         if self.min_reach_m >= self.reach_m:
             raise ValueError(f"HarvestConfig.min_reach_m {self.min_reach_m} must be below reach_m {self.reach_m}")
         if self.outward not in OUTWARD_MODELS:
@@ -266,6 +271,7 @@ class Harvester:
         self._seen = 0
         self._stop_plans: Dict[int, tuple] = {}   # target id -> (joints, arm_T_frame, result) of this stop's order
         self._plan_failed_at: Dict[int, np.ndarray] = {}  # target id -> the shoulder (fixed frame) at its plan's failure
+        self._plan_failures: Dict[int, int] = {}          # target id -> planning failures so far
 
     # ------------------------------------------------------------------ inputs
     @property
@@ -328,7 +334,10 @@ class Harvester:
             return False
         if robot_stopped:
             return True
-        reach = self._away_from_failures(reach, self.config.reach_m)
+        # a target the planner failed for: retry_stops more stops retry_distance_m apart (pickable), then the next lane
+        far = {t.target_id for t in self._away_from_failures(reach, self.config.reach_m)}
+        reach = [t for t in reach if t.target_id in far or
+                 self._plan_failures.get(t.target_id, 0) <= self.config.retry_stops]
         if not reach:
             return False
         base = transform_points(np.linalg.inv(self._arm_T_base) @ self._arm_T_frame, [t.position_m for t in reach])
@@ -466,6 +475,7 @@ class Harvester:
                     self.fusion.mark_failed(result.target_id)
                 if result.reason in PLANNING_FAILURES and self._arm_T_frame is not None:
                     self._plan_failed_at[result.target_id] = self._shoulder_in_frame()
+                    self._plan_failures[result.target_id] = self._plan_failures.get(result.target_id, 0) + 1
                 else:
                     self._plan_failed_at.pop(result.target_id, None)
         self._seen = len(self.cycle.results)
