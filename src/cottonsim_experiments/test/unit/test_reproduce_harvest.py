@@ -93,6 +93,31 @@ def test_results_page_has_the_harvest_section_from_the_summary(tmp_path):
     assert "## Harvest" in empty and "No results yet" in empty[empty.index("## Harvest"):]
 
 
+def test_results_doc_sections_renders_the_harvest_again_and_keeps_the_other_sections(tmp_path):
+    doc = tmp_path / "doc" / "results.md"
+    doc.parent.mkdir()
+    doc.write_text("# Results\n\nheader kept\n\n## GPS-based route (the paper's section 3.3)\n\n| CR | 100 % |\n\n"
+                   "## Harvest (issue: the robot picks the cotton)\n\nNo results yet: run the command above.\n\n"
+                   "## Something after\n\nkept too\n")
+    results = tmp_path / "results"
+    (results / "harvest").mkdir(parents=True)
+    summary = {"lanes": "row 1 from both lanes", "targets": "detections", "pooled": FIGURES,
+               "runs": [{"seed": 0, "figures": FIGURES, "run_dir": str(results / "nowhere")}], "anchors": {}}
+    (results / "harvest" / "summary.json").write_text(json.dumps(summary))
+    text = render_results(str(results), str(doc), sections=["harvest"])
+    assert text == doc.read_text()
+    assert text.startswith("# Results\n\nheader kept\n") and "| CR | 100 % |" in text
+    assert "## Something after\n\nkept too" in text
+    harvest = text[text.index("## Harvest"):text.index("## Something after")]
+    assert "### Targets from the networks' detections" in harvest and "No results yet" not in harvest
+    assert text.count("## Harvest") == 1
+    # a page without the section gets it appended; an unknown section is refused
+    doc.write_text("# Results\n\n## GPS-based route (the paper's section 3.3)\n\nx\n")
+    assert "### Targets from the networks' detections" in render_results(str(results), str(doc), ["harvest"])
+    with pytest.raises(ValueError, match="unknown results section 'harvests'"):
+        render_results(str(results), str(doc), ["harvests"])
+
+
 @pytest.mark.parametrize("launch_file", ["gps_navigation.launch", "map_navigation.launch"])
 def test_launch_switches_the_harvest_and_its_route_hold(launch_file):
     root = ET.parse(PACKAGE / "launch" / launch_file).getroot()

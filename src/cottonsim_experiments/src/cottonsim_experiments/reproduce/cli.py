@@ -7,7 +7,7 @@
                                                                            the harvest on the GPS route (docs/harvest.md)
   reproduce row-spacing [--spacings 1.0 1.1 ... 1.9] [--seeds 0]            the paper's Fig. 3a study
   reproduce perception  [--synthetic-images 120]                           Tables 2 and 3 (evaluate command)
-  reproduce results-doc [--doc docs/results.md]                            the results page from the results folder
+  reproduce results-doc [--doc docs/results.md] [--sections harvest ...]   the results page from the results folder
   reproduce screenshots [--bringups sim gps_navigation ...]                 headless rviz screenshots of the bringups
   reproduce sweep       --config SWEEP.yaml [--address auto|HOST:PORT] [--cpus-per-run 2] [--max-retries 2] [--resume]
                                                                            a grid of runs on Ray (docs/sweeps.md)
@@ -39,7 +39,7 @@ from ..harvest_run.route import LANE_CHOICES, LANES_ROW, TARGET_SOURCES
 from . import row_spacing as rs
 from .harvest import run_harvest
 from .packages import RESULTS_ENV, default_results_dir
-from .results_doc import render_results
+from .results_doc import SECTIONS, render_results
 from .route_experiments import run_route, run_row_spacing
 from .runs import Workspace, run_perception
 from .screenshots import BRINGUPS, take_screenshots
@@ -52,6 +52,9 @@ def main(argv=None) -> int:
     ap.add_argument("--results", default=None,
                     help=f"results root (default: ${RESULTS_ENV}, else results/ in the current directory)")
     ap.add_argument("--doc", default=None, help="results page to write (default: RESULTS/results.md)")
+    ap.add_argument("--sections", nargs="+", choices=SECTIONS, default=None,
+                    help="results-doc: render only these sections again in the page that is there (the others stay), "
+                         "for a results folder that holds some experiments only")
     ap.add_argument("--seeds", type=int, nargs="+", default=None,
                     help="seeds: the GPS route seeds farm + simulator, the map route the simulator only (the map is of "
                          "the farm in sim_navigation.yaml); route runs default 0 1 2, the row-spacing study 0")
@@ -138,7 +141,7 @@ def main(argv=None) -> int:
             if not all(r.ok for r in shots):
                 return 1
         if a.experiment in ("results-doc", "all"):
-            render_results(ws.results, doc)
+            render_results(ws.results, doc, a.sections if a.experiment == "results-doc" else None)
             print(f"wrote {doc}")
     except ValueError as exc:
         print(f"reproduce: {exc}", file=sys.stderr)
