@@ -66,6 +66,9 @@ def test_a_branch_across_the_approach_is_touched_by_the_nozzle_the_bare_plant_is
     assert {"approach", "retreat"} <= phases
     assert {t.part for t in touched.touches} == {"branch"} and {t.plant_id for t in touched.touches} == {0}
     assert "nozzle" in {t.link for t in touched.touches if t.phase == "approach"}
+    [down] = plan_picks(bare, robot, harvester_factory(robot), ready,
+                        PickContactsConfig(first_plant=0, plants=1, yaw_rad=-np.pi / 2))   # the plant on the left
+    assert down.reason == "ok" and down.touches == ()
     summary = summarise([clean, touched])
     assert summary["results"] == {"ok": 2} and summary["touching_picks"] == 1
     assert summary["touching_percent_of_planned"] == 50.0
@@ -78,6 +81,9 @@ def test_bad_set_ups_are_refused(robot):
         PickContactsConfig(plants=0)
     with pytest.raises(ValueError, match="sweep_step_rad"):
         PickContactsConfig(sweep_step_rad=0.0)
+    with pytest.raises(ValueError, match="along the lane"):
+        plan_picks(farm_with(), robot, harvester_factory(robot), PickCycleConfig().bin_joints_rad,
+                   PickContactsConfig(yaw_rad=0.0))
     with pytest.raises(ValueError, match="no lane 5"):
         plan_picks(farm_with(), robot, harvester_factory(robot), PickCycleConfig().bin_joints_rad,
                    PickContactsConfig(lane_index=5))

@@ -31,7 +31,7 @@ def test_the_bin_joints_put_the_nozzle_over_the_urdf_bin_inside_the_release_box_
     assert np.all(np.abs(tip[:3, 3] - vacuum.bin_centre_m) <= vacuum.bin_half_size_m)
     assert tip[:3, 2] @ [0.0, 0.0, -1.0] > 0.99                        # pointing down
     floor = urdf.fixed_transform("base_link", "cotton_bin")[:3, 3]      # the bin's floor centre
-    assert np.abs(tip[:2, 3] - floor[:2]).max() < 0.01 and 0.05 < tip[2, 3] - (floor[2] + 0.12) < 0.10
+    assert np.abs(tip[:2, 3] - floor[:2]).max() < 0.01 and 0.10 < tip[2, 3] - (floor[2] + 0.12) < 0.175
     # the release box lies inside the bin's walls (0.22 x 0.40 m outside, 5 mm thick) and above its floor
     assert np.all(np.abs(np.array(vacuum.bin_centre_m[:2]) - floor[:2]) + vacuum.bin_half_size_m[:2] <= [0.105, 0.195])
     assert vacuum.bin_centre_m[2] - vacuum.bin_half_size_m[2] > floor[2]

@@ -5,8 +5,9 @@ The robot does not see stems and branches; its planner keeps clear of the stems 
 a question about the planner alone, answered here in seconds instead of a 35-minute harvest run:
 
 * the farm of a seed; for the bolls on the lane-facing halves of some plants beside a lane, the
-  robot stands on the lane's centre line, heading up the lane, with the UR5e's shoulder
-  ``shoulder_offset_m`` past the boll along the lane (the route stops when a boll comes abeam);
+  robot stands on the lane's centre line, heading ``yaw_rad`` (pi/2: up the lane, -pi/2: down it),
+  with the UR5e's shoulder ``shoulder_offset_m`` past the boll along its heading (the route stops
+  when a boll comes abeam);
 * the harvest node's own planning (``Harvester.plan_from_here``): every boll of the farm is a
   ground-truth target, the outward direction and the stems are estimated as on the route, the
   arm starts at the ready pose (the nozzle over the bin);
@@ -41,7 +42,8 @@ class PickContactsConfig:
 
     lane_index: the lane the robot stands on; first_plant: the first plant (from the lane's start,
     both rows beside it) whose bolls are picked; plants: how many plants from there.
-    shoulder_offset_m: the shoulder stands this far past the boll along the lane [m].
+    shoulder_offset_m: the shoulder stands this far past the boll along the robot's heading [m].
+    yaw_rad: the robot's heading on the lane (world; pi/2 up the lane, -pi/2 down it) [rad].
     sweep_step_rad: the largest joint step between two configurations checked [rad].
     """
 
@@ -49,13 +51,14 @@ class PickContactsConfig:
     first_plant: int = 4
     plants: int = 12
     shoulder_offset_m: float = 0.0
+    yaw_rad: float = 0.5 * math.pi
     sweep_step_rad: float = 0.01
 
     def __post_init__(self) -> None:
         for name in ("lane_index", "first_plant"):
             require_int(f"PickContactsConfig.{name}", getattr(self, name), 0)
         require_int("PickContactsConfig.plants", self.plants, 1)
-        require_fields(self, "PickContactsConfig.", finite=("shoulder_offset_m",), positive=("sweep_step_rad",))
+        require_fields(self, "PickContactsConfig.", finite=("shoulder_offset_m", "yaw_rad"), positive=("sweep_step_rad",))
 
 
 @dataclass(frozen=True)
@@ -71,11 +74,12 @@ class Touch:
 
 @dataclass(frozen=True)
 class PlannedPick:
-    """A boll's planned pick: the planner's reason ('ok', 'unreachable', ...), its touches and the
+    """A boll's planned pick: the planner's reason ('ok', 'unreachable', ...) and detail, its touches and the
     durations of its motions [s] (transit, approach, retreat; None when not planned)."""
 
     boll_id: int
     reason: str
+    detail: str = ""
     touches: Tuple[Touch, ...] = ()
     durations_s: Optional[Tuple[float, float, float]] = None
 
@@ -148,17 +152,21 @@ def plan_picks(farm, robot, harvester_factory, ready_rad, config: PickContactsCo
     contact_model = ArmCollisionModel(ArmContactConfig().arm_shape())
     ready = np.asarray(ready_rad, dtype=float)
     shoulder_x = float(robot.base_T_arm[0, 3])
+    heading = (math.cos(config.yaw_rad), math.sin(config.yaw_rad))
+    if abs(heading[0]) > 1e-6:
+        raise ValueError(f"PickContactsConfig.yaw_rad must point along the lane (+-pi/2), got {config.yaw_rad}")
     out = []
     for boll_id in ids:
         p = positions[boll_id]
-        world_T_base = np.array([[0.0, -1.0, 0.0, lane.x_m],
-                                 [1.0, 0.0, 0.0, p[1] - shoulder_x + config.shoulder_offset_m],
+        along = (config.shoulder_offset_m - shoulder_x) * heading[1]        # base_link behind the shoulder
+        world_T_base = np.array([[heading[0], -heading[1], 0.0, lane.x_m],
+                                 [heading[1], heading[0], 0.0, p[1] + along],
                                  [0.0, 0.0, 1.0, robot.base_height_m], [0.0, 0.0, 0.0, 1.0]])
         arm_T_world = np.linalg.inv(world_T_base @ robot.base_T_arm)
         harvester.update_pose(arm_T_world, np.linalg.inv(robot.base_T_arm))
         result = harvester.plan_from_here(p, ready)
         if not result.ok:
-            out.append(PlannedPick(boll_id, result.reason))
+            out.append(PlannedPick(boll_id, result.reason, result.detail))
             continue
         plan = result.plan
         woody = obstacles.woody_capsules(obstacles.plants_near(p, 1.5)).transformed(arm_T_world)
@@ -166,7 +174,7 @@ def plan_picks(farm, robot, harvester_factory, ready_rad, config: PickContactsCo
                  np.stack([plan.q_retreat_rad, ready]))
         touches = [t for phase, path in zip(PHASES, paths)
                    for t in touches_of(path, woody, contact_model, phase, config.sweep_step_rad)]
-        out.append(PlannedPick(boll_id, "ok", tuple(touches),
+        out.append(PlannedPick(boll_id, "ok", result.detail, tuple(touches),
                                (plan.transit.duration_s, plan.approach.duration_s, plan.retreat.duration_s)))
     return out
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import pathlib
 import sys
 import time
@@ -31,6 +32,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help=f"plants studied (default {defaults.plants})")
     parser.add_argument("--shoulder-offset", type=float, default=defaults.shoulder_offset_m,
                         help="the shoulder stands this far past each boll along the lane [m] (default 0)")
+    parser.add_argument("--down-the-lane", action="store_true",
+                        help="the robot heads down the lane (-y; the route's even lanes) instead of up it")
     parser.add_argument("--via-distance", type=float, help="ApproachConfig.via_distance_m [m]")
     parser.add_argument("--pregrasp-distance", type=float, help="ApproachConfig.pregrasp_distance_m [m]")
     parser.add_argument("--urdf", type=pathlib.Path, help="robot description (default: cottonsim_description's)")
@@ -46,7 +49,8 @@ def main(argv: Optional[List[str]] = None) -> int:
 
     try:
         config = PickContactsConfig(lane_index=args.lane, first_plant=args.first_plant, plants=args.plants,
-                                    shoulder_offset_m=args.shoulder_offset)
+                                    shoulder_offset_m=args.shoulder_offset,
+                                    yaw_rad=-0.5 * math.pi if args.down_the_lane else 0.5 * math.pi)
         approach = ApproachConfig()
         if args.via_distance is not None:
             approach = dataclasses.replace(approach, via_distance_m=args.via_distance)

@@ -54,13 +54,15 @@ class PickCycleConfig:
     capture_wait_s: after the approach ends, how long the capture confirmation may take.
     release_dwell_s: time with the vacuum off over the bin before the next target.
     bin_joints_rad: the arm's joints with the nozzle over the bin (6 values, within the UR5e limits);
-        default: the tip 7.5 cm above the rim of the URDF's cotton_bin, pointing down, clear of the robot."""
+        default: the tip 15 cm above the rim of the URDF's cotton_bin, pointing down, clear of the robot. At
+        7.5 cm the straight joint moves to and from the bolls on the robot's right clipped the bin's walls: offline
+        (harvest_pick_contacts, seed 0, lane 2 driven south) 52 -> 61 of 66 bolls planned from abeam."""
 
     halt_timeout_s: float = 5.0
     motion_margin_s: float = 2.0
     capture_wait_s: float = 0.5
     release_dwell_s: float = 0.3
-    bin_joints_rad: Tuple[float, ...] = (1.9, -1.8, -1.31, -4.74, -1.57, 0.33)
+    bin_joints_rad: Tuple[float, ...] = (1.9, -1.825, -1.085, -4.94, -1.57, 0.33)
 
     def __post_init__(self) -> None:
         for name in ("halt_timeout_s", "motion_margin_s", "capture_wait_s", "release_dwell_s"):
