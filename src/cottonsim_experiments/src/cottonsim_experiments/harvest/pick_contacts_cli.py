@@ -18,7 +18,7 @@ from typing import List, Optional
 
 from cottonsim_experiments.harvest.pick_contacts import PickContactsConfig, plan_picks, summarise
 from cottonsim_experiments.harvest.reachability import robot_geometry_from_urdf
-from cottonsim_experiments.harvest.reachability_cli import _default_urdf
+from cottonsim_experiments.harvest.reachability_cli import default_urdf_path
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -60,7 +60,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f"harvest_pick_contacts: {exc}", file=sys.stderr)
         return 2
     farm = generate_farm(FarmConfig(seed=args.seed))
-    robot = robot_geometry_from_urdf((args.urdf or _default_urdf()).read_text())
+    robot = robot_geometry_from_urdf((args.urdf or default_urdf_path()).read_text())
     trajectory = TrajectoryConfig()
 
     def harvester():

@@ -21,7 +21,7 @@ from cottonsim_experiments.harvest.reachability import (ReachabilityConfig, farm
 from cottonsim_manipulation.planning.approach import ApproachConfig
 
 
-def _default_urdf() -> pathlib.Path:
+def default_urdf_path() -> pathlib.Path:
     import rospkg
 
     return pathlib.Path(rospkg.RosPack().get_path("cottonsim_description")) / "urdf" / "cottonsim_robot.urdf"
@@ -73,7 +73,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     farm = generate_farm(FarmConfig(seed=args.seed))
     if args.rows:
         farm.plants = [p for p in farm.plants if p.row in set(args.rows)]
-    robot = robot_geometry_from_urdf((args.urdf or _default_urdf()).read_text())
+    robot = robot_geometry_from_urdf((args.urdf or default_urdf_path()).read_text())
     approach = ApproachConfig()
     if args.roll_samples is not None:
         approach = dataclasses.replace(approach, roll_samples=args.roll_samples)
