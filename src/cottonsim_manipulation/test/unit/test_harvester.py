@@ -184,8 +184,7 @@ def test_the_plans_made_for_the_order_are_used_while_nothing_moved(model):
     h2.update_pose(nudged, ARM_T_BASE)
     h2.on_event(TrajectoryDone(), 2.0)       # transit done -> approach (no new plan)
     h2.on_event(CaptureConfirmed(), 2.1)
-    h2.on_event(TrajectoryDone(), 3.0)       # approach done -> retreat
-    h2.on_event(TrajectoryDone(), 4.0)       # retreat done -> deliver
+    h2.on_event(TrajectoryDone(), 3.0)       # approach done -> retreat and on to the bin
     h2.on_event(TrajectoryDone(), 6.0)       # delivered -> release
     see(h2, [p for p, _ in BOLLS.values()][1:], times=(6.5,))
     h2.tick(7.0)                             # released -> the next target, planned from the nudged pose

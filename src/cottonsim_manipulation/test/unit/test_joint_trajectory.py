@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from cottonsim_common.kinematics.ur5e import link_frames
 from cottonsim_common.testing import assert_config_rejects
 from cottonsim_manipulation.planning.trajectory import (
     JointTrajectory,
@@ -11,6 +12,7 @@ from cottonsim_manipulation.planning.trajectory import (
     concatenate,
     interpolate_path,
     plan_trajectory,
+    tool_speed_per_unit_m,
 )
 
 PI = math.pi
@@ -59,7 +61,7 @@ def test_limits_hold_at_every_sample(seed):
 
 
 def test_each_segment_is_time_optimal_for_its_slowest_joint():
-    cfg = TrajectoryConfig(velocity_scale=0.5, max_acceleration_rad_s2=(4.0,) * 6)
+    cfg = TrajectoryConfig(velocity_scale=0.5, max_acceleration_rad_s2=(4.0,) * 6, max_tool_speed_m_s=None)
     v, a = 0.5 * PI, 4.0
     # Long move: trapezoid, T = D / v + v / a for the joint with the largest distance.
     traj = plan_trajectory([[0.0] * 6, [2.0, 1.0, 0, 0, 0, -0.5]], cfg)
@@ -69,6 +71,45 @@ def test_each_segment_is_time_optimal_for_its_slowest_joint():
     # Short move: triangle, T = 2 sqrt(D / a).
     short = plan_trajectory([[0.0] * 6, [0.1, 0, 0, 0, 0, 0]], cfg)
     assert short.duration_s == pytest.approx(2 * math.sqrt(0.1 / a))
+
+
+def tool_speeds_m_s(traj, tool_length_m):
+    """Finite-difference speeds of the flange and the nozzle tip at the trajectory's samples [m/s]."""
+    times, q, _, _ = traj.sampled()
+    frames = link_frames(q)[:, 6]
+    flange = frames[:, :3, 3]
+    tip = flange + tool_length_m * frames[:, :3, 2]
+    dt = np.diff(times)[:, None]
+    return (np.linalg.norm(np.diff(flange, axis=0) / dt, axis=1),
+            np.linalg.norm(np.diff(tip, axis=0) / dt, axis=1))
+
+
+def test_the_tool_speed_limit_holds_and_a_long_swing_reaches_it():
+    cfg = TrajectoryConfig(sample_rate_hz=500.0)
+    # The shoulder swung half a turn with the arm stretched out: the joints alone would move the tip at ~2.8 m/s.
+    stretched = [0.0, -0.3, 0.3, -1.57, -1.57, 0.0]
+    swing = plan_trajectory([stretched, [3.0] + stretched[1:]], cfg)
+    flange, tip = tool_speeds_m_s(swing, cfg.tool_length_m)
+    fastest = max(flange.max(), tip.max())
+    assert fastest <= cfg.max_tool_speed_m_s * 1.002
+    assert fastest >= cfg.max_tool_speed_m_s * 0.99            # the limit binds: no slower than it must be
+    unlimited = plan_trajectory([stretched, [3.0] + stretched[1:]], TrajectoryConfig(max_tool_speed_m_s=None))
+    assert swing.duration_s > unlimited.duration_s + 0.5
+    # Random moves over the workspace keep the limit at every sample.
+    rng = np.random.default_rng(11)
+    traj = plan_trajectory(random_waypoints(rng, 6), cfg)
+    flange, tip = tool_speeds_m_s(traj, cfg.tool_length_m)
+    assert max(flange.max(), tip.max()) <= cfg.max_tool_speed_m_s * 1.002
+
+
+def test_a_turn_of_the_last_wrist_joint_runs_at_the_joint_limit():
+    # wrist 3 turns the nozzle about its own axis: neither the flange nor the tip moves.
+    q0 = np.array([0.0, -1.2, 1.2, -1.57, -1.57, 0.0])
+    q1 = q0 + np.array([0, 0, 0, 0, 0, 2.0])
+    assert tool_speed_per_unit_m(q0, q1 - q0, 0.15) < 1e-9
+    cfg = TrajectoryConfig()
+    assert plan_trajectory([q0, q1], cfg).duration_s == pytest.approx(
+        plan_trajectory([q0, q1], TrajectoryConfig(max_tool_speed_m_s=None)).duration_s)
 
 
 def test_joints_move_in_step_on_the_straight_segment():
@@ -110,7 +151,8 @@ def test_bad_waypoints_are_named():
 def test_config_is_validated():
     assert_config_rejects(TrajectoryConfig, ("velocity_scale", 0.0), ("velocity_scale", 1.5),
                           ("max_acceleration_rad_s2", (4.0,) * 5 + (-1.0,)),
-                          ("max_velocity_rad_s", (float("nan"),) * 6), ("sample_rate_hz", 0))
+                          ("max_velocity_rad_s", (float("nan"),) * 6), ("sample_rate_hz", 0),
+                          ("max_tool_speed_m_s", 0.0), ("max_tool_speed_m_s", float("inf")), ("tool_length_m", -0.1))
     with pytest.raises(ValueError, match="lower"):
         TrajectoryConfig(lower_limits_rad=(1.0,) * 6, upper_limits_rad=(0.0,) * 6)
 

@@ -62,9 +62,11 @@ def pick_one(cycle, now):
     now += 1.0
     assert cycle.on_event(CaptureConfirmed(), now) == []          # during the advance
     c = cycle.on_event(TrajectoryDone(), now + 0.5)
-    assert purposes(c) == ["retreat"]
-    c = cycle.on_event(TrajectoryDone(), now + 1.0)
-    assert purposes(c) == ["deliver"]
+    assert purposes(c) == ["deliver"]                             # the retreat and on to the bin, one motion
+    deliver = next(cmd.trajectory for cmd in c if isinstance(cmd, SendTrajectory))
+    np.testing.assert_allclose(deliver.waypoints_rad[0], cycle._current.plan.q_grasp_rad)
+    np.testing.assert_allclose(deliver.waypoints_rad[1], cycle._current.plan.q_retreat_rad)
+    np.testing.assert_allclose(deliver.waypoints_rad[-1], PickCycleConfig().bin_joints_rad)
     c = cycle.on_event(TrajectoryDone(), now + 2.0)
     assert c == [SetVacuum(False)] and cycle.phase == "release"
     assert cycle.tick(now + 2.1) == []                            # dwell not over yet
@@ -161,16 +163,16 @@ def test_trajectory_failure_is_aborted_with_vacuum_off():
     assert cycle.results[0].reason == "aborted" and "path tolerance" in cycle.results[0].detail
 
 
-@pytest.mark.parametrize("phase_steps", [0, 1, 3, 4])
-def test_every_motion_phase_times_out_and_the_cycle_ends(phase_steps):
+@pytest.mark.parametrize("phase", ["approach", "capture", "deliver", "retreat"])
+def test_every_motion_phase_times_out_and_the_cycle_ends(phase):
     cycle = start_first(1)
     now = 0.0
-    cycle.on_event(TrajectoryDone(), now) if phase_steps >= 1 else None
-    if phase_steps >= 3:
-        cycle.on_event(CaptureConfirmed(), now)
-        cycle.on_event(TrajectoryDone(), now)
-        cycle.on_event(TrajectoryDone(), now) if phase_steps >= 4 else None
-    phase = cycle.phase
+    if phase != "approach":
+        cycle.on_event(TrajectoryDone(), now)                   # at the pre-grasp: the approach goes out
+    if phase in ("deliver", "retreat"):
+        cycle.on_event(CaptureConfirmed() if phase == "deliver" else CaptureMissed("test"), now)
+        cycle.on_event(TrajectoryDone(), now)                   # at the boll: on to the bin, or back out
+    assert cycle.phase == phase
     c = []
     for step in range(1, 200):                                  # no event ever comes: only time passes
         c = cycle.tick(now + 0.1 * step)

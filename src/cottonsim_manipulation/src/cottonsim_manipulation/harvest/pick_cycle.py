@@ -2,7 +2,8 @@
 
 Phases, per target in the given order (see harvest.pick_order):
 
-    HALT -> [ APPROACH -> CAPTURE -> RETREAT -> DELIVER -> RELEASE ] * targets -> ResumeRoute -> DONE
+    HALT -> [ APPROACH -> CAPTURE -> DELIVER -> RELEASE ] * targets -> ResumeRoute -> DONE
+    (a missed capture: CAPTURE -> RETREAT -> the next target)
 
 * HALT: the route is paused (command HaltRoute); waits for the robot to stop. The targets are either
   given at the start, or chosen once the robot stands (``targets`` a callable: ``select(q_current,
@@ -12,8 +13,10 @@ Phases, per target in the given order (see harvest.pick_order):
   planning.approach.plan_approach) and the transit to its pre-grasp is sent.
 * CAPTURE: vacuum on, the approach along the boll's outward direction is sent;
   then the capture is waited for (CaptureConfirmed / CaptureMissed).
-* RETREAT: the retreat is sent (after a miss too, with the vacuum off).
-* DELIVER: a move to ``bin_joints_rad`` (the nozzle over the bin).
+* DELIVER: the boll caught, the retreat and the move to ``bin_joints_rad`` (the nozzle over the bin)
+  go out as one trajectory (the arm rests at the retreat's end for no time): a trajectory of its own
+  cost a phase change, the controller's report and the loop's reaction, ~0.1 s a pick.
+* RETREAT: after a miss, the retreat alone, with the vacuum off; then the next target.
 * RELEASE: vacuum off, ``release_dwell_s`` for the boll to drop; the target is 'ok'.
 
 The machine is driven by calls with the current time [s]: start(), on_event()
@@ -38,7 +41,7 @@ from typing import Callable, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from cottonsim_common.kinematics.ur5e import joint_vector
-from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, plan_trajectory
+from cottonsim_manipulation.planning.trajectory import JointTrajectory, TrajectoryConfig, concatenate, plan_trajectory
 
 REASONS = ("ok", "unreachable", "ik_failed", "collision", "aborted", "capture_missed", "lost", "timeout", "cancelled")
 HALT, APPROACH, CAPTURE, RETREAT, DELIVER, RELEASE, DONE = (
@@ -104,7 +107,7 @@ class ResumeRoute(_Signal):
 @dataclass(frozen=True)
 class SendTrajectory:
     trajectory: JointTrajectory
-    purpose: str                      # 'transit', 'approach', 'retreat' or 'deliver'
+    purpose: str                      # 'transit', 'approach', 'deliver' (retreat and on to the bin) or 'retreat'
 
 
 class CancelTrajectory(_Signal):
@@ -254,12 +257,7 @@ class PickCycle:
             return []
         if phase == RETREAT:
             self._q = cur.plan.q_retreat_rad.copy()
-            if cur.failure:
-                return self._record(cur.failure[0], cur.failure[1], now_s) + self._next_target(now_s)
-            deliver = plan_trajectory(np.stack([self._q, np.asarray(self.config.bin_joints_rad)]),
-                                      self.trajectory_config)
-            self._enter(DELIVER, now_s, deliver.duration_s + self.config.motion_margin_s)
-            return [SendTrajectory(deliver, "deliver")]
+            return self._record(cur.failure[0], cur.failure[1], now_s) + self._next_target(now_s)
         if phase == DELIVER:
             self._q = np.asarray(self.config.bin_joints_rad, dtype=float)
             self._enter(RELEASE, now_s, self.config.release_dwell_s)
@@ -307,9 +305,16 @@ class PickCycle:
         return self._finish(now_s)
 
     def _retreat(self, now_s: float) -> list:
-        plan = self._current.plan
-        self._enter(RETREAT, now_s, plan.retreat.duration_s + self.config.motion_margin_s)
-        return [SendTrajectory(plan.retreat, "retreat")]
+        """Back out of the plant: straight on to the bin with a caught boll (DELIVER), else alone (RETREAT)."""
+        cur = self._current
+        if cur.failure is None:
+            to_bin = plan_trajectory(np.stack([cur.plan.q_retreat_rad, np.asarray(self.config.bin_joints_rad)]),
+                                     self.trajectory_config)
+            deliver = concatenate([cur.plan.retreat, to_bin])
+            self._enter(DELIVER, now_s, deliver.duration_s + self.config.motion_margin_s)
+            return [SendTrajectory(deliver, "deliver")]
+        self._enter(RETREAT, now_s, cur.plan.retreat.duration_s + self.config.motion_margin_s)
+        return [SendTrajectory(cur.plan.retreat, "retreat")]
 
     def _record(self, reason: str, detail: str, now_s: float) -> list:
         self.results.append(PickResult(self._current.target.target_id, reason, detail, now_s - self._mark_s))

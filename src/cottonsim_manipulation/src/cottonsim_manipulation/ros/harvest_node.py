@@ -88,6 +88,10 @@ _MARKER_RGB = {"tentative": (0.6, 0.6, 0.6), "confirmed": (1.0, 0.8, 0.0), "pick
 READY_TOLERANCE_RAD = 0.02                      # the arm is at its ready pose this close [rad]
 REST_SPEED_RAD_S = 0.01                         # the arm is at rest below this joint speed [rad/s]
 START_TOLERANCE_RAD = 0.01                      # a trajectory starting farther from the arm gets a lead-in [rad]
+WAKE_POLL_S = 0.005                             # between loop ticks, the loop looks this often (wall time) whether an
+                                                # arm motion ended or the nozzle caught its boll, and then runs at
+                                                # once: each of a pick's five phase changes waited half a loop
+                                                # period (25 ms at 20 Hz) on average [s]
 HOLD_PERIOD_S = 0.2                             # the route hold is sent this often, from a timer of its own
                                                 # (a stop's planning holds the loop for longer than the
                                                 # navigator's hold lasts: the robot drove off mid-stop) [s]
@@ -127,6 +131,7 @@ class HarvestNode:
         self.ready_rad = np.asarray(cycle.bin_joints_rad, dtype=float)
 
         self._lock = threading.Lock()
+        self._wake = threading.Event()           # set by the callbacks the pick cycle waits for
         self._events = collections.deque()       # (trajectory seq, event) from the arm's callbacks
         self._detections = collections.deque()   # (points in ~frame (N, 3), stamp [s])
         self._requests = collections.deque()     # pick action requests (dicts)
@@ -191,7 +196,10 @@ class HarvestNode:
 
     def _on_holding(self, msg: Bool):
         with self._lock:
+            caught = bool(msg.data) and not self._holding
             self._holding = bool(msg.data)
+        if caught:
+            self._wake.set()
 
     def _on_detections(self, msg: BollDetections):
         points = [(d.position.x, d.position.y, d.position.z) for d in msg.detections if d.has_position]
@@ -232,6 +240,7 @@ class HarvestNode:
         with self._lock:
             if seq == self._seq:
                 self._events.append(event)
+                self._wake.set()
 
     def _execute_pick(self, goal):
         request = {"goal": goal, "done": threading.Event(), "result": None}
@@ -260,13 +269,20 @@ class HarvestNode:
     def spin(self) -> None:
         while not rospy.is_shutdown() and not self.arm.wait_for_server(rospy.Duration(1.0)):
             rospy.logwarn_throttle(10.0, "harvest: waiting for /arm_controller/follow_joint_trajectory")
-        rate = rospy.Rate(self.loop_hz)
+        period_s = 1.0 / self.loop_hz
+        next_s = rospy.get_time()
         while not rospy.is_shutdown():
-            try:
-                self._step()
-                rate.sleep()
-            except rospy.ROSInterruptException:
+            self._step()
+            now = rospy.get_time()
+            next_s = min(max(next_s + period_s, now), now + period_s)   # behind: at once; clock reset: a period
+            self._sleep_until(next_s)
+
+    def _sleep_until(self, tick_s: float) -> None:
+        """Wait until the sim time tick_s, or less when an arm motion ends or the nozzle catches its boll."""
+        while not rospy.is_shutdown() and rospy.get_time() < tick_s:
+            if self._wake.wait(WAKE_POLL_S):
                 break
+        self._wake.clear()
 
     def _pose(self) -> bool:
         try:
