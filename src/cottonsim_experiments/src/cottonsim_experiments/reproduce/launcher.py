@@ -8,10 +8,13 @@ its whole console output goes to a log file, and the navigator's log lines
 ("goal 3/30 ... sent", "finished ...") become a one-line progress display.
 When the wall-clock limit passes, the launch gets SIGINT (roslaunch then
 shuts its nodes down, and the experiment recorder writes what it has), then
-SIGTERM and SIGKILL if it does not end.
+SIGTERM and SIGKILL if it does not end. When the launching process itself dies
+(killed, or a Ray worker of a sweep whose driver was stopped), the kernel sends
+roslaunch SIGINT (Linux' parent-death signal): no ROS nodes are left running.
 """
 from __future__ import annotations
 
+import ctypes
 import os
 import re
 import signal
@@ -103,14 +106,31 @@ def _print_progress(label: str, text: str, started: float) -> None:
     sys.stdout.flush()
 
 
-def _restore_sigint() -> None:
-    """In the child before exec: SIGINT unblocked and at its default action.
+PR_SET_PDEATHSIG = 1         # prctl(2): the signal this process gets when its parent thread dies
+
+
+def _child_setup(parent_pid: int) -> None:
+    """In the child before exec: SIGINT unblocked and at its default action, and SIGINT when the parent dies.
 
     A process started from a Ray task (or any thread that blocks or ignores SIGINT) passes that on
-    to its children, and a roslaunch that never sees SIGINT cannot stop its nodes cleanly.
+    to its children, and a roslaunch that never sees SIGINT cannot stop its nodes cleanly. The
+    child runs in a session of its own (so that a terminal's Ctrl-C reaches it through the
+    launcher's orderly stop), which also means that nothing would stop it if the launcher were
+    killed: the parent-death signal does.
     """
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, int(signal.SIGINT), 0, 0, 0)
+        if os.getppid() != parent_pid:        # the parent died before prctl took effect
+            os._exit(1)
+
+
+def start_child(command: List[str], **popen_kwargs) -> subprocess.Popen:
+    """Popen(command) in a session of its own, with SIGINT restored and as its parent-death signal."""
+    parent = os.getpid()
+    return subprocess.Popen(command, start_new_session=True, preexec_fn=lambda: _child_setup(parent),
+                            **popen_kwargs)
 
 
 def run_launch(spec: LaunchSpec, show_progress: bool = True,
@@ -132,9 +152,8 @@ def run_launch(spec: LaunchSpec, show_progress: bool = True,
             log.write(f"note: {network_note}\n")
         log.write("$ " + " ".join(spec.command(port)) + "\n")
         log.flush()
-        proc = subprocess.Popen(spec.command(port), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, errors="replace", start_new_session=True,
-                                preexec_fn=_restore_sigint)
+        proc = start_child(spec.command(port), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True, errors="replace")
         aborted = []
 
         def pump():

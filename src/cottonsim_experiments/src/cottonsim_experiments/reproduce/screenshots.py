@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Dict, List, Mapping, Sequence, Tuple
 
-from .launcher import free_port, stop_process_group
+from .launcher import free_port, start_child, stop_process_group
 from .packages import package_path
 
 # name -> (launches [(package, launch file, args)], rviz config (package, path), seconds to wait [wall])
@@ -98,8 +98,7 @@ def _one(name: str, out_dir: str, display: str, wait_scale: float) -> Screenshot
             for k, (pkg, launch_file, args) in enumerate(launches):
                 cmd = ["roslaunch", "-p", str(port)] + ([] if k == 0 else ["--wait"]) + [pkg, launch_file] + \
                       [f"{a}:={resolve_find(v)}" for a, v in args.items()]
-                procs.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT,
-                                              start_new_session=True))
+                procs.append(start_child(cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
                 time.sleep(3.0)
             # rviz reads /use_sim_time once at start: wait until the simulator's clock runs
             try:
@@ -108,8 +107,7 @@ def _one(name: str, out_dir: str, display: str, wait_scale: float) -> Screenshot
             except subprocess.TimeoutExpired:
                 log.write("[screenshots] no /clock after 180 s; starting rviz anyway\n")
             rviz_cfg = os.path.join(package_path(rviz_pkg), rviz_rel)
-            procs.append(subprocess.Popen(["rviz", "-d", rviz_cfg], env=env, stdout=log, stderr=subprocess.STDOUT,
-                                          start_new_session=True))
+            procs.append(start_child(["rviz", "-d", rviz_cfg], env=env, stdout=log, stderr=subprocess.STDOUT))
             time.sleep(wait_s * wait_scale)
             grab = subprocess.run(["import", "-display", display, "-window", "root", png], env=env,
                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
