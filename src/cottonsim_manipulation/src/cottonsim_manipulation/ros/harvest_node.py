@@ -141,6 +141,8 @@ class HarvestNode:
         self._odom = None                        # (stamp [s], speed [m/s], yaw rate [rad/s])
         self._holding = False
         self._seq = 0                            # the trajectory in flight (0: none)
+        self._sent_end = None                    # (seq, last point [rad]) of the trajectory sent last
+        self._rest_at = None                     # where the last trajectory ended, succeeded, while nothing moved since
         self._parking = False
         self._park_deadline_s = 0.0
         self._route_held = False
@@ -233,6 +235,9 @@ class HarvestNode:
         state, result = handle.get_goal_status(), handle.get_result()
         if state == GoalStatus.SUCCEEDED:
             event = TrajectoryDone()
+            with self._lock:
+                if self._sent_end is not None and self._sent_end[0] == seq == self._seq:
+                    self._rest_at = self._sent_end[1]       # the controller holds it there, at rest
         elif state in (GoalStatus.ABORTED, GoalStatus.REJECTED, GoalStatus.LOST):
             event = TrajectoryFailed(getattr(result, "error_string", "") or handle.get_goal_status_text())
         else:
@@ -432,7 +437,9 @@ class HarvestNode:
             elif isinstance(command, SendTrajectory):
                 self._send(command.trajectory)
             elif isinstance(command, CancelTrajectory):
-                self._seq = 0
+                with self._lock:
+                    self._seq = 0
+                    self._rest_at = None
                 self._waiting = None
                 if self._arm_goal is not None:
                     self._arm_goal.cancel()
@@ -446,20 +453,27 @@ class HarvestNode:
             self.server.publish_feedback(PickBollFeedback(phase=self.harvester.cycle.phase or ""))
 
     def _send(self, trajectory) -> None:
-        """Send the trajectory once the arm is at rest (after a cancel it brakes first); from where the arm
-        is when it stopped a little off the trajectory's start (within START_GAP_RAD)."""
+        """Send the trajectory: at once when it starts where the last one ended (the controller reported
+        it done: the arm is there, at rest); else once /joint_states shows the arm at rest (after a cancel
+        it brakes first), from where it stopped when that is off the trajectory's start
+        (START_TOLERANCE_RAD). /joint_states alone is not trusted right after a motion: on a loaded
+        machine it can lag the controller's report by a whole approach, and a lead-in from there is a jump."""
         self._waiting = trajectory
         self._send_waiting()
 
     def _send_waiting(self) -> None:
         trajectory = self._waiting
         with self._lock:
-            q, qd = self._q, self._qd
-        if trajectory is None or q is None or (qd is not None and np.abs(qd).max() > REST_SPEED_RAD_S):
+            q, qd, rest_at = self._q, self._qd, self._rest_at
+        if trajectory is None:
             return
+        continues = rest_at is not None and np.abs(rest_at - trajectory.waypoints_rad[0]).max() <= START_TOLERANCE_RAD
+        if not continues:
+            if q is None or (qd is not None and np.abs(qd).max() > REST_SPEED_RAD_S):
+                return
+            if np.abs(q - trajectory.waypoints_rad[0]).max() > START_TOLERANCE_RAD:
+                trajectory = plan_trajectory(np.vstack([q, trajectory.waypoints_rad]), self.trajectory_config)
         self._waiting = None
-        if np.abs(q - trajectory.waypoints_rad[0]).max() > START_TOLERANCE_RAD:
-            trajectory = plan_trajectory(np.vstack([q, trajectory.waypoints_rad]), self.trajectory_config)
         times, q, qd, qdd = trajectory.sampled()
         goal = FollowJointTrajectoryGoal()
         goal.trajectory.joint_names = list(self.joint_names)
@@ -470,6 +484,8 @@ class HarvestNode:
         with self._lock:
             self._seq += 1
             seq = self._seq
+            self._sent_end = (seq, np.array(trajectory.waypoints_rad[-1], dtype=float))
+            self._rest_at = None
         self._arm_goal = self.arm.send_goal(goal, transition_cb=lambda handle, s=seq: self._on_arm_transition(s, handle))
 
     # ------------------------------------------------------------------ outputs
