@@ -87,7 +87,8 @@ def test_results_page_has_the_harvest_section_from_the_summary(tmp_path):
     (results / "harvest_ground_truth" / "summary.json").write_text(json.dumps(summary))
     text = render_results(str(results), str(tmp_path / "doc" / "results.md"))
     section = text[text.index("## Harvest"):]
-    assert "### Targets from ground-truth targets" in section
+    assert "### Targets from ground truth (a study option)" in section
+    assert "### Targets from the networks' detections\n\nNo runs in this results folder" in section
     assert "| in the bin | 27 | 27 |" in section and "Fue et al. 2020: harvest_success_percent 78.5" in section
     empty = render_results(str(tmp_path / "none"), str(tmp_path / "doc2" / "results.md"))
     assert "## Harvest" in empty and "No results yet" in empty[empty.index("## Harvest"):]

@@ -170,9 +170,13 @@ def _harvest_section(results_root: str, doc_dir: str) -> List[str]:
            "against the simulator's truth (docs/harvest.md, 'The harvest experiment'). The simulation captures a "
            "boll with the vacuum nozzle within 2 cm; it has no fibre pull-off force.", ""]
     found = False
-    for name, what in (("harvest", "the networks' detections"), ("harvest_ground_truth", "ground-truth targets")):
-        summary = read_json_mapping(os.path.join(results_root, name, "summary.json"))
+    modes = (("harvest", "the networks' detections"), ("harvest_ground_truth", "ground truth (a study option)"))
+    summaries = {name: read_json_mapping(os.path.join(results_root, name, "summary.json")) for name, _ in modes}
+    for name, what in modes:
+        summary = summaries[name]
         if summary is None:
+            if any(v is not None for v in summaries.values()):
+                out += [f"### Targets from {what}", "", f"No runs in this results folder (`results/{name}/`).", ""]
             continue
         found = True
         columns = {f"seed {r['seed']}": r.get("figures") for r in summary.get("runs", [])}
