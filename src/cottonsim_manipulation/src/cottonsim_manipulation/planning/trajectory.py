@@ -17,9 +17,8 @@ The tool's speed is limited too, as a UR's safety settings limit it: V is
 lowered until neither the flange nor the nozzle's tip moves faster than
 ``max_tool_speed_m_s`` anywhere on the segment (their speed per unit of s is
 measured by forward kinematics at points along it, ``TOOL_SPEED_STEP_RAD`` of
-the leading joint apart). So a
-long swing of the shoulder runs at the tool's limit, while the wrist's short
-turns run at the joints' limits.
+the leading joint apart). So a long swing of the shoulder runs at the tool's
+limit, while the wrist's short turns run at the joints' limits.
 
 This is the time-optimal profile among those that keep the joints in step.
 Limits: UR5e 180 deg/s per joint (cottonsim_common.kinematics.ur5e), of which

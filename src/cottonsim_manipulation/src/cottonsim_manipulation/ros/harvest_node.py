@@ -141,7 +141,7 @@ class HarvestNode:
         self._odom = None                        # (stamp [s], speed [m/s], yaw rate [rad/s])
         self._holding = False
         self._seq = 0                            # the trajectory in flight (0: none)
-        self._sent_end = None                    # (seq, last point [rad]) of the trajectory sent last
+        self._sent_end_rad = None                # the last point of the trajectory in flight (seq _seq)
         self._rest_at = None                     # where the last trajectory ended, succeeded, while nothing moved since
         self._parking = False
         self._park_deadline_s = 0.0
@@ -235,9 +235,6 @@ class HarvestNode:
         state, result = handle.get_goal_status(), handle.get_result()
         if state == GoalStatus.SUCCEEDED:
             event = TrajectoryDone()
-            with self._lock:
-                if self._sent_end is not None and self._sent_end[0] == seq == self._seq:
-                    self._rest_at = self._sent_end[1]       # the controller holds it there, at rest
         elif state in (GoalStatus.ABORTED, GoalStatus.REJECTED, GoalStatus.LOST):
             event = TrajectoryFailed(getattr(result, "error_string", "") or handle.get_goal_status_text())
         else:
@@ -245,6 +242,8 @@ class HarvestNode:
         with self._lock:
             if seq == self._seq:
                 self._events.append(event)
+                if isinstance(event, TrajectoryDone):
+                    self._rest_at = self._sent_end_rad      # the controller holds the arm there, at rest
                 self._wake.set()
 
     def _execute_pick(self, goal):
@@ -484,7 +483,7 @@ class HarvestNode:
         with self._lock:
             self._seq += 1
             seq = self._seq
-            self._sent_end = (seq, np.array(trajectory.waypoints_rad[-1], dtype=float))
+            self._sent_end_rad = np.array(trajectory.waypoints_rad[-1], dtype=float)
             self._rest_at = None
         self._arm_goal = self.arm.send_goal(goal, transition_cb=lambda handle, s=seq: self._on_arm_transition(s, handle))
 
