@@ -64,8 +64,12 @@ class SimTopicsTest(unittest.TestCase):
         self.assertEqual(missing, [], f"topics never published: {missing}")
         for topic, (_, rate) in EXPECTED.items():
             got = sorted(s for s in self.stamps[topic] if 0.5 < s[0] <= 0.5 + WINDOW_S)
-            self.assertGreaterEqual(len(got), max(2, 0.3 * rate * WINDOW_S), f"{topic}: received only {len(got)}")
+            # the rate comes from the publisher's sequence numbers: a few received messages spread
+            # over the window suffice (a loaded machine makes this node miss some of the big ones)
+            self.assertGreaterEqual(len(got), 3, f"{topic}: received only {len(got)}")
             (t0, seq0), (t1, seq1) = got[0], got[-1]
+            self.assertGreaterEqual(t1 - t0, 0.5 * WINDOW_S,
+                                    f"{topic}: received messages span only {t1 - t0:.2f} s of the window")
             measured = (seq1 - seq0) / (t1 - t0)
             self.assertAlmostEqual(measured, rate, delta=0.1 * rate + 1.0,
                                    msg=f"{topic}: published at {measured:.1f} Hz in sim time, expected {rate} Hz")
