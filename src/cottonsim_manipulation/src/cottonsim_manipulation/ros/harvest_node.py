@@ -10,7 +10,7 @@ Subscriptions
   /sim/bolls (cottonsim_msgs/BollArray) and /ground_truth/odom (nav_msgs/Odometry), only with
       ~target_source 'ground_truth' (a study option): the simulator's open bolls within ~truth_range_m of
       the robot are the detections, every loop cycle.
-  /joint_states (sensor_msgs/JointState): the arm's joints (~joint_prefix + the UR5e joint names).
+  /joint_states (sensor_msgs/JointState): the arm's joints (~joint_prefix + the UR5e joint names; ros.arm_client).
   ~odom_topic (nav_msgs/Odometry, /odometry/filtered): the robot stands when its speeds are small.
   /arm_controller/vacuum/holding (std_msgs/Bool): the nozzle holds a boll (confirms a capture).
 Publications
@@ -27,7 +27,7 @@ Publications
       the state, phase or target changes.
   ~hold_topic (std_msgs/Bool, /harvest/hold_route): true every loop cycle while the route must stand
       (a stop), false once when it may go on (the navigator's route hold).
-Action client / service client
+Action client / service client (ros.arm_client)
   /arm_controller/follow_joint_trajectory (cottonsim_msgs/FollowJointTrajectory), /arm_controller/vacuum
       (std_srvs/SetBool).
 Action server
@@ -46,21 +46,16 @@ import collections
 import json
 import math
 import threading
-from typing import Optional
 
 import actionlib
 import numpy as np
 import rospy
 import tf2_ros
-from actionlib_msgs.msg import GoalStatus
-from cottonsim_msgs.msg import (BollDetections, BollTarget, BollTargetArray,
-                                FollowJointTrajectoryAction, FollowJointTrajectoryGoal, PickBollAction,
-                                PickBollFeedback, PickBollResult)
+from cottonsim_msgs.msg import (BollDetections, BollTarget, BollTargetArray, PickBollAction, PickBollFeedback,
+                                PickBollResult)
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, ColorRGBA, String
 from std_srvs.srv import SetBool, SetBoolResponse
-from trajectory_msgs.msg import JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from cottonsim_common.kinematics.ur5e import JOINT_NAMES
@@ -70,7 +65,7 @@ from cottonsim_common.transforms import transform_points
 from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester
 from cottonsim_manipulation.harvest.pick_cycle import (CancelTrajectory, CaptureConfirmed, HaltRoute, PickCycleConfig,
                                                        ResumeRoute, RobotStopped, SendTrajectory, SetVacuum,
-                                                       TrajectoryDone, TrajectoryFailed)
+                                                       TrajectoryFailed)
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig
 from cottonsim_manipulation.harvest.targets import TargetFusion, TargetFusionConfig
 from cottonsim_manipulation.planning.approach import ApproachConfig, plan_approach
@@ -78,6 +73,7 @@ from cottonsim_common.kinematics.arm_capsules import ArmCollisionConfig
 from cottonsim_manipulation.planning.collision import ArmCollisionModel
 from cottonsim_manipulation.planning.robot_body import body_boxes_from_urdf
 from cottonsim_manipulation.planning.trajectory import TrajectoryConfig, plan_trajectory
+from cottonsim_manipulation.ros.arm_client import ArmClient
 from cottonsim_manipulation.ros.truth_targets import TruthTargets
 
 TARGET_SOURCES = ("detections", "ground_truth")
@@ -86,8 +82,6 @@ _TARGET_STATES = {"tentative": BollTarget.TENTATIVE, "confirmed": BollTarget.CON
 _MARKER_RGB = {"tentative": (0.6, 0.6, 0.6), "confirmed": (1.0, 0.8, 0.0), "picked": (0.1, 0.8, 0.1),
                "abandoned": (0.9, 0.1, 0.1)}
 READY_TOLERANCE_RAD = 0.02                      # the arm is at its ready pose this close [rad]
-REST_SPEED_RAD_S = 0.01                         # the arm is at rest below this joint speed [rad/s]
-START_TOLERANCE_RAD = 0.01                      # a trajectory starting farther from the arm gets a lead-in [rad]
 WAKE_POLL_S = 0.005                             # between loop ticks, the loop looks this often (wall time) whether an
                                                 # arm motion ended or the nozzle caught its boll, and then runs at
                                                 # once: each of a pick's five phase changes waited half a loop
@@ -107,7 +101,7 @@ class HarvestNode:
         self.frame = typed_param("~frame", "odom")
         self.robot_frame = typed_param("~robot_frame", "base_link")
         self.arm_base_frame = typed_param("~arm_base_frame", "ur5e_base")
-        self.joint_names = [typed_param("~joint_prefix", "ur5e_") + j for j in JOINT_NAMES]
+        joint_names = [typed_param("~joint_prefix", "ur5e_") + j for j in JOINT_NAMES]
         self.loop_hz = typed_param("~loop_hz", 20.0, minimum=1.0)
         self.status_period_s = typed_param("~status_period_s", 1.0, minimum=0.05)
         self.targets_period_s = typed_param("~targets_period_s", 1.0, minimum=0.0)
@@ -132,17 +126,10 @@ class HarvestNode:
 
         self._lock = threading.Lock()
         self._wake = threading.Event()           # set by the callbacks the pick cycle waits for
-        self._events = collections.deque()       # (trajectory seq, event) from the arm's callbacks
         self._detections = collections.deque()   # (points in ~frame (N, 3), stamp [s])
         self._requests = collections.deque()     # pick action requests (dicts)
-        self._q: Optional[np.ndarray] = None
-        self._qd: Optional[np.ndarray] = None
-        self._waiting = None                     # a trajectory to send once the arm is at rest
         self._odom = None                        # (stamp [s], speed [m/s], yaw rate [rad/s])
         self._holding = False
-        self._seq = 0                            # the trajectory in flight (0: none)
-        self._sent_end_rad = None                # the last point of the trajectory in flight (seq _seq)
-        self._rest_at = None                     # where the last trajectory ended, succeeded, while nothing moved since
         self._parking = False
         self._park_deadline_s = 0.0
         self._route_held = False
@@ -161,10 +148,7 @@ class HarvestNode:
         self.status_pub = rospy.Publisher("~status", String, queue_size=2, latch=True)
         self.hold_pub = rospy.Publisher(typed_param("~hold_topic", "/harvest/hold_route"), Bool, queue_size=2)
         self._hold_timer = rospy.Timer(rospy.Duration(HOLD_PERIOD_S), self._publish_hold)
-        self.arm = actionlib.ActionClient("/arm_controller/follow_joint_trajectory", FollowJointTrajectoryAction)
-        self._arm_goal = None                    # the goal handle of the trajectory in flight
-        self.vacuum = rospy.ServiceProxy("/arm_controller/vacuum", SetBool)
-        rospy.Subscriber("/joint_states", JointState, self._on_joints, queue_size=5)
+        self.arm = ArmClient(joint_names, self.trajectory_config, on_event=self._wake.set)
         rospy.Subscriber(typed_param("~odom_topic", "/odometry/filtered"), Odometry, self._on_odom, queue_size=5)
         rospy.Subscriber("/arm_controller/vacuum/holding", Bool, self._on_holding, queue_size=5)
         if self.target_source == "detections":
@@ -181,16 +165,6 @@ class HarvestNode:
         rospy.Service("~enable", SetBool, self._on_enable)
 
     # ------------------------------------------------------------------ callbacks (ROS threads)
-    def _on_joints(self, msg: JointState):
-        try:
-            index = [msg.name.index(j) for j in self.joint_names]
-            q = np.array([msg.position[i] for i in index])
-            qd = np.array([msg.velocity[i] for i in index]) if len(msg.velocity) == len(msg.name) else None
-        except (ValueError, IndexError):
-            return
-        with self._lock:
-            self._q, self._qd = q, qd
-
     def _on_odom(self, msg: Odometry):
         v, w = msg.twist.twist.linear, msg.twist.twist.angular
         with self._lock:
@@ -228,24 +202,6 @@ class HarvestNode:
             self.auto = bool(req.data)
         return SetBoolResponse(True, f"automatic picking {'on' if req.data else 'off'}")
 
-    def _on_arm_transition(self, seq: int, handle):
-        """actionlib transition callback of the trajectory sent as number seq."""
-        if handle.get_comm_state() != actionlib.CommState.DONE:
-            return
-        state, result = handle.get_goal_status(), handle.get_result()
-        if state == GoalStatus.SUCCEEDED:
-            event = TrajectoryDone()
-        elif state in (GoalStatus.ABORTED, GoalStatus.REJECTED, GoalStatus.LOST):
-            event = TrajectoryFailed(getattr(result, "error_string", "") or handle.get_goal_status_text())
-        else:
-            return                                   # cancelled or preempted by us
-        with self._lock:
-            if seq == self._seq:
-                self._events.append(event)
-                if isinstance(event, TrajectoryDone):
-                    self._rest_at = self._sent_end_rad      # the controller holds the arm there, at rest
-                self._wake.set()
-
     def _execute_pick(self, goal):
         request = {"goal": goal, "done": threading.Event(), "result": None}
         with self._lock:
@@ -271,7 +227,7 @@ class HarvestNode:
 
     # ------------------------------------------------------------------ the loop
     def spin(self) -> None:
-        while not rospy.is_shutdown() and not self.arm.wait_for_server(rospy.Duration(1.0)):
+        while not rospy.is_shutdown() and not self.arm.wait_for_server(1.0):
             rospy.logwarn_throttle(10.0, "harvest: waiting for /arm_controller/follow_joint_trajectory")
         period_s = 1.0 / self.loop_hz
         next_s = rospy.get_time()
@@ -302,11 +258,11 @@ class HarvestNode:
     def _step(self) -> None:
         now = rospy.get_time()
         with self._lock:
-            q, events, detections = self._q, list(self._events), list(self._detections)
-            self._events.clear()
+            detections = list(self._detections)
             self._detections.clear()
             holding, odom, cancel = self._holding, self._odom, self._cancel_request
             self._cancel_request = False
+        q, events = self.arm.joints(), self.arm.pop_events()
         if not self._pose():
             return
         changed = self._fuse(detections, now)
@@ -316,7 +272,6 @@ class HarvestNode:
         if self._parking:
             for event in events:
                 self._parking = False
-                self._seq = 0
                 if isinstance(event, TrajectoryFailed):
                     rospy.logwarn("harvest: the move to the ready pose failed: %s", event.detail)
             if self._parking and now > self._park_deadline_s:
@@ -346,7 +301,7 @@ class HarvestNode:
                 self._finish_request(now)
         elif q is not None:
             self._maybe_start(q, stopped, now)
-        self._send_waiting()
+        self.arm.send_waiting()
         self._targets_dirty |= changed
         if self._targets_dirty and now >= self._next_targets_s:
             self._publish_targets(now)
@@ -388,7 +343,7 @@ class HarvestNode:
             self._parking = True
             park = plan_trajectory(np.stack([q, self.ready_rad]), self.trajectory_config)
             self._park_deadline_s = now + park.duration_s + h.cycle_config.motion_margin_s
-            self._send(park)
+            self.arm.send(park)
             return
         if request is None:
             count = min(len(h.pickable(now)), self.config.max_targets_per_stop)
@@ -434,58 +389,13 @@ class HarvestNode:
                 self._route_held = False
                 self.hold_pub.publish(Bool(False))
             elif isinstance(command, SendTrajectory):
-                self._send(command.trajectory)
+                self.arm.send(command.trajectory)
             elif isinstance(command, CancelTrajectory):
-                with self._lock:
-                    self._seq = 0
-                    self._rest_at = None
-                self._waiting = None
-                if self._arm_goal is not None:
-                    self._arm_goal.cancel()
-                    self._arm_goal = None
+                self.arm.cancel()
             elif isinstance(command, SetVacuum):
-                try:
-                    self.vacuum(command.on)
-                except (rospy.ServiceException, rospy.ROSException) as exc:
-                    rospy.logwarn("harvest: vacuum %s failed: %s", "on" if command.on else "off", exc)
+                self.arm.set_vacuum(command.on)
         if self._request is not None and self.harvester.busy:
             self.server.publish_feedback(PickBollFeedback(phase=self.harvester.cycle.phase or ""))
-
-    def _send(self, trajectory) -> None:
-        """Send the trajectory: at once when it starts where the last one ended (the controller reported
-        it done: the arm is there, at rest); else once /joint_states shows the arm at rest (after a cancel
-        it brakes first), from where it stopped when that is off the trajectory's start
-        (START_TOLERANCE_RAD). /joint_states alone is not trusted right after a motion: on a loaded
-        machine it can lag the controller's report by a whole approach, and a lead-in from there is a jump."""
-        self._waiting = trajectory
-        self._send_waiting()
-
-    def _send_waiting(self) -> None:
-        trajectory = self._waiting
-        with self._lock:
-            q, qd, rest_at = self._q, self._qd, self._rest_at
-        if trajectory is None:
-            return
-        continues = rest_at is not None and np.abs(rest_at - trajectory.waypoints_rad[0]).max() <= START_TOLERANCE_RAD
-        if not continues:
-            if q is None or (qd is not None and np.abs(qd).max() > REST_SPEED_RAD_S):
-                return
-            if np.abs(q - trajectory.waypoints_rad[0]).max() > START_TOLERANCE_RAD:
-                trajectory = plan_trajectory(np.vstack([q, trajectory.waypoints_rad]), self.trajectory_config)
-        self._waiting = None
-        times, q, qd, qdd = trajectory.sampled()
-        goal = FollowJointTrajectoryGoal()
-        goal.trajectory.joint_names = list(self.joint_names)
-        goal.trajectory.points = [JointTrajectoryPoint(positions=q[i].tolist(), velocities=qd[i].tolist(),
-                                                       accelerations=qdd[i].tolist(),
-                                                       time_from_start=rospy.Duration.from_sec(float(t)))
-                                  for i, t in enumerate(times)]
-        with self._lock:
-            self._seq += 1
-            seq = self._seq
-            self._sent_end_rad = np.array(trajectory.waypoints_rad[-1], dtype=float)
-            self._rest_at = None
-        self._arm_goal = self.arm.send_goal(goal, transition_cb=lambda handle, s=seq: self._on_arm_transition(s, handle))
 
     # ------------------------------------------------------------------ outputs
     def _publish_targets(self, now: float) -> None:
