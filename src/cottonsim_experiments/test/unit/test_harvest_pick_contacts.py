@@ -25,12 +25,12 @@ def robot():
     return robot_geometry_from_urdf(URDF.read_text())
 
 
-def farm_with(branches=()):
-    """One plant at (0.9, 1.5): a stem, the given branches (local start, end), one boll facing the lane."""
+def farm_with(branches=(), bolls=(BOLL_LOCAL,)):
+    """One plant at (0.9, 1.5): a stem, the given branches (local start, end), bolls (local) facing the lane."""
     b = np.array(branches, dtype=float).reshape(-1, 2, 3)
     skeleton = PlantSkeleton(np.array([[0.0, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]]), np.array([0.01]),
                              b[:, 0], b[:, 1], np.full(len(b), 0.005), np.zeros((0, 3)), np.zeros(0))
-    model = PlantModel({}, [], np.array([BOLL_LOCAL]), np.array([0.025]), 1.0, 0.7, skeleton)
+    model = PlantModel({}, [], np.array(bolls, dtype=float), np.full(len(bolls), 0.025), 1.0, 0.7, skeleton)
     return SimpleNamespace(plants=[Plant(0, 0, 0, 0.9, 1.5, 0.0, model)], lanes=[LANE])
 
 
@@ -57,6 +57,7 @@ def test_a_branch_across_the_approach_is_touched_by_the_nozzle_the_bare_plant_is
     ready = PickCycleConfig().bin_joints_rad
     [clean] = plan_picks(bare, robot, harvester_factory(robot), ready, config)
     assert clean.reason == "ok" and clean.touches == () and all(d > 0 for d in clean.durations_s)
+    assert clean.captured_id == 0                                  # the nozzle takes its own boll
     # a branch the robot cannot see, 7 cm out from the boll, across its approach line at its height
     x, y, z = BOLL_LOCAL
     crossed = farm_with(branches=[((x - 0.07, y - 0.1, z), (x - 0.07, y + 0.1, z))])
@@ -74,6 +75,18 @@ def test_a_branch_across_the_approach_is_touched_by_the_nozzle_the_bare_plant_is
     assert summary["touching_percent_of_planned"] == 50.0
     assert summary["touches_by_part"] == {"branch": len(touched.touches)}
     assert summary["touches_by_phase"]["approach"] >= 1
+
+
+def test_a_neighbour_in_front_of_the_boll_is_what_its_approach_captures(robot):
+    x, y, z = BOLL_LOCAL
+    farm = farm_with(bolls=(BOLL_LOCAL, (x - 0.06, y, z)))        # the second 6 cm towards the lane, in front
+    config = PickContactsConfig(first_plant=0, plants=1)
+    picks = {p.boll_id: p for p in plan_picks(farm, robot, harvester_factory(robot), PickCycleConfig().bin_joints_rad,
+                                              config, boll_ids=[0, 1])}
+    assert picks[0].reason == picks[1].reason == "ok"
+    assert picks[0].captured_id == 1 and picks[1].captured_id == 1
+    assert summarise(list(picks.values()))["captures"] == {"target": 1, "neighbour": 1, "neighbour_planned_clear": 1,
+                                                           "none": 0}
 
 
 def test_bad_set_ups_are_refused(robot):

@@ -1,5 +1,6 @@
 """The harvest of a robot (harvest.harvester): targets from detections, when to stop, a stop's picks with the
 real planner on a hand-built plant row, single picks of points, cancel, and the figures."""
+import dataclasses
 import math
 
 import numpy as np
@@ -23,6 +24,7 @@ from cottonsim_manipulation.harvest.pick_cycle import (
     SetVacuum,
     TrajectoryDone,
 )
+from cottonsim_manipulation.harvest.pick_order import PickOrderConfig
 from cottonsim_manipulation.harvest.targets import CONFIRMED, PICKED, TENTATIVE
 from cottonsim_manipulation.planning.approach import plan_approach
 
@@ -431,3 +433,27 @@ def test_the_estimated_stems_are_obstacles_of_the_plan(model):
         np.testing.assert_allclose(top - foot, [0.0, 0.0, 1.0], atol=1e-9)
     with pytest.raises(ValueError, match="stem_obstacles"):
         HarvestConfig(stem_obstacles=1)
+
+
+@pytest.mark.parametrize("radius_m", [0.03, 0.0])
+def test_a_boll_on_anothers_approach_line_is_picked_before_it(model, monkeypatch, radius_m):
+    """Boll 'a' with a neighbour 6 cm out on its approach line: the nozzle (vacuum on from the pre-grasp)
+    would catch the neighbour first, so the neighbour goes first even where the travel order (made to put
+    'a' first here) says otherwise; with the check off the travel order stands."""
+    import cottonsim_manipulation.harvest.harvester as harvester_module
+    h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(outward="lateral"),
+                  order_config=PickOrderConfig(clear_approach_radius_m=radius_m))
+    h.update_pose(np.eye(4), ARM_T_BASE)
+    a = np.array(BOLLS["a"][0])
+    ready = np.array(PickCycleConfig().bin_joints_rad)
+    see(h, [a])
+    neighbour = a - 0.06 * h.plan_from_here(a, ready).plan.approach_direction
+    see(h, [a, neighbour])
+    a_id = next(t.target_id for t in h.fusion.targets() if np.allclose(t.position_m, a, atol=1e-6))
+    real_order = harvester_module.order_picks
+    monkeypatch.setattr(harvester_module, "order_picks", lambda ids, q, q0, cfg: dataclasses.replace(
+        real_order(ids, q, q0, cfg), target_ids=sorted(ids, key=lambda i: i != a_id)))
+    h.start_stop(ready, 0.0)
+    h.on_event(RobotStopped(), 0.1)
+    first = h.fusion.target(h.cycle.current_target_id).position_m
+    assert np.allclose(first, neighbour if radius_m > 0.0 else a, atol=1e-6)

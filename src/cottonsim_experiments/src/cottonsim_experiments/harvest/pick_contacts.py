@@ -16,9 +16,14 @@ a question about the planner alone, answered here in seconds instead of a 35-min
   branches with the simulator's contact geometry (cottonsim_world.robot.arm_contacts: the link
   capsules unpadded, the nozzle's tip allowance left out).
 
-A pick *touches* when any link of any motion overlaps a stem or branch. ``summarise`` counts the
-planner's results, the touching picks and the touches by phase, arm link and plant part (one
-touch = one (phase, link, capsule) pair of a pick), and the mean durations of the motions.
+A pick *touches* when any link of any motion overlaps a stem or branch. The approach is also
+swept against every boll of the farm (all on their plants) with the nozzle's capture rule
+(cottonsim_common.vacuum_capture, the simulator's: the nearest boll to the tip, when it
+qualifies): the boll it *captures* first is the target, a neighbour, or none. ``summarise``
+counts the planner's results, the touching picks and the touches by phase, arm link and plant
+part (one touch = one (phase, link, capsule) pair of a pick), the captures (a neighbour caught
+first: 'neighbour_planned_clear' when that neighbour is a study boll whose own approach catches
+it, so picking it first clears the way), and the mean durations of the motions.
 Frames: world (the farm's), metres, radians.
 """
 from __future__ import annotations
@@ -30,10 +35,13 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from cottonsim_common.kinematics.arm_capsules import ARM_LINKS
+from cottonsim_common.kinematics.arm_capsules import ARM_LINKS, ArmCollisionConfig
+from cottonsim_common.kinematics.ur5e import link_frames
+from cottonsim_common.vacuum_capture import CaptureConfig, check_capture
 from cottonsim_common.validation import require_fields, require_int
 
 PHASES = ("transit", "approach", "retreat", "deliver")
+CAPTURE_STEP_RAD = 0.002       # joint step of the capture sweep: the tip moves ~2 mm (half a 2 cm capture radius / 5)
 
 
 @dataclass(frozen=True)
@@ -82,6 +90,7 @@ class PlannedPick:
     detail: str = ""
     touches: Tuple[Touch, ...] = ()
     durations_s: Optional[Tuple[float, float, float]] = None
+    captured_id: int = -1           # the boll the approach captures first (-1: none; planned picks only)
 
 
 def sweep(path_rad: np.ndarray, step_rad: float) -> np.ndarray:
@@ -107,6 +116,23 @@ def touches_of(path_rad: np.ndarray, woody_arm, contact_model, phase: str, step_
         part, plant = woody_arm.names[ci].split("/")
         out.append(Touch(phase, ARM_LINKS[li], part, int(plant), -depth))
     return out
+
+
+def first_capture(path_rad: np.ndarray, arm_T_world: np.ndarray, centres_world_m: np.ndarray,
+                  outwards_world: np.ndarray, nozzle_length_m: float, step_rad: float,
+                  capture: CaptureConfig = CaptureConfig()) -> int:
+    """Index of the boll the nozzle captures first along a joint path (vacuum on throughout, every boll on its
+    plant; the simulator's rule: the nearest boll to the tip, when it qualifies), -1 for none."""
+    configs = sweep(path_rad, step_rad)
+    flange = link_frames(configs)[:, -1]                                            # (K, 4, 4), arm base
+    world_T_arm = np.linalg.inv(arm_T_world)
+    axes = flange[:, :3, 2] @ world_T_arm[:3, :3].T
+    tips = (flange[:, :3, 3] + nozzle_length_m * flange[:, :3, 2]) @ world_T_arm[:3, :3].T + world_T_arm[:3, 3]
+    for tip, axis in zip(tips, axes):
+        nearest = int(np.argmin(np.linalg.norm(centres_world_m - tip, axis=1)))
+        if check_capture(tip, axis, centres_world_m[nearest], outwards_world[nearest], capture).captured:
+            return nearest
+    return -1
 
 
 def study_bolls(farm, config: PickContactsConfig) -> List[int]:
@@ -174,8 +200,11 @@ def plan_picks(farm, robot, harvester_factory, ready_rad, config: PickContactsCo
                  np.stack([plan.q_retreat_rad, ready]))
         touches = [t for phase, path in zip(PHASES, paths)
                    for t in touches_of(path, woody, contact_model, phase, config.sweep_step_rad)]
+        captured = first_capture(plan.approach.waypoints_rad, arm_T_world, positions, bolls.outward,
+                                 ArmCollisionConfig().nozzle_length_m, CAPTURE_STEP_RAD)
         out.append(PlannedPick(boll_id, "ok", result.detail, tuple(touches),
-                               (plan.transit.duration_s, plan.approach.duration_s, plan.retreat.duration_s)))
+                               (plan.transit.duration_s, plan.approach.duration_s, plan.retreat.duration_s),
+                               captured))
     return out
 
 
@@ -185,6 +214,8 @@ def summarise(picks: Sequence[PlannedPick]) -> Dict:
     planned = [p for p in picks if p.reason == "ok"]
     touches = [t for p in planned for t in p.touches]
     durations = np.array([p.durations_s for p in planned]) if planned else np.zeros((0, 3))
+    by_id = {p.boll_id: p for p in planned}
+    neighbour = [p for p in planned if p.captured_id not in (-1, p.boll_id)]
     return {
         "bolls": len(picks),
         "results": dict(sorted(collections.Counter(p.reason for p in picks).items())),
@@ -193,6 +224,11 @@ def summarise(picks: Sequence[PlannedPick]) -> Dict:
         "touches_by_phase": {ph: sum(1 for t in touches if t.phase == ph) for ph in PHASES},
         "touches_by_link": dict(sorted(collections.Counter(t.link for t in touches).items())),
         "touches_by_part": dict(sorted(collections.Counter(t.part for t in touches).items())),
+        "captures": {"target": sum(1 for p in planned if p.captured_id == p.boll_id),
+                     "neighbour": len(neighbour),
+                     "neighbour_planned_clear": sum(1 for p in neighbour if by_id.get(p.captured_id) is not None and
+                                                    by_id[p.captured_id].captured_id == p.captured_id),
+                     "none": sum(1 for p in planned if p.captured_id == -1)},
         "mean_motion_s": {name: float(durations[:, k].mean()) if len(durations) else None
                           for k, name in enumerate(("transit", "approach", "retreat"))},
     }

@@ -91,7 +91,8 @@ from cottonsim_common.kinematics.ur5e import Ur5eKinematics
 from cottonsim_common.transforms import transform_points
 from cottonsim_common.validation import require_fields, require_int, require_number
 from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
-from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks
+from cottonsim_manipulation.harvest.pick_order import (PickOrderConfig, approach_blockers, clear_approaches_first,
+                                                       order_picks)
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
 from cottonsim_manipulation.planning.approach import ApproachConfig, ApproachResult
 from cottonsim_manipulation.planning.stems import stem_obstacles
@@ -452,8 +453,20 @@ class Harvester:
         ok = [(t, r) for t, r in plans if r.ok]
         order = order_picks([t.target_id for t, _ in ok], np.array([r.plan.q_pregrasp_rad for _, r in ok]),
                             q_rad, self.order_config).target_ids if ok else []
+        if self.order_config.clear_approach_radius_m > 0.0 and len(ok) > 1:
+            order = clear_approaches_first(order, self._approach_blockers(ok))
         by_id = {t.target_id: t for t in targets}
         return [by_id[i] for i in order] + [t for t, r in plans if not r.ok]
+
+    def _approach_blockers(self, planned) -> dict:
+        """approach_blockers of the planned (PickTarget, ok ApproachResult) pairs, in the arm's base frame: the
+        nozzle tip's approach runs from standoff + pre-grasp distance out along the plan's direction to standoff."""
+        cfg = self.approach_config
+        boll = transform_points(self._arm_T_frame, [t.position_m for t, _ in planned])
+        out = np.array([-r.plan.approach_direction for _, r in planned])
+        return approach_blockers([t.target_id for t, _ in planned], boll,
+                                 boll + (cfg.grasp_standoff_m + cfg.pregrasp_distance_m) * out,
+                                 boll + cfg.grasp_standoff_m * out, self.order_config.clear_approach_radius_m)
 
     def _start(self, targets, q_rad, now_s: float) -> list:
         self._stop_plans = {}
