@@ -1,6 +1,5 @@
 #!/usr/bin/env python3
-"""Speed of the arm cores: UR5e IK per solve, collision checks, approach planning per boll, target fusion,
-pick order.
+"""Speed of the arm cores: UR5e IK per solve, collision checks, approach planning per boll, target fusion.
 
 Run:  source scripts/env.sh && OMP_NUM_THREADS=1 python benchmarks/bench_manipulation.py
 Prints medians (and p95 where it matters) of wall and CPU time of this process, the machine,
@@ -33,7 +32,6 @@ from cottonsim_common.kinematics.ur5e import (  # noqa: E402
     inverse_kinematics_batch,
     link_frames,
 )
-from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, order_picks  # noqa: E402
 from cottonsim_manipulation.harvest.targets import BollDetection3D, TargetFusion  # noqa: E402
 from cottonsim_manipulation.planning.approach import ApproachConfig, plan_approach  # noqa: E402
 from cottonsim_common.capsules import CapsuleSet  # noqa: E402
@@ -146,18 +144,6 @@ def bench_fusion(rng):
     print(f"target fusion, 12 detections against {len(fusion)} targets: {med:.2f} ms (cpu {cpu:.2f} ms)")
 
 
-def bench_pick_order(rng):
-    ids = list(range(15))
-    rounds = [STOW_RAD + rng.uniform(-1.5, 1.5, size=(15, 6)) for _ in range(20)]
-    med, _, cpu = timed(lambda: [order_picks(ids, q, STOW_RAD) for q in rounds], 5)
-    greedy = [order_picks(ids, q, STOW_RAD, PickOrderConfig(two_opt_passes=0)).joint_travel_rad for q in rounds]
-    opt = [order_picks(ids, q, STOW_RAD).joint_travel_rad for q in rounds]
-    given = [float(np.abs(np.diff(np.vstack([STOW_RAD, q]), axis=0)).sum()) for q in rounds]
-    print(f"pick order of 15 targets (greedy + 2-opt): {med / len(rounds):.2f} ms (cpu {cpu / len(rounds):.2f} ms); "
-          f"joint travel {statistics.median(opt):.1f} rad median (greedy alone {statistics.median(greedy):.1f}, "
-          f"input order {statistics.median(given):.1f})")
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ik-poses", type=int, default=2000, help="poses timed for IK (default 2000)")
@@ -176,7 +162,6 @@ def main():
     bench_collision(model, plants, rng)
     bench_approach(model, plants, args.repeats)
     bench_fusion(rng)
-    bench_pick_order(rng)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,5 @@
 """The harvest of a robot (harvest.harvester): targets from detections, when to stop, a stop's picks with the
 real planner on a hand-built plant row, single picks of points, cancel, and the figures."""
-import dataclasses
 import math
 
 import numpy as np
@@ -161,8 +160,10 @@ def test_a_stop_chooses_and_plans_its_targets_from_where_the_robot_stands(model)
     h.update_pose(rolled, ARM_T_BASE)
     commands = h.on_event(RobotStopped(), 1.0)
     assert any(isinstance(c, SendTrajectory) for c in commands)
+    assert len(planner.calls) == 1                                  # the first target only; the next ones ...
+    assert h.plan_next() and not h.plan_next() and len(planner.calls) == 2    # ... one at a time, while the arm moves
     expected = {tuple(np.round(np.add(p, (0.0, 0.3, 0.0)), 6)) for p, _ in BOLLS.values()}
-    assert {tuple(np.round(p, 6)) for p in planner.calls} <= expected and len(planner.calls) == 3
+    assert {tuple(np.round(p, 6)) for p in planner.calls} <= expected
 
 
 def test_the_plans_made_for_the_order_are_used_while_nothing_moved(model):
@@ -180,7 +181,7 @@ def test_the_plans_made_for_the_order_are_used_while_nothing_moved(model):
     see(h2, [p for p, _ in BOLLS.values()])
     h2.start_stop(ready, 0.0)
     h2.on_event(RobotStopped(), 0.1)
-    assert len(planner.calls) == 3
+    assert h2.plan_next() and len(planner.calls) == 2             # the second target planned ahead
     nudged = np.eye(4)
     nudged[0, 3] = 0.01
     h2.update_pose(nudged, ARM_T_BASE)
@@ -189,10 +190,29 @@ def test_the_plans_made_for_the_order_are_used_while_nothing_moved(model):
     h2.on_event(TrajectoryDone(), 3.0)       # approach done -> retreat and on to the bin
     h2.on_event(TrajectoryDone(), 6.0)       # delivered -> release
     see(h2, [p for p, _ in BOLLS.values()][1:], times=(6.5,))
-    h2.tick(7.0)                             # released -> the next target, planned from the nudged pose
-    assert len(planner.calls) == 4
-    shifts = [planner.calls[-1] - p for p in planner.calls[:3]]
-    assert any(np.allclose(d, (0.01, 0.0, 0.0), atol=1e-9) for d in shifts)
+    h2.tick(7.0)                             # released -> the next target, planned again from the nudged pose
+    assert len(planner.calls) == 3
+    np.testing.assert_allclose(planner.calls[2] - planner.calls[1], (0.01, 0.0, 0.0), atol=1e-9)
+
+
+def test_a_target_planned_ahead_is_not_planned_again_at_its_turn(model):
+    planner = RecordingPlanner(model)
+    h = Harvester(planner, HarvestConfig(outward="lateral"))
+    h.update_pose(np.eye(4), ARM_T_BASE)
+    see(h, [p for p, _ in BOLLS.values()])
+    ready = np.array(PickCycleConfig().bin_joints_rad)
+    assert not h.plan_next()                                       # no stop running
+    h.start_stop(ready, 0.0)
+    assert not h.plan_next()                                       # the robot does not stand yet: no targets
+    h.on_event(RobotStopped(), 0.1)
+    assert h.plan_next() and len(planner.calls) == 2
+    h.on_event(TrajectoryDone(), 2.0)
+    h.on_event(CaptureConfirmed(), 2.1)
+    h.on_event(TrajectoryDone(), 3.0)
+    h.on_event(TrajectoryDone(), 6.0)
+    see(h, [p for p, _ in BOLLS.values()][1:], times=(6.5,))
+    h.tick(7.0)                                                    # the second target's turn: its plan is ready
+    assert len(planner.calls) == 2 and h.cycle.phase == "approach"
 
 
 def test_a_stop_picks_every_reachable_boll_and_records_the_figures(harvester):
@@ -438,9 +458,8 @@ def test_the_estimated_stems_are_obstacles_of_the_plan(model):
 @pytest.mark.parametrize("radius_m", [0.03, 0.0])
 def test_a_boll_on_anothers_approach_line_is_picked_before_it(model, monkeypatch, radius_m):
     """Boll 'a' with a neighbour 6 cm out on its approach line: the nozzle (vacuum on from the pre-grasp)
-    would catch the neighbour first, so the neighbour goes first even where the travel order (made to put
-    'a' first here) says otherwise; with the check off the travel order stands."""
-    import cottonsim_manipulation.harvest.harvester as harvester_module
+    would catch the neighbour first, so the neighbour goes first even where the given order (made to put
+    'a' first here) says otherwise; with the check off the given order stands."""
     h = Harvester(lambda p, n, q, stems: plan_approach(p, n, q, model, stems), HarvestConfig(outward="lateral"),
                   order_config=PickOrderConfig(clear_approach_radius_m=radius_m))
     h.update_pose(np.eye(4), ARM_T_BASE)
@@ -449,10 +468,9 @@ def test_a_boll_on_anothers_approach_line_is_picked_before_it(model, monkeypatch
     see(h, [a])
     neighbour = a - 0.06 * h.plan_from_here(a, ready).plan.approach_direction
     see(h, [a, neighbour])
-    a_id = next(t.target_id for t in h.fusion.targets() if np.allclose(t.position_m, a, atol=1e-6))
-    real_order = harvester_module.order_picks
-    monkeypatch.setattr(harvester_module, "order_picks", lambda ids, q, q0, cfg: dataclasses.replace(
-        real_order(ids, q, q0, cfg), target_ids=sorted(ids, key=lambda i: i != a_id)))
+    nearest_first = h.pickable
+    monkeypatch.setattr(h, "pickable", lambda now_s=None: sorted(
+        nearest_first(now_s), key=lambda t: not np.allclose(t.position_m, a, atol=1e-6)))
     h.start_stop(ready, 0.0)
     h.on_event(RobotStopped(), 0.1)
     first = h.fusion.target(h.cycle.current_target_id).position_m

@@ -14,7 +14,6 @@ from cottonsim_manipulation.harvest.pick_cycle import (
     SendTrajectory,
     TrajectoryDone,
 )
-from cottonsim_manipulation.harvest.pick_order import order_picks
 from cottonsim_manipulation.planning.approach import plan_approach
 
 NOZZLE_M = 0.15
@@ -33,14 +32,11 @@ def test_every_reachable_boll_is_captured_and_binned(model):
     def plan(target, q):
         return plan_approach(target.position_m, target.outward, q, model, plants)
 
-    # Order by each reachable target's pre-grasp as planned from the stow pose.
     first = {t.target_id: plan(t, STOW_RAD) for t in targets}
     reachable = [i for i, r in first.items() if r.ok]
     assert sorted(reachable) == [1, 2, 3] and first[4].reason == "unreachable"
-    order = order_picks(reachable, [first[i].plan.q_pregrasp_rad for i in reachable], STOW_RAD)
-    ordered = [t for i in order.target_ids for t in targets if t.target_id == i] + [targets[3]]
 
-    cycle = PickCycle(ordered, STOW_RAD, plan)
+    cycle = PickCycle(targets, STOW_RAD, plan)
     commands = cycle.start(0.0)
     now, q = 0.0, STOW_RAD.copy()
     events = [RobotStopped()]
@@ -70,5 +66,5 @@ def test_every_reachable_boll_is_captured_and_binned(model):
     result = {r.target_id: r for r in cycle.results}
     assert all(result[i].ok for i in reachable), [result[i] for i in reachable]
     assert result[4].reason == "unreachable"
-    assert [r.target_id for r in cycle.results if r.ok] == order.target_ids
+    assert [r.target_id for r in cycle.results if r.ok] == [1, 2, 3]          # in the given order
     assert all(0.0 < result[i].cycle_time_s < 30.0 for i in reachable)

@@ -35,8 +35,9 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   more than ``stop_ahead_m`` ahead of the shoulder along the robot's heading
   (base_link x: the robot has come abeam of it), or when the robot stands
   anyway; at most ``max_targets_per_stop`` targets, the nearest first, are
-  picked in the order of harvest.pick_order (short joint travel from the
-  pre-grasps planned from the current joints).
+  picked in that order, except that a target comes after the targets on its
+  approach line (harvest.pick_order; the approach line from the estimated
+  outward direction).
 * The boll's outward direction (horizontal, from its stem, along which the
   nozzle comes in) is not observed; it is estimated (``outward``):
   'plant': from the estimated stem to the boll. The stem stands on
@@ -63,11 +64,12 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   (``ground_z_m`` in base_link) up, so an approach does not run into the plant.
 * A stop halts the route first; its targets are chosen and ordered once the
   robot stands, from the arm-base pose of that moment (:meth:`Harvester.update_pose`):
-  a robot brakes over some centimetres, and planning a stop's picks takes
-  (sim) time that a driving robot would spend rolling on. The plans made for
-  the order are used for the picks while the arm starts from the same joints
-  and the robot has not moved (every pick ends at the bin pose, where the next
-  one starts); otherwise a target is planned again when its turn comes.
+  a robot brakes over some centimetres. The first target is planned at its
+  turn; each next one while the arm moves (:meth:`Harvester.plan_next`, from
+  the bin pose, where every pick ends and the next starts), and that plan is
+  used while the robot has not moved; otherwise a target is planned again
+  when its turn comes. Planning every target before the first pick made the
+  stop's first cycle wait for all of them.
 * Results: an 'ok' marks the target picked (harvest.targets never adds it
   again); a failure of the arm ('aborted', 'capture_missed', 'timeout')
   counts a failed attempt (abandoned after TargetFusionConfig.max_attempts);
@@ -91,8 +93,7 @@ from cottonsim_common.kinematics.ur5e import Ur5eKinematics
 from cottonsim_common.transforms import transform_points
 from cottonsim_common.validation import require_fields, require_int, require_number
 from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
-from cottonsim_manipulation.harvest.pick_order import (PickOrderConfig, approach_blockers, clear_approaches_first,
-                                                       order_picks)
+from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, approach_blockers, clear_approaches_first
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
 from cottonsim_manipulation.planning.approach import ApproachConfig, ApproachResult
 from cottonsim_manipulation.planning.stems import stem_obstacles
@@ -355,8 +356,21 @@ class Harvester:
         return self._start(self._select_stop_targets, q_current_rad, now_s)
 
     def _select_stop_targets(self, q_rad: np.ndarray, now_s: float) -> List[PickTarget]:
+        """The stop's targets, the nearest first, each after the targets on its estimated approach line
+        (harvest.pick_order); none is planned yet: the first is planned at its turn, the next ones while the
+        arm moves (plan_next)."""
         chosen = self.pickable(now_s)[: self.config.max_targets_per_stop]
-        return self._ordered([PickTarget(t.target_id, tuple(t.position_m), (0.0, 0.0, 0.0)) for t in chosen], q_rad)
+        order = [t.target_id for t in chosen]
+        radius_m = self.order_config.clear_approach_radius_m
+        if radius_m > 0.0 and len(chosen) > 1:
+            cfg = self.approach_config
+            boll, out = zip(*(self._boll_and_outward(t.position_m)[:2] for t in chosen))
+            boll, out = np.array(boll), np.array(out)
+            order = clear_approaches_first(order, approach_blockers(
+                order, boll, boll + (cfg.grasp_standoff_m + cfg.pregrasp_distance_m) * out,
+                boll + cfg.grasp_standoff_m * out, radius_m))
+        by_id = {t.target_id: t for t in chosen}
+        return [PickTarget(i, tuple(by_id[i].position_m), (0.0, 0.0, 0.0)) for i in order]
 
     def start_pick(self, q_current_rad, now_s: float, target_id: Optional[int] = None, point_frame_m=None) -> list:
         """Start a cycle for one boll: a target by id, or a point (fixed frame). ValueError when the target is
@@ -397,7 +411,7 @@ class Harvester:
     # ------------------------------------------------------------------ internals
     def _plan_target(self, target: PickTarget, q_rad: np.ndarray):
         """plan_pick of the PickCycle: the target from its fixed-frame position and the arm's pose now (the
-        plan made for the stop's order when nothing moved since)."""
+        plan made ahead by plan_next when nothing moved since)."""
         self._require_pose()
         stale = self._stale(target.target_id)
         if stale:
@@ -412,18 +426,36 @@ class Harvester:
                 return result
         return self.plan_from_here(target.position_m, q_rad)
 
+    def plan_next(self) -> bool:
+        """Plan the running stop's next target now, from the bin pose (where its pick will start), unless it is
+        planned already; call while the arm moves, so that its turn does not wait for the planner. Whether a
+        plan was made."""
+        if not self.busy or not self.cycle.upcoming_targets:
+            return False
+        target = self.cycle.upcoming_targets[0]
+        if target.target_id in self._stop_plans or self._stale(target.target_id):
+            return False
+        q = np.asarray(self.cycle_config.bin_joints_rad, dtype=float)
+        self._stop_plans[target.target_id] = (q, self._arm_T_frame.copy(), self.plan_from_here(target.position_m, q))
+        return True
+
     def plan_from_here(self, point_frame_m, q_rad) -> ApproachResult:
         """Plan a pick of the boll at point_frame_m (the fixed frame) with the arm where it is now (update_pose)
         and at joints q_rad: its outward direction estimated (``outward``) and the stems of the targets near
         it as obstacles (``stem_obstacles``), from every target known."""
+        boll_arm, outward_arm, boll, others = self._boll_and_outward(point_frame_m)
+        return self._plan(boll_arm, outward_arm, q_rad, self._stems(boll, others))
+
+    def _boll_and_outward(self, point_frame_m):
+        """The boll at point_frame_m and its estimated outward direction in the arm's base frame; the boll and
+        every target in base_link."""
         self._require_pose()
         base_T_arm = np.linalg.inv(self._arm_T_base)
         base_T_frame = base_T_arm @ self._arm_T_frame
         boll = transform_points(base_T_frame, [point_frame_m])[0]
         others = transform_points(base_T_frame, [t.position_m for t in self.fusion.targets()])
         outward = estimate_outward(boll, others, transform_points(base_T_arm, [self._shoulder_m])[0], self.config)
-        return self._plan(transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, q_rad,
-                          self._stems(boll, others))
+        return transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, boll, others
 
     def _stale(self, target_id: int) -> str:
         """Why a stop's target is not picked at its turn ('' when it is): last seen more than max_target_age_s
@@ -445,28 +477,6 @@ class Harvester:
             [estimate_stem(boll_base_m, targets_base_m, self.config)]
         return stem_obstacles(np.array(stems), self.config.ground_z_m, self.approach_config).transformed(
             self._arm_T_base)
-
-    def _ordered(self, targets: List[PickTarget], q_rad) -> List[PickTarget]:
-        q = np.asarray(q_rad, dtype=float)
-        plans = [(t, self._plan_target(t, q)) for t in targets]
-        self._stop_plans = {t.target_id: (q.copy(), self._arm_T_frame.copy(), r) for t, r in plans}
-        ok = [(t, r) for t, r in plans if r.ok]
-        order = order_picks([t.target_id for t, _ in ok], np.array([r.plan.q_pregrasp_rad for _, r in ok]),
-                            q_rad, self.order_config).target_ids if ok else []
-        if self.order_config.clear_approach_radius_m > 0.0 and len(ok) > 1:
-            order = clear_approaches_first(order, self._approach_blockers(ok))
-        by_id = {t.target_id: t for t in targets}
-        return [by_id[i] for i in order] + [t for t, r in plans if not r.ok]
-
-    def _approach_blockers(self, planned) -> dict:
-        """approach_blockers of the planned (PickTarget, ok ApproachResult) pairs, in the arm's base frame: the
-        nozzle tip's approach runs from standoff + pre-grasp distance out along the plan's direction to standoff."""
-        cfg = self.approach_config
-        boll = transform_points(self._arm_T_frame, [t.position_m for t, _ in planned])
-        out = np.array([-r.plan.approach_direction for _, r in planned])
-        return approach_blockers([t.target_id for t, _ in planned], boll,
-                                 boll + (cfg.grasp_standoff_m + cfg.pregrasp_distance_m) * out,
-                                 boll + cfg.grasp_standoff_m * out, self.order_config.clear_approach_radius_m)
 
     def _start(self, targets, q_rad, now_s: float) -> list:
         self._stop_plans = {}

@@ -1,14 +1,13 @@
 """One stop's pick cycle as a pure state machine: halt, pick every target, resume the route.
 
-Phases, per target in the given order (see harvest.pick_order):
+Phases, per target in the given order:
 
     HALT -> [ APPROACH -> CAPTURE -> DELIVER -> RELEASE ] * targets -> ResumeRoute -> DONE
     (a missed capture: CAPTURE -> RETREAT -> the next target)
 
 * HALT: the route is paused (command HaltRoute); waits for the robot to stop. The targets are either
   given at the start, or chosen once the robot stands (``targets`` a callable: ``select(q_current,
-  now_s)`` -> the ordered targets), from where it stopped: a robot may roll on while it brakes, and the
-  choice and the order take planning time.
+  now_s)`` -> the ordered targets), from where it stopped: a robot may roll on while it brakes.
 * APPROACH: the target is planned (``plan_pick(target, q_current)``, e.g.
   planning.approach.plan_approach) and the transit to its pre-grasp is sent.
 * CAPTURE: vacuum on, the approach along the boll's outward direction is sent;
@@ -20,8 +19,7 @@ Phases, per target in the given order (see harvest.pick_order):
 * RELEASE: vacuum off, ``release_dwell_s`` for the boll to drop; the target is 'ok'.
 
 The machine is driven by calls with the current time [s]: start(), on_event()
-and tick(); each returns the commands to carry out. Planning takes time (a
-stop's selection plans every target): with a ``clock`` (a function returning
+and tick(); each returns the commands to carry out. Planning takes time: with a ``clock`` (a function returning
 the time now [s]) the phase deadlines after a plan count from the time the
 plan was done, not from the call's time. Every phase has a timeout,
 so the cycle ends even when no event ever arrives: a timed-out target is
@@ -204,6 +202,11 @@ class PickCycle:
     @property
     def done(self) -> bool:
         return self.phase == DONE
+
+    @property
+    def upcoming_targets(self) -> List[PickTarget]:
+        """The targets after the current one, in their order (empty before the robot stands)."""
+        return list(self._queue)
 
     @property
     def current_target_id(self) -> Optional[int]:

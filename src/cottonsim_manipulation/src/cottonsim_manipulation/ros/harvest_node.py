@@ -63,9 +63,9 @@ from cottonsim_common.ros.conversions import transform_matrix
 from cottonsim_common.ros.params import config_from_params, typed_param
 from cottonsim_common.transforms import transform_points
 from cottonsim_manipulation.harvest.harvester import HarvestConfig, Harvester
-from cottonsim_manipulation.harvest.pick_cycle import (CancelTrajectory, CaptureConfirmed, HaltRoute, PickCycleConfig,
-                                                       ResumeRoute, RobotStopped, SendTrajectory, SetVacuum,
-                                                       TrajectoryFailed)
+from cottonsim_manipulation.harvest.pick_cycle import (APPROACH, DELIVER, CancelTrajectory, CaptureConfirmed, HaltRoute,
+                                                       PickCycleConfig, ResumeRoute, RobotStopped, SendTrajectory,
+                                                       SetVacuum, TrajectoryFailed)
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig
 from cottonsim_manipulation.harvest.targets import TargetFusion, TargetFusionConfig
 from cottonsim_manipulation.planning.approach import ApproachConfig, plan_approach
@@ -292,6 +292,8 @@ class HarvestNode:
                 commands += h.on_event(CaptureConfirmed(), now)
             commands += h.tick(now)
             self._carry_out(commands)
+            if h.busy and h.cycle.phase in (APPROACH, DELIVER) and not commands:
+                h.plan_next()                          # the next target's plan, while the arm moves
             for result in h.history[self._logged:]:
                 rospy.loginfo("harvest: target %d: %s (%s), %.2f s", result.target_id, result.reason, result.detail,
                               result.cycle_time_s)
