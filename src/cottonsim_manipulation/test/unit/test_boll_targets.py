@@ -56,7 +56,7 @@ def test_two_bolls_four_centimetres_apart_stay_two(seed):
 def test_targets_persist_out_of_view_and_a_picked_boll_never_returns():
     rng = np.random.default_rng(2)
     a, b = np.array([3.0, 12.0, 0.6]), np.array([3.0, 12.5, 0.4])
-    fusion = TargetFusion()
+    fusion = TargetFusion(TargetFusionConfig(reopen_observations=0))
     for k in range(5):
         fusion.update([seen(rng, a), seen(rng, b)], stamp_s=k)
     for k in range(5, 50):                       # b leaves the view
@@ -127,6 +127,35 @@ def test_two_bolls_in_one_frame_never_merge():
     assert [t.observations for t in fusion.targets()] == [2, 2, 1]
 
 
+def test_a_picked_target_still_seen_after_its_pick_is_open_again():
+    """The nozzle took a neighbour on its way in: the target's own boll still hangs there and is seen again."""
+    rng = np.random.default_rng(3)
+    a = np.array([3.0, 12.0, 0.6])
+    fusion = TargetFusion()
+    for k in range(5):
+        fusion.update([seen(rng, a)], stamp_s=0.1 * k)
+    (target,) = fusion.targets()
+    fusion.mark_picked(target.target_id, stamp_s=0.5)
+    # the second after the pick (the carried boll, a frame from before) does not count
+    for k in range(6):
+        assert fusion.update([seen(rng, a)], stamp_s=0.6 + 0.1 * k) == [-1]
+    assert fusion.target(target.target_id).state == PICKED
+    moved = a + [0.0, 0.01, 0.0]                     # seen again, 1 cm from the old estimate
+    assert fusion.update([BollDetection3D(moved, SIGMA)], stamp_s=1.6) == [-1]
+    assert fusion.update([BollDetection3D(moved, SIGMA)], stamp_s=1.6) == [-1]     # the same frame counts once
+    assert fusion.update([BollDetection3D(moved, SIGMA)], stamp_s=1.7) == [-1]
+    assert fusion.update([BollDetection3D(moved, SIGMA)], stamp_s=1.8) == [target.target_id]
+    reopened = fusion.target(target.target_id)
+    assert reopened.state == CONFIRMED and fusion.open_targets() == [reopened]
+    np.testing.assert_allclose(reopened.position_m, moved, atol=1e-9)
+    assert reopened.last_seen_s == 1.8 and len(fusion) == 1
+    # picked again, and this time gone: nothing comes back
+    fusion.mark_picked(target.target_id, stamp_s=2.0)
+    for k in range(10):
+        fusion.update([], stamp_s=3.0 + k)
+    assert fusion.target(target.target_id).state == PICKED
+
+
 def test_bad_input():
     with pytest.raises(ValueError, match="position"):
         BollDetection3D(np.array([0, np.nan, 0]), 0.01)
@@ -144,6 +173,10 @@ def test_bad_input():
         TargetFusionConfig(confirm_observations=0)
     with pytest.raises(ValueError, match="track_observations"):
         TargetFusionConfig(track_observations=-1)
+    with pytest.raises(ValueError, match="reopen_observations"):
+        TargetFusionConfig(reopen_observations=-1)
+    with pytest.raises(ValueError, match="reopen_after_s"):
+        TargetFusionConfig(reopen_after_s=float("nan"))
 
 
 def test_a_tracking_target_follows_a_drifting_boll_and_a_plain_one_lags():

@@ -493,7 +493,7 @@ class Harvester:
             self.history.append(result)
             if result.target_id >= 0:
                 if result.ok:
-                    self.fusion.mark_picked(result.target_id)
+                    self.fusion.mark_picked(result.target_id, self._newest_detection_s)
                 elif result.reason not in NOT_ATTEMPTS:
                     self.fusion.mark_failed(result.target_id)
                 if result.reason in PLANNING_FAILURES and self._arm_T_frame is not None:

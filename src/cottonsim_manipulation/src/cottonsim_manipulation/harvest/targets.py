@@ -22,7 +22,12 @@ with a 1-sigma position uncertainty) are associated with the existing targets:
   moves slowly in the fixed frame, as a boll does when the odometry drifts;
 * a detection associated with no target starts a new one, unless it lies
   within ``picked_radius_m`` of a picked boll (a picked boll is never added
-  again, even if a detection of its empty place comes in).
+  again, even if a detection of its empty place comes in);
+* but a picked target seen there again in ``reopen_observations`` frames more
+  than ``reopen_after_s`` after its pick is open again, at the mean of those
+  detections: the nozzle took another boll on its way in (two bolls of one
+  node 2.7 cm apart), and the target's own boll still hangs there. The boll
+  the nozzle carries away is out of the radius within a fraction of a second.
 
 Targets are never dropped when they leave the view. A target is 'tentative'
 until it has ``confirm_observations`` detections, then 'confirmed'; the
@@ -50,7 +55,10 @@ class TargetFusionConfig:
     confirm_observations: detections after which a target is confirmed.
     picked_radius_m: detections this close to a picked boll are ignored [m].
     max_attempts: failed picks after which a target is abandoned (the harvester counts the arm's failures only).
-    track_observations: 0: the mean keeps every detection; N > 0: it follows about the last N (module docstring)."""
+    track_observations: 0: the mean keeps every detection; N > 0: it follows about the last N (module docstring).
+    reopen_observations: frames that see a picked target again (within picked_radius_m, reopen_after_s after
+        its pick) before it is open again (0: never).
+    reopen_after_s: detections this soon after a pick do not reopen its target [s]."""
 
     gate_sigma: float = 5.0
     min_gate_m: float = 0.025
@@ -60,16 +68,18 @@ class TargetFusionConfig:
     picked_radius_m: float = 0.03
     max_attempts: int = 2
     track_observations: int = 0
+    reopen_observations: int = 3
+    reopen_after_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("gate_sigma", "min_gate_m", "max_gate_m", "min_sigma_m", "picked_radius_m"):
+        for name in ("gate_sigma", "min_gate_m", "max_gate_m", "min_sigma_m", "picked_radius_m", "reopen_after_s"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0.0 < value < 10.0):
                 raise ValueError(f"TargetFusionConfig.{name} must be a number in (0, 10), got {value!r}")
         if self.min_gate_m > self.max_gate_m:
             raise ValueError(f"TargetFusionConfig.min_gate_m {self.min_gate_m} exceeds max_gate_m {self.max_gate_m}")
-        for name in ("confirm_observations", "max_attempts", "track_observations"):
-            value, low = getattr(self, name), 0 if name == "track_observations" else 1
+        for name in ("confirm_observations", "max_attempts", "track_observations", "reopen_observations"):
+            value, low = getattr(self, name), 0 if name in ("track_observations", "reopen_observations") else 1
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (low <= value <= 1000):
                 raise ValueError(f"TargetFusionConfig.{name} must be an integer in [{low}, 1000], got {value!r}")
 
@@ -104,6 +114,8 @@ class BollTarget:
     state: str = TENTATIVE
     attempts: int = 0
     _weight: float = field(default=0.0, repr=False)
+    _picked_s: float = field(default=-math.inf, repr=False)      # the stamp of its pick
+    _reseen: Dict[float, np.ndarray] = field(default_factory=dict, repr=False)   # stamp -> detection, after the pick
 
 
 class TargetFusion:
@@ -171,16 +183,45 @@ class TargetFusion:
                     assigned[d] = True
                     self._absorb(active[t], pos[d], sig[d], stamp_s)
                     result[d] = active[t].target_id
-        picked = np.array([t.position_m for t in self._targets.values() if t.state == PICKED]).reshape(-1, 3)
+        picked = [t for t in self._targets.values() if t.state == PICKED]
+        picked_pos = np.array([t.position_m for t in picked]).reshape(-1, 3)
         for d in np.flatnonzero(~assigned):
-            if len(picked) and np.min(np.linalg.norm(picked - pos[d], axis=1)) <= cfg.picked_radius_m:
-                continue
+            if len(picked):
+                distance = np.linalg.norm(picked_pos - pos[d], axis=1)
+                nearest = int(np.argmin(distance))
+                if distance[nearest] <= cfg.picked_radius_m:
+                    if self._seen_again(picked[nearest], pos[d], sig[d], stamp_s):
+                        result[d] = picked[nearest].target_id
+                    continue
             result[d] = self._create(pos[d], sig[d], stamp_s)
         return result
 
-    def mark_picked(self, target_id: int) -> None:
-        """The boll is in the bin: never pick it, nor add it, again."""
-        self.target(target_id).state = PICKED
+    def mark_picked(self, target_id: int, stamp_s: float = -math.inf) -> None:
+        """The boll is in the bin (at stamp_s, the detections' clock [s]): not picked, nor added, again, unless
+        it is seen again (reopen_observations)."""
+        target = self.target(target_id)
+        target.state = PICKED
+        target._picked_s = float(stamp_s)
+        target._reseen = {}
+
+    def _seen_again(self, target: BollTarget, position: np.ndarray, sigma: float, stamp_s: float) -> bool:
+        """A detection near a picked target; reopens it (True) after reopen_observations frames (module docstring)."""
+        cfg = self.config
+        if not cfg.reopen_observations or stamp_s < target._picked_s + cfg.reopen_after_s:
+            return False
+        target._reseen.setdefault(float(stamp_s), position.copy())
+        if len(target._reseen) < cfg.reopen_observations:
+            return False
+        seen = np.array(list(target._reseen.values()))
+        w = 1.0 / (sigma * sigma)
+        target.position_m = seen.mean(axis=0)
+        target._weight = w * len(seen)
+        target.sigma_m = 1.0 / math.sqrt(target._weight)
+        target.observations += len(seen)
+        target.last_seen_s = max(target.last_seen_s, stamp_s)
+        target.state = CONFIRMED
+        target._reseen = {}
+        return True
 
     def mark_failed(self, target_id: int) -> str:
         """A pick of the target failed; returns its new state (abandoned after max_attempts)."""
