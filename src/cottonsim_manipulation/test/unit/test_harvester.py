@@ -9,8 +9,8 @@ from hand_built_scene import GROUND_Z_M, STOW_RAD, plant_row
 from cottonsim_common.kinematics.ur5e import forward_kinematics
 from cottonsim_common.vacuum_capture import check_capture, nozzle_tip
 from cottonsim_common.transforms import transform_points
-from cottonsim_manipulation.harvest.harvester import (PLANNING_FAILURES, HarvestConfig, Harvester, estimate_outward,
-                                                      estimate_stem)
+from cottonsim_manipulation.harvest.harvester import PLANNING_FAILURES, HarvestConfig, Harvester
+from cottonsim_manipulation.harvest.outward import estimate_outward, estimate_stem
 from cottonsim_manipulation.harvest.pick_cycle import (
     PickCycleConfig,
     CancelTrajectory,

@@ -59,7 +59,7 @@ pick, runs one harvest.pick_cycle.PickCycle per stop and keeps the figures:
   irregular spacing want 'plant'. 'lateral': along the robot's y axis towards
   its centre line. 'radial': from the boll towards the shoulder.
 * Stems as obstacles (``stem_obstacles``): the robot does not perceive stems, but the 'plant'
-  estimate places each target's stem (:func:`estimate_stem`); the stems of the targets within
+  estimate places each target's stem (harvest.outward.estimate_stem); the stems of the targets within
   reach of the boll go to the planner as vertical capsules (planning.stems) from the ground
   (``ground_z_m`` in base_link) up, so an approach does not run into the plant.
 * A stop halts the route first; its targets are chosen and ordered once the
@@ -92,6 +92,7 @@ from cottonsim_common.capsules import CapsuleSet
 from cottonsim_common.kinematics.ur5e import Ur5eKinematics
 from cottonsim_common.transforms import transform_points
 from cottonsim_common.validation import require_fields, require_int, require_number
+from cottonsim_manipulation.harvest.outward import OUTWARD_MODELS, estimate_outward, estimate_stem
 from cottonsim_manipulation.harvest.pick_cycle import REASONS, PickCycle, PickCycleConfig, PickResult, PickTarget
 from cottonsim_manipulation.harvest.pick_order import PickOrderConfig, approach_blockers, clear_approaches_first
 from cottonsim_manipulation.harvest.targets import BollDetection3D, BollTarget, TargetFusion
@@ -99,7 +100,6 @@ from cottonsim_manipulation.planning.approach import ApproachConfig, ApproachRes
 from cottonsim_manipulation.planning.stems import stem_obstacles
 from cottonsim_manipulation.planning.trajectory import TrajectoryConfig
 
-OUTWARD_MODELS = ("row_grid", "plant", "lateral", "radial")
 PLANNING_FAILURES = ("unreachable", "ik_failed", "collision")   # results the planner decided
 NOT_ATTEMPTS = PLANNING_FAILURES + ("lost", "cancelled")        # failures that are no failed attempt: the arm
                                                                 # did not go for the boll, or was stopped
@@ -190,59 +190,6 @@ def _pose(matrix, what: str) -> np.ndarray:
     if t.shape != (4, 4) or not np.all(np.isfinite(t)):
         raise ValueError(f"{what} must be a finite 4x4 matrix")
     return t
-
-
-def estimate_stem(boll_base_m, targets_base_m, config: HarvestConfig = HarvestConfig()) -> np.ndarray:
-    """The boll's stem (x, y) in base_link [m] as the 'plant' or 'row_grid' model estimates it: on the row
-    line ``row_offset_m`` to the boll's side; along the row at the centre of its plant (a mean shift over the
-    targets (N, 3) on that side within ``plant_half_spacing_m``, from the boll's own x) or at the nearest
-    point of the regular stem grid fitted to them (module docstring)."""
-    p = np.asarray(boll_base_m, dtype=float).reshape(3)
-    side = 1.0 if p[1] >= 0.0 else -1.0
-    others = np.asarray(targets_base_m, dtype=float).reshape(-1, 3)
-    along = others[others[:, 1] * side >= 0.0, 0]
-    if config.outward == "row_grid":
-        return np.array([_grid_point(p[0], along, 2.0 * config.plant_half_spacing_m, config.grid_window_m),
-                         side * config.row_offset_m])
-    x = p[0]
-    for _ in range(20):
-        window = along[np.abs(along - x) <= config.plant_half_spacing_m]
-        if not len(window) or abs(window.mean() - x) < 1e-4:
-            break
-        x = float(window.mean())
-    return np.array([x, side * config.row_offset_m])
-
-
-def _grid_point(x_m: float, along_m: np.ndarray, spacing_m: float, window_m: float) -> float:
-    """The point nearest x_m of the grid of period spacing_m whose phase is the circular mean of the
-    positions along_m within window_m of x_m (x_m itself when there are none)."""
-    near = along_m[np.abs(along_m - x_m) <= window_m]
-    if not len(near):
-        return float(x_m)
-    k = 2.0 * math.pi / spacing_m
-    phase_m = math.atan2(float(np.mean(np.sin(k * near))), float(np.mean(np.cos(k * near)))) / k
-    return phase_m + round((x_m - phase_m) / spacing_m) * spacing_m
-
-
-def estimate_outward(boll_base_m, targets_base_m, shoulder_base_m, config: HarvestConfig = HarvestConfig()
-                     ) -> np.ndarray:
-    """The boll's outward direction (unit, horizontal, base_link) as config.outward estimates it.
-
-    boll_base_m: the boll (3,); targets_base_m: every target (N, 3), for the plant's centre; shoulder_base_m:
-    the arm's shoulder (3,); all in base_link [m]."""
-    p = np.asarray(boll_base_m, dtype=float).reshape(3)
-    side = 1.0 if p[1] >= 0.0 else -1.0
-    lateral = np.array([0.0, -side, 0.0])
-    if config.outward == "lateral":
-        return lateral
-    if config.outward == "radial":
-        d = np.asarray(shoulder_base_m, dtype=float).reshape(3) - p
-        d[2] = 0.0
-    else:
-        stem = estimate_stem(p, targets_base_m, config)
-        d = np.array([p[0] - stem[0], p[1] - stem[1], 0.0])
-    n = float(np.linalg.norm(d))
-    return d / n if n > 1e-9 else lateral
 
 
 class Harvester:
