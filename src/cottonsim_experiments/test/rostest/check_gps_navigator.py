@@ -38,9 +38,9 @@ class GpsNavigatorTest(NavigatorWatch):
         self.tf_buffer = tf2_ros.Buffer()
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         settings = rospy.get_param("/sim_bridge/sim", {}) or {}
-        geodesy = HectorGeodesy(*simulator_config_from_dict(dict(settings)).geodesy_reference)
+        self.geodesy = HectorGeodesy(*simulator_config_from_dict(dict(settings)).geodesy_reference)
         # the ENU direction of the world's x axis, from the simulator's own geodesy (at the farm)
-        lat, lon, _ = geodesy.world_to_geodetic(np.array([0.0, 10.0]), np.array([0.0, 0.0]))
+        lat, lon, _ = self.geodesy.world_to_geodetic(np.array([0.0, 10.0]), np.array([0.0, 0.0]))
         north = math.radians(lat[1] - lat[0])
         east = math.radians(lon[1] - lon[0]) * math.cos(math.radians(lat[0]))
         self.world_x_enu_yaw_rad = math.atan2(north, east)
@@ -66,8 +66,7 @@ class GpsNavigatorTest(NavigatorWatch):
         report_file = rospy.get_param("~report_file")
         self.forget_old_report(report_file)
         wps = load_gps_waypoints(path)
-        settings = rospy.get_param("/sim_bridge/sim", {}) or {}
-        geodesy = HectorGeodesy(*simulator_config_from_dict(dict(settings)).geodesy_reference)
+        geodesy = self.geodesy
         s = self.wait_until_finished(420)
         self.assertEqual((s["succeeded"], s["aborted"], s["skipped"]), (len(wps), 0, 0), f"summary {s}")
         # straight-on waypoints are driven through (counted among the succeeded)

@@ -311,8 +311,7 @@ class Harvester:
         radius_m = self.order_config.clear_approach_radius_m
         if radius_m > 0.0 and len(chosen) > 1:
             cfg = self.approach_config
-            boll, out = zip(*(self._boll_and_outward(t.position_m)[:2] for t in chosen))
-            boll, out = np.array(boll), np.array(out)
+            boll, out, _, _ = self._bolls_and_outwards([t.position_m for t in chosen])
             order = clear_approaches_first(order, approach_blockers(
                 order, boll, boll + (cfg.grasp_standoff_m + cfg.pregrasp_distance_m) * out,
                 boll + cfg.grasp_standoff_m * out, radius_m))
@@ -390,19 +389,20 @@ class Harvester:
         """Plan a pick of the boll at point_frame_m (the fixed frame) with the arm where it is now (update_pose)
         and at joints q_rad: its outward direction estimated (``outward``) and the stems of the targets near
         it as obstacles (``stem_obstacles``), from every target known."""
-        boll_arm, outward_arm, boll, others = self._boll_and_outward(point_frame_m)
-        return self._plan(boll_arm, outward_arm, q_rad, self._stems(boll, others))
+        boll_arm, outward_arm, boll, others = self._bolls_and_outwards([point_frame_m])
+        return self._plan(boll_arm[0], outward_arm[0], q_rad, self._stems(boll[0], others))
 
-    def _boll_and_outward(self, point_frame_m):
-        """The boll at point_frame_m and its estimated outward direction in the arm's base frame; the boll and
-        every target in base_link."""
+    def _bolls_and_outwards(self, points_frame_m):
+        """The bolls at points_frame_m (N, 3) and their estimated outward directions in the arm's base frame;
+        the bolls and every target in base_link (the targets moved into base_link once for all N)."""
         self._require_pose()
         base_T_arm = np.linalg.inv(self._arm_T_base)
         base_T_frame = base_T_arm @ self._arm_T_frame
-        boll = transform_points(base_T_frame, [point_frame_m])[0]
+        bolls = transform_points(base_T_frame, points_frame_m)
         others = transform_points(base_T_frame, [t.position_m for t in self.fusion.targets()])
-        outward = estimate_outward(boll, others, transform_points(base_T_arm, [self._shoulder_m])[0], self.config)
-        return transform_points(self._arm_T_base, [boll])[0], self._arm_T_base[:3, :3] @ outward, boll, others
+        shoulder = transform_points(base_T_arm, [self._shoulder_m])[0]
+        outwards = np.array([estimate_outward(b, others, shoulder, self.config) for b in bolls])
+        return transform_points(self._arm_T_base, bolls), outwards @ self._arm_T_base[:3, :3].T, bolls, others
 
     def _stale(self, target_id: int) -> str:
         """Why a stop's target is not picked at its turn ('' when it is): last seen more than max_target_age_s
